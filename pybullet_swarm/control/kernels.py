@@ -1,0 +1,305 @@
+"""Compiled per-tick kernels of the cascade: position loop, attitude loop + mixer + motors.
+
+These loops over agents run once per control tick (position) and once per physics tick
+(attitude); fusing them into one compiled call per tick keeps the per-drone Python work at
+zero (see ``scripts/bench.py``). Arrays follow the conventions of ``pybullet_swarm.types``:
+states (n, 13) = position m, quaternion (x, y, z, w), world velocity m/s,
+world angular velocity rad/s.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from pybullet_swarm.vehicle.dynamics import motor_update_row
+
+STATUS_OK = 0
+STATUS_FLIPPED = 1
+STATUS_NONFINITE = 2
+
+
+@numba.njit(cache=True, inline="always")
+def _quat_to_R(pose: NDArray[np.float64], i: int, R: NDArray[np.float64]) -> None:
+    x, y, z, w = pose[i, 3], pose[i, 4], pose[i, 5], pose[i, 6]
+    R[0, 0] = 1 - 2 * (y * y + z * z)
+    R[0, 1] = 2 * (x * y - z * w)
+    R[0, 2] = 2 * (x * z + y * w)
+    R[1, 0] = 2 * (x * y + z * w)
+    R[1, 1] = 1 - 2 * (x * x + z * z)
+    R[1, 2] = 2 * (y * z - x * w)
+    R[2, 0] = 2 * (x * z - y * w)
+    R[2, 1] = 2 * (y * z + x * w)
+    R[2, 2] = 1 - 2 * (x * x + y * y)
+
+
+@numba.njit(cache=True)
+def position_tick(
+    state: NDArray[np.float64],       # (n, 13) position, quaternion, velocity, angular velocity
+    p_ref: NDArray[np.float64],       # (n, 3) m
+    v_ref: NDArray[np.float64],       # (n, 3) m/s
+    a_ref: NDArray[np.float64],       # (n, 3) m/s^2
+    yaw_ref: NDArray[np.float64],     # (n,) rad
+    gains: NDArray[np.float64],       # (3, 3) rows x, y, z; cols kp, kd, ki
+    integ: NDArray[np.float64],       # (n, 3) m s, integral of the position error (in/out)
+    int_max: NDArray[np.float64],     # (3,) m/s^2, bound on |ki * integral| per axis
+    scal: NDArray[np.float64],        # (4,) period s, gravity m/s^2, tan(max tilt), max specific thrust m/s^2
+    R_des: NDArray[np.float64],       # (n, 3, 3) out: desired attitude, body -> world
+    thrust_acc: NDArray[np.float64],  # (n,) out: commanded specific thrust along body z, m/s^2
+) -> None:
+    """PID position loop with anti-windup: references and state -> desired attitude and thrust."""
+    dt, g, max_tilt_tan, max_acc = scal[0], scal[1], scal[2], scal[3]
+    R = np.empty((3, 3))
+    a = np.empty(3)
+    e = np.empty(3)
+    for i in range(state.shape[0]):
+        _quat_to_R(state, i, R)
+        for k in range(3):
+            e[k] = state[i, k] - p_ref[i, k]
+            a[k] = a_ref[i, k] - gains[k, 0] * e[k] - gains[k, 1] * (state[i, 7 + k] - v_ref[i, k]) - gains[k, 2] * integ[i, k]
+        fx, fy, fz = a[0], a[1], a[2] + g
+        sat_xy = False
+        sat_z = False
+        if fz < 0.2 * g:
+            fz = 0.2 * g
+            sat_z = True
+        h = math.sqrt(fx * fx + fy * fy)
+        hmax = fz * max_tilt_tan
+        if h > hmax:
+            fx *= hmax / h
+            fy *= hmax / h
+            sat_xy = True
+        norm = math.sqrt(fx * fx + fy * fy + fz * fz)
+        if norm > max_acc:
+            s = max_acc / norm
+            fx *= s
+            fy *= s
+            fz *= s
+            norm = max_acc
+            sat_z = True
+            sat_xy = True
+        # Conditional integration: freeze an axis whose command is saturated, then bound it.
+        for k in range(3):
+            if (k < 2 and sat_xy) or (k == 2 and sat_z):
+                continue
+            integ[i, k] += e[k] * dt
+            if gains[k, 2] > 0.0:
+                lim = int_max[k] / gains[k, 2]
+                if integ[i, k] > lim:
+                    integ[i, k] = lim
+                elif integ[i, k] < -lim:
+                    integ[i, k] = -lim
+        zx, zy, zz = fx / norm, fy / norm, fz / norm
+        cy, sy = math.cos(yaw_ref[i]), math.sin(yaw_ref[i])
+        # y_d = z_d x x_c, normalised; x_d = y_d x z_d
+        yx = zy * 0.0 - zz * sy
+        yy = zz * cy - zx * 0.0
+        yz = zx * sy - zy * cy
+        yn = math.sqrt(yx * yx + yy * yy + yz * yz)
+        yx /= yn
+        yy /= yn
+        yz /= yn
+        xx = yy * zz - yz * zy
+        xy = yz * zx - yx * zz
+        xz = yx * zy - yy * zx
+        R_des[i, 0, 0], R_des[i, 1, 0], R_des[i, 2, 0] = xx, xy, xz
+        R_des[i, 0, 1], R_des[i, 1, 1], R_des[i, 2, 1] = yx, yy, yz
+        R_des[i, 0, 2], R_des[i, 1, 2], R_des[i, 2, 2] = zx, zy, zz
+        t = fx * R[0, 2] + fy * R[1, 2] + fz * R[2, 2]
+        thrust_acc[i] = t if t > 0.0 else 0.0
+
+
+# Layout of the scalar parameters of ``physics_tick`` (one float array, to keep calls cheap).
+P_MASS, P_WMAX, P_ALPHA, P_DT, P_DRAG, P_GROUND_R, P_CLOSED_LOOP = range(7)
+
+
+@numba.njit(cache=True)
+def physics_tick(
+    state: NDArray[np.float64],        # (n, 13) position, quaternion, velocity, angular velocity (world)
+    R_des: NDArray[np.float64],        # (n, 3, 3) desired attitude, body -> world
+    thrust_acc: NDArray[np.float64],   # (n,) m/s^2, commanded specific thrust
+    yaw_rate_ref: NDArray[np.float64], # (n,) rad/s
+    integ: NDArray[np.float64],        # (n, 3) rad s, integral of the attitude error (in/out)
+    w: NDArray[np.float64],            # (n, 4) rad/s, rotor speeds (in/out)
+    w_cmd: NDArray[np.float64],        # (n, 4) rad/s, rotor speed commands (out, or in when open loop)
+    wrench: NDArray[np.float64],       # (n, 6) out: world force N (3) and torque N m (3)
+    body_rates: NDArray[np.float64],   # (n, 3) rad/s out
+    status: NDArray[np.int64],         # (n,) out: STATUS_*
+    gains: NDArray[np.float64],        # (3, 3) rows roll, pitch, yaw; cols kp [1/s^2], kd [1/s], ki [1/s^3]
+    int_max: NDArray[np.float64],      # (3,) rad/s^2, bound on |ki * integral| per axis
+    inertia: NDArray[np.float64],      # (3,) kg m^2
+    mixer: NDArray[np.float64],        # (4, 4) w^2 -> [T, tau]
+    mixer_inv: NDArray[np.float64],    # (4, 4) [T, tau] -> w^2
+    scal: NDArray[np.float64],         # (7,) see P_* above
+) -> int:
+    """Attitude loop, mixer, motor lag and rotor wrench for every agent, one physics step.
+
+    Returns the worst status over agents (0 when every agent is upright and finite).
+    """
+    mass = scal[P_MASS]
+    w_max = scal[P_WMAX]
+    alpha = scal[P_ALPHA]
+    dt = scal[P_DT]
+    drag = scal[P_DRAG]
+    ground_radius = scal[P_GROUND_R]
+    closed_loop = scal[P_CLOSED_LOOP] > 0.5
+    wmax2 = w_max * w_max
+    jx, jy, jz = inertia[0], inertia[1], inertia[2]
+    worst = 0
+    R = np.empty((3, 3))
+    for i in range(state.shape[0]):
+        bad = False
+        for k in range(13):
+            if not math.isfinite(state[i, k]):
+                bad = True
+        for k in range(3):
+            if abs(state[i, k]) > 1e4:
+                bad = True
+        if bad:
+            status[i] = STATUS_NONFINITE
+            worst = STATUS_NONFINITE
+            for k in range(6):
+                wrench[i, k] = 0.0
+            continue
+        x, y, z, qw = state[i, 3], state[i, 4], state[i, 5], state[i, 6]
+        R[0, 0] = 1 - 2 * (y * y + z * z)
+        R[0, 1] = 2 * (x * y - z * qw)
+        R[0, 2] = 2 * (x * z + y * qw)
+        R[1, 0] = 2 * (x * y + z * qw)
+        R[1, 1] = 1 - 2 * (x * x + z * z)
+        R[1, 2] = 2 * (y * z - x * qw)
+        R[2, 0] = 2 * (x * z - y * qw)
+        R[2, 1] = 2 * (y * z + x * qw)
+        R[2, 2] = 1 - 2 * (x * x + y * y)
+        if R[2, 2] < 0.0:
+            status[i] = STATUS_FLIPPED
+            if worst < STATUS_FLIPPED:
+                worst = STATUS_FLIPPED
+        else:
+            status[i] = STATUS_OK
+        wx, wy, wz = state[i, 10], state[i, 11], state[i, 12]
+        p = R[0, 0] * wx + R[1, 0] * wy + R[2, 0] * wz
+        q = R[0, 1] * wx + R[1, 1] * wy + R[2, 1] * wz
+        r = R[0, 2] * wx + R[1, 2] * wy + R[2, 2] * wz
+        body_rates[i, 0] = p
+        body_rates[i, 1] = q
+        body_rates[i, 2] = r
+        if closed_loop:
+            # Attitude error e_R = 1/2 vee(R_d^T R - R^T R_d), from M = R_d^T R.
+            m01 = R_des[i, 0, 0] * R[0, 1] + R_des[i, 1, 0] * R[1, 1] + R_des[i, 2, 0] * R[2, 1]
+            m02 = R_des[i, 0, 0] * R[0, 2] + R_des[i, 1, 0] * R[1, 2] + R_des[i, 2, 0] * R[2, 2]
+            m10 = R_des[i, 0, 1] * R[0, 0] + R_des[i, 1, 1] * R[1, 0] + R_des[i, 2, 1] * R[2, 0]
+            m12 = R_des[i, 0, 1] * R[0, 2] + R_des[i, 1, 1] * R[1, 2] + R_des[i, 2, 1] * R[2, 2]
+            m20 = R_des[i, 0, 2] * R[0, 0] + R_des[i, 1, 2] * R[1, 0] + R_des[i, 2, 2] * R[2, 0]
+            m21 = R_des[i, 0, 2] * R[0, 1] + R_des[i, 1, 2] * R[1, 1] + R_des[i, 2, 2] * R[2, 1]
+            e0 = 0.5 * (m21 - m12)
+            e1 = 0.5 * (m02 - m20)
+            e2 = 0.5 * (m10 - m01)
+            a0 = -gains[0, 0] * e0 - gains[0, 1] * p - gains[0, 2] * integ[i, 0]
+            a1 = -gains[1, 0] * e1 - gains[1, 1] * q - gains[1, 2] * integ[i, 1]
+            a2 = -gains[2, 0] * e2 - gains[2, 1] * (r - yaw_rate_ref[i]) - gains[2, 2] * integ[i, 2]
+            integ[i, 0] += e0 * dt
+            integ[i, 1] += e1 * dt
+            integ[i, 2] += e2 * dt
+            for k in range(3):
+                if gains[k, 2] > 0.0:
+                    lim = int_max[k] / gains[k, 2]
+                    if integ[i, k] > lim:
+                        integ[i, k] = lim
+                    elif integ[i, k] < -lim:
+                        integ[i, k] = -lim
+            u0 = mass * thrust_acc[i]
+            u1 = jx * a0 + (jz - jy) * q * r
+            u2 = jy * a1 + (jx - jz) * r * p
+            u3 = jz * a2 + (jy - jx) * p * q
+            # Thrust, roll and pitch first; yaw gets the authority that is left (scale s in [0, 1]).
+            s = 1.0
+            for k in range(4):
+                base = mixer_inv[k, 0] * u0 + mixer_inv[k, 1] * u1 + mixer_inv[k, 2] * u2
+                yawp = mixer_inv[k, 3] * u3
+                if yawp > 0.0 and base + yawp > wmax2:
+                    s = min(s, max((wmax2 - base) / yawp, 0.0))
+                elif yawp < 0.0 and base + yawp < 0.0:
+                    s = min(s, max(-base / yawp, 0.0))
+            for k in range(4):
+                v = mixer_inv[k, 0] * u0 + mixer_inv[k, 1] * u1 + mixer_inv[k, 2] * u2 + s * mixer_inv[k, 3] * u3
+                if v < 0.0:
+                    v = 0.0
+                elif v > wmax2:
+                    v = wmax2
+                w_cmd[i, k] = math.sqrt(v)
+        motor_update_row(w, i, w_cmd[i], alpha, w_max)
+        thrust = 0.0
+        tx = 0.0
+        ty = 0.0
+        tz = 0.0
+        for k in range(4):
+            w2 = w[i, k] * w[i, k]
+            thrust += mixer[0, k] * w2
+            tx += mixer[1, k] * w2
+            ty += mixer[2, k] * w2
+            tz += mixer[3, k] * w2
+        if ground_radius > 0.0:
+            h = state[i, 2]
+            if h < 1e-3:
+                h = 1e-3
+            ratio = ground_radius / (4.0 * h)
+            den = 1.0 - ratio * ratio
+            if den < 0.5:
+                den = 0.5
+            thrust /= den
+        for k in range(3):
+            wrench[i, k] = R[k, 2] * thrust - drag * state[i, 7 + k]
+            wrench[i, 3 + k] = R[k, 0] * tx + R[k, 1] * ty + R[k, 2] * tz
+    return worst
+
+
+@numba.njit(cache=True)
+def shape_references(
+    target: NDArray[np.float64],     # (n, 3) m target position, or m/s target velocity
+    velocity_mode: NDArray[np.bool_],  # (n,) True: target is a velocity
+    p_ref: NDArray[np.float64],      # (n, 3) m (in/out)
+    v_ref: NDArray[np.float64],      # (n, 3) m/s (in/out)
+    a_ref: NDArray[np.float64],      # (n, 3) m/s^2 (out)
+    v_max: NDArray[np.float64],      # (3,) m/s per axis
+    a_max: NDArray[np.float64],      # (3,) m/s^2 per axis
+    dt: float,
+) -> None:
+    """Move references towards targets within per-axis velocity and acceleration limits.
+
+    Position targets follow a braking curve v = sqrt(2 a_max |e|) capped at v_max, so each axis
+    arrives without overshoot; velocity targets are clipped to v_max. The reference velocity
+    changes by at most a_max dt per tick.
+    """
+    for i in range(p_ref.shape[0]):
+        for k in range(3):
+            vm = v_max[k]
+            am = a_max[k]
+            if velocity_mode[i]:
+                vd = target[i, k]
+                if vd > vm:
+                    vd = vm
+                elif vd < -vm:
+                    vd = -vm
+            else:
+                e = target[i, k] - p_ref[i, k]
+                ae = abs(e)
+                mag = math.sqrt(2.0 * am * ae)
+                if mag > vm:
+                    mag = vm
+                if mag > ae / dt:
+                    mag = ae / dt
+                vd = mag if e >= 0.0 else -mag
+            dv = vd - v_ref[i, k]
+            lim = am * dt
+            if dv > lim:
+                dv = lim
+            elif dv < -lim:
+                dv = -lim
+            v_old = v_ref[i, k]
+            v_new = v_old + dv
+            v_ref[i, k] = v_new
+            a_ref[i, k] = dv / dt
+            p_ref[i, k] += 0.5 * (v_old + v_new) * dt

@@ -1,0 +1,65 @@
+"""Scripted runs: load a scenario, simulate it, optionally write a run directory."""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+from pybullet_swarm.experiment.rundir import write_events, write_json, write_yaml
+from pybullet_swarm.experiment.scenario import Scenario, load_scenario
+from pybullet_swarm.experiment.simulation import RunResult, Simulation
+
+
+def run(
+    scenario: Scenario | str | Path,
+    *,
+    planner: str | None = None,
+    avoidance: str | None = None,
+    seed: int | None = None,
+    out: str | Path | None = None,
+    overrides: Mapping[str, Any] | Sequence[str] = (),
+    gui: bool = False,
+    plots: bool = True,
+) -> RunResult:
+    """Run a scenario to its end and return the result.
+
+    Args:
+        scenario: a ``Scenario``, a YAML path or a bundled scenario name.
+        planner: planner name (default: the scenario's).
+        avoidance: avoidance layer (default: the scenario's).
+        seed: seed of the run (default: the scenario's ``seed``).
+        out: write the run directory here (nothing is written when None).
+        overrides: ``key.path=value`` overrides applied to the scenario.
+        gui: watch in the Bullet GUI.
+        plots: draw the figures into ``out/plots`` (only with ``out``).
+
+    Returns:
+        The exit status, metrics, events and time series.
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario, overrides)
+    elif overrides:
+        scenario = scenario.with_overrides(overrides)
+    with Simulation(scenario, seed=seed, planner=planner, avoidance=avoidance, gui=gui) as sim:
+        result = sim.run()
+    if out is not None:
+        result = dataclasses.replace(result, run_dir=write_run(result, Path(out), plots=plots))
+    return result
+
+
+def write_run(result: RunResult, out: Path, *, plots: bool = True) -> Path:
+    """Write ``scenario.yaml``, ``metrics.json``, ``timeseries.npz``, ``events.csv`` and ``plots/``."""
+    from pybullet_swarm.experiment.rundir import atomic_write
+
+    out.mkdir(parents=True, exist_ok=True)
+    data = dict(result.scenario.data)
+    data["seed"] = result.metrics.get("seed", data.get("seed"))
+    write_yaml(out / "scenario.yaml", data)
+    atomic_write(out / "timeseries.npz", result.timeseries.save_to, binary=True)
+    write_events(out / "events.csv", result.events)
+    if plots:
+        from pybullet_swarm.plotting.run_plots import plot_run
+
+        plot_run(result.timeseries, out / "plots", result.metrics)
+    write_json(out / "metrics.json", result.metrics)   # last: its presence marks a finished run
+    return out

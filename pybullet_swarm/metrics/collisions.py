@@ -1,0 +1,80 @@
+"""Collision counting from Bullet contacts: classified onset events and time in contact."""
+from __future__ import annotations
+
+import enum
+from typing import Callable
+
+import numpy as np
+
+
+class CollisionClass(str, enum.Enum):
+    """Classes of agent contacts."""
+
+    AGENT_AGENT = "agent_agent"
+    AGENT_BOX = "agent_box"
+    AGENT_STRUCTURE = "agent_structure"
+    AGENT_GROUND = "agent_ground"
+    AGENT_OBSTACLE = "agent_obstacle"
+
+
+COLLISION_CLASSES: tuple[str, ...] = tuple(c.value for c in CollisionClass)
+
+
+class ContactTracker:
+    """Turns per-step sets of touching body pairs into collision events and contact time.
+
+    An event is the onset of contact of a pair that was apart for at least ``debounce_s``.
+    Pairs are classified by ``classify(a, b) -> CollisionClass | None`` (None: not counted,
+    e.g. an agent and the box it carries, or an agent resting on the ground before take-off).
+
+    Args:
+        classify: pair classifier; called once per newly touching pair.
+        dt: physics period, s.
+        debounce_s: minimum separation time before a new onset counts, s.
+    """
+
+    def __init__(self, classify: Callable[[int, int], CollisionClass | None], dt: float, debounce_s: float = 0.1) -> None:
+        self.classify = classify
+        self.dt = float(dt)
+        self.debounce_s = float(debounce_s)
+        self.counts = {c: 0 for c in COLLISION_CLASSES}
+        self.time_s = {c: 0.0 for c in COLLISION_CLASSES}
+        self._active: dict[tuple[int, int], CollisionClass | None] = {}
+        self._last_seen: dict[tuple[int, int], float] = {}
+        self._prev: frozenset[tuple[int, int]] | set[tuple[int, int]] = frozenset()
+
+    def update(self, pairs: set[tuple[int, int]], t: float) -> list[tuple[CollisionClass, int, int]]:
+        """Account for the pairs touching at time ``t`` s; returns new events (class, a, b)."""
+        events: list[tuple[CollisionClass, int, int]] = []
+        if pairs != self._prev:
+            for pair in pairs - self._prev:
+                cls = self.classify(*pair)
+                self._active[pair] = cls
+                if cls is None:
+                    continue
+                last = self._last_seen.get(pair)
+                if last is None or t - last >= self.debounce_s - 1e-12:
+                    self.counts[cls.value] += 1
+                    events.append((cls, pair[0], pair[1]))
+            for pair in self._prev - pairs:
+                self._active.pop(pair, None)
+            self._prev = pairs
+        for pair, cls in self._active.items():
+            self._last_seen[pair] = t
+            if cls is not None:
+                self.time_s[cls.value] += self.dt
+        return events
+
+    def reclassify(self, pair: tuple[int, int]) -> None:
+        """Classify an active pair again (its bodies changed role, e.g. a box was released)."""
+        if pair in self._active:
+            self._active[pair] = self.classify(*pair)
+
+
+def proximity_episodes(distances: np.ndarray, threshold: float, dt: float) -> tuple[int, float]:
+    """Episodes and total time (s) with a distance below ``threshold`` in a (m,) series sampled every ``dt`` s."""
+    below = np.asarray(distances) < threshold
+    if below.size == 0:
+        return 0, 0.0
+    onsets = int(below[0]) + int(np.count_nonzero(below[1:] & ~below[:-1]))
+    return onsets, float(np.count_nonzero(below) * dt)

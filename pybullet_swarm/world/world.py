@@ -1,0 +1,322 @@
+"""PyBullet world: connection, bodies, wrenches, state reads, contacts, ray casts, rendering.
+
+This module is the only importer of ``pybullet``. Callers hold integer handles (agent indices,
+body handles) and numpy arrays; the client id never leaves this class.
+"""
+from __future__ import annotations
+
+import contextlib
+import enum
+import itertools
+import os
+import sys
+from pathlib import Path
+from typing import Any, Iterator, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+@contextlib.contextmanager
+def _quiet_stdout(stream: Any = None) -> Iterator[None]:
+    """Silence what Bullet's C code prints on a stream of the process (default stdout), e.g.
+    'processing base_link' or its build-time banner."""
+    stream = sys.stdout if stream is None else stream
+    try:
+        fd = stream.fileno()
+    except (AttributeError, OSError, ValueError):
+        yield
+        return
+    stream.flush()
+    saved = os.dup(fd)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), fd)
+        yield
+    finally:
+        os.dup2(saved, fd)
+        os.close(saved)
+
+
+with _quiet_stdout(), _quiet_stdout(sys.stderr):
+    import pybullet as pb
+
+
+
+class BodyKind(str, enum.Enum):
+    """What a Bullet body is, for classifying contacts."""
+
+    GROUND = "ground"
+    AGENT = "agent"
+    BOX = "box"
+    OBSTACLE = "obstacle"
+    WALL = "wall"
+
+
+class World:
+    """A private PyBullet client holding the ground, the agents and any task bodies.
+
+    Args:
+        physics_hz: physics rate, Hz (the Bullet time step is its inverse).
+        gravity: magnitude of gravity, m/s^2 (acting along -z).
+        gui: open the Bullet GUI instead of the headless DIRECT mode.
+    """
+
+    def __init__(self, *, physics_hz: float = 240.0, gravity: float = 9.81, gui: bool = False) -> None:
+        self.physics_hz = float(physics_hz)
+        self.gui = gui
+        self._cid = pb.connect(pb.GUI if gui else pb.DIRECT)
+        if self._cid < 0:
+            raise RuntimeError("could not connect to a PyBullet physics server")
+        cid = self._cid
+        pb.setGravity(0.0, 0.0, -float(gravity), physicsClientId=cid)
+        pb.setTimeStep(1.0 / self.physics_hz, physicsClientId=cid)
+        pb.setPhysicsEngineParameter(numSubSteps=0, deterministicOverlappingPairs=1, physicsClientId=cid)
+        if gui:
+            pb.configureDebugVisualizer(pb.COV_ENABLE_GUI, 0, physicsClientId=cid)
+        self._agents: list[int] = []
+        self._kind: dict[int, BodyKind] = {}
+        self._names: dict[int, str] = {}
+        self.ground: int | None = None
+        # Bound C functions, to keep the per-step Python work small.
+        self._get_pose = pb.getBasePositionAndOrientation
+        self._get_vel = pb.getBaseVelocity
+        self._apply_force = pb.applyExternalForce
+        self._apply_torque = pb.applyExternalTorque
+        self._step = pb.stepSimulation
+        self._contacts = pb.getContactPoints
+        self._poses: list[Any] = []
+
+    # ------------------------------------------------------------------ bodies
+    def add_ground(self) -> int:
+        """Add an infinite ground plane at z = 0; returns its body handle."""
+        shape = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=self._cid)
+        visual = -1
+        if self.gui:
+            visual = pb.createVisualShape(pb.GEOM_PLANE, rgbaColor=[0.85, 0.85, 0.85, 1], physicsClientId=self._cid)
+        body = pb.createMultiBody(0.0, shape, visual, physicsClientId=self._cid)
+        pb.changeDynamics(body, -1, lateralFriction=0.8, physicsClientId=self._cid)
+        self.ground = body
+        self._register(body, BodyKind.GROUND, "ground")
+        return body
+
+    def add_box(
+        self,
+        center: Sequence[float],
+        size: Sequence[float],
+        *,
+        mass: float = 0.0,
+        kind: BodyKind = BodyKind.OBSTACLE,
+        name: str = "",
+        yaw: float = 0.0,
+        color: Sequence[float] = (0.6, 0.6, 0.6, 1.0),
+        friction: float = 0.8,
+    ) -> int:
+        """Add a box (static when mass is 0); returns its body handle."""
+        half = [0.5 * float(s) for s in size]
+        cid = self._cid
+        shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=cid)
+        visual = pb.createVisualShape(pb.GEOM_BOX, halfExtents=half, rgbaColor=list(color), physicsClientId=cid)
+        orn = pb.getQuaternionFromEuler([0.0, 0.0, yaw])
+        body = pb.createMultiBody(float(mass), shape, visual, basePosition=list(map(float, center)),
+                                  baseOrientation=orn, physicsClientId=cid)
+        pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=cid)
+        self._register(body, kind, name or f"{kind.value}{body}")
+        return body
+
+    def add_cylinder(self, center: Sequence[float], radius: float, height: float, *, name: str = "",
+                     kind: BodyKind = BodyKind.OBSTACLE, color: Sequence[float] = (0.5, 0.5, 0.5, 1.0)) -> int:
+        """Add a static vertical cylinder (a pillar); returns its body handle."""
+        cid = self._cid
+        shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=float(radius), height=float(height), physicsClientId=cid)
+        visual = pb.createVisualShape(pb.GEOM_CYLINDER, radius=float(radius), length=float(height),
+                                      rgbaColor=list(color), physicsClientId=cid)
+        body = pb.createMultiBody(0.0, shape, visual, basePosition=list(map(float, center)), physicsClientId=cid)
+        self._register(body, kind, name or f"{kind.value}{body}")
+        return body
+
+    def add_walls(self, size_xy: Sequence[float], height: float, thickness: float = 0.02) -> list[int]:
+        """Add four static walls around the arena [0, Lx] x [0, Ly]; returns their handles."""
+        lx, ly = float(size_xy[0]), float(size_xy[1])
+        t, h = thickness, float(height)
+        specs = [
+            ((lx / 2, -t / 2, h / 2), (lx + 2 * t, t, h)),
+            ((lx / 2, ly + t / 2, h / 2), (lx + 2 * t, t, h)),
+            ((-t / 2, ly / 2, h / 2), (t, ly, h)),
+            ((lx + t / 2, ly / 2, h / 2), (t, ly, h)),
+        ]
+        return [self.add_box(c, s, kind=BodyKind.WALL, name=f"wall{i}", color=(0.7, 0.7, 0.75, 0.4))
+                for i, (c, s) in enumerate(specs)]
+
+    def add_agents(
+        self,
+        urdf: Path,
+        positions: NDArray[np.float64],
+        *,
+        mass: float,
+        inertia: Sequence[float],
+        yaws: NDArray[np.float64] | None = None,
+    ) -> None:
+        """Load one URDF per agent at ``positions`` (n, 3) m; mass and inertia override the file's.
+
+        Each agent is one rigid body (fixed links merged), with no velocity damping so that the
+        only forces are gravity, the rotor wrench and contacts.
+        """
+        cid = self._cid
+        n = positions.shape[0]
+        yaws = np.zeros(n) if yaws is None else yaws
+        flags = pb.URDF_MERGE_FIXED_LINKS | pb.URDF_USE_INERTIA_FROM_FILE
+        for i in range(n):
+            orn = pb.getQuaternionFromEuler([0.0, 0.0, float(yaws[i])])
+            with _quiet_stdout():
+                body = pb.loadURDF(str(urdf), basePosition=positions[i].tolist(), baseOrientation=orn,
+                                   flags=flags, physicsClientId=cid)
+            pb.changeDynamics(body, -1, mass=float(mass), localInertiaDiagonal=[float(v) for v in inertia],
+                              linearDamping=0.0, angularDamping=0.0, lateralFriction=0.6, physicsClientId=cid)
+            self._agents.append(body)
+            self._register(body, BodyKind.AGENT, f"agent{i}")
+        self._poses = [self._get_pose(b, cid)[0] for b in self._agents]
+
+    def set_agent_collisions(self, enabled: bool) -> None:
+        """Enable or disable contact response between agents (ghost mode passes them through)."""
+        cid = self._cid
+        for a, b in itertools.combinations(self._agents, 2):
+            pb.setCollisionFilterPair(a, b, -1, -1, int(enabled), physicsClientId=cid)
+
+    def _register(self, body: int, kind: BodyKind, name: str) -> None:
+        self._kind[body] = kind
+        self._names[body] = name
+
+    def body_kind(self, body: int) -> BodyKind:
+        """Kind of a body handle."""
+        return self._kind[body]
+
+    def body_name(self, body: int) -> str:
+        """Name of a body handle."""
+        return self._names[body]
+
+    @property
+    def agent_bodies(self) -> tuple[int, ...]:
+        """Body handles of the agents, in agent order."""
+        return tuple(self._agents)
+
+    @property
+    def n_agents(self) -> int:
+        """Number of agents."""
+        return len(self._agents)
+
+    # ------------------------------------------------------------------- state
+    def read_agent_states(self, out: NDArray[np.float64]) -> None:
+        """Read every agent's state into ``out`` (n, 13): position m, quaternion (x, y, z, w),
+        linear velocity m/s and angular velocity rad/s, both in the world frame."""
+        cid = self._cid
+        gp, gv = self._get_pose, self._get_vel
+        poses = []
+        rows = []
+        for b in self._agents:
+            pose = gp(b, cid)
+            vel = gv(b, cid)
+            poses.append(pose[0])
+            rows.append(pose[0] + pose[1] + vel[0] + vel[1])
+        self._poses = poses
+        out[:] = rows
+
+    def apply_agent_wrenches(self, wrench: NDArray[np.float64]) -> None:
+        """Apply one world-frame force at the centre of mass and one torque per agent.
+
+        ``wrench`` (n, 6) holds force N (3) and torque N m (3); it acts during the next physics
+        step only. Points of application come from the last ``read_agent_states``.
+        """
+        cid = self._cid
+        af, at = self._apply_force, self._apply_torque
+        wf = pb.WORLD_FRAME
+        for b, w, pos in zip(self._agents, wrench.tolist(), self._poses):
+            af(b, -1, w[:3], pos, wf, cid)
+            at(b, -1, w[3:], wf, cid)
+
+    def step(self) -> None:
+        """Advance the physics by one time step."""
+        self._step(self._cid)
+
+    def contact_pairs(self) -> set[tuple[int, int]]:
+        """Body pairs (a < b) in contact now, from one Bullet query."""
+        pts = self._contacts(physicsClientId=self._cid)
+        if not pts:
+            return set()
+        return {(p[1], p[2]) if p[1] < p[2] else (p[2], p[1]) for p in pts}
+
+    def reset_agent(self, index: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1),
+                    velocity: Sequence[float] = (0, 0, 0), angular_velocity: Sequence[float] = (0, 0, 0)) -> None:
+        """Teleport an agent to a state (for tests and environment resets)."""
+        b = self._agents[index]
+        pb.resetBasePositionAndOrientation(b, list(position), list(quaternion), physicsClientId=self._cid)
+        pb.resetBaseVelocity(b, list(velocity), list(angular_velocity), physicsClientId=self._cid)
+
+    def body_pose(self, body: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Position (3,) m and quaternion (4,) of any body."""
+        pos, orn = pb.getBasePositionAndOrientation(body, physicsClientId=self._cid)
+        return np.asarray(pos), np.asarray(orn)
+
+    def body_velocity(self, body: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Linear (3,) m/s and angular (3,) rad/s velocity of any body, world frame."""
+        v, w = pb.getBaseVelocity(body, physicsClientId=self._cid)
+        return np.asarray(v), np.asarray(w)
+
+    def body_mass(self, body: int) -> float:
+        """Mass of a body as Bullet holds it, kg."""
+        return float(pb.getDynamicsInfo(body, -1, physicsClientId=self._cid)[0])
+
+    def set_body_mass(self, body: int, mass: float) -> None:
+        """Change a body's mass, kg (for payload experiments)."""
+        pb.changeDynamics(body, -1, mass=float(mass), physicsClientId=self._cid)
+
+    # ------------------------------------------------------------ constraints
+    def attach(self, parent: int, child: int, offset: Sequence[float]) -> int:
+        """Hold ``child`` rigidly at ``offset`` (m, parent frame) below ``parent``; returns a handle."""
+        return pb.createConstraint(parent, -1, child, -1, pb.JOINT_FIXED, [0, 0, 0], list(map(float, offset)),
+                                   [0, 0, 0], physicsClientId=self._cid)
+
+    def detach(self, constraint: int) -> None:
+        """Remove a constraint made by ``attach``."""
+        pb.removeConstraint(constraint, physicsClientId=self._cid)
+
+    # --------------------------------------------------------------- sensing
+    def ray_cast(self, starts: NDArray[np.float64], ends: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """Cast rays in one batched call; returns hit body handles (m,) (-1 for none) and hit fractions (m,)."""
+        out = pb.rayTestBatch(starts.tolist(), ends.tolist(), physicsClientId=self._cid)
+        hits = np.fromiter((r[0] for r in out), dtype=np.int64, count=len(out))
+        frac = np.fromiter((r[2] for r in out), dtype=float, count=len(out))
+        return hits, frac
+
+    # ------------------------------------------------------------- rendering
+    def render(self, width: int, height: int, *, target: Sequence[float], distance: float, yaw: float,
+               pitch: float) -> NDArray[np.uint8]:
+        """Render an RGB frame (height, width, 3) with the tiny software renderer (works in DIRECT)."""
+        cid = self._cid
+        view = pb.computeViewMatrixFromYawPitchRoll(list(target), distance, yaw, pitch, 0.0, 2, physicsClientId=cid)
+        proj = pb.computeProjectionMatrixFOV(50.0, width / height, 0.05, 50.0, physicsClientId=cid)
+        img = pb.getCameraImage(width, height, view, proj, renderer=pb.ER_TINY_RENDERER, shadow=0,
+                                flags=pb.ER_NO_SEGMENTATION_MASK, physicsClientId=cid)
+        rgba = np.reshape(np.asarray(img[2], dtype=np.uint8), (height, width, 4))
+        return rgba[:, :, :3]
+
+    def close(self) -> None:
+        """Disconnect the client (idempotent)."""
+        if self._cid >= 0:
+            try:
+                pb.disconnect(physicsClientId=self._cid)
+            except pb.error:
+                pass
+            self._cid = -1
+
+    def __enter__(self) -> World:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:  # pragma: no cover - best effort
+        try:
+            self.close()
+        except Exception:
+            pass
