@@ -19,6 +19,8 @@ from pybullet_swarm.vehicle.dynamics import motor_update_row
 STATUS_OK = 0
 STATUS_FLIPPED = 1
 STATUS_NONFINITE = 2
+#: m/s; faster than this, a state counts as diverged (Bullet itself clamps at 100 m/s).
+MAX_SPEED = 50.0
 
 
 @numba.njit(cache=True, inline="always")
@@ -157,6 +159,8 @@ def physics_tick(
         for k in range(3):
             if abs(state[i, k]) > 1e4:
                 bad = True
+        if state[i, 7] ** 2 + state[i, 8] ** 2 + state[i, 9] ** 2 > MAX_SPEED**2:
+            bad = True
         if bad:
             status[i] = STATUS_NONFINITE
             worst = STATUS_NONFINITE

@@ -119,6 +119,7 @@ class Simulation:
         self.exit_status = ExitStatus.RUNNING
         self.crashed_agent: int | None = None
         self.open_loop = False
+        self._external = False
         self._wall_time = 0.0
 
     def _classify(self, a: int, b: int) -> CollisionClass | None:
@@ -131,7 +132,7 @@ class Simulation:
             return CollisionClass.AGENT_AGENT
         if kb is BodyKind.GROUND:
             i = self.agent_index[a]
-            airborne = max(self.max_height[i], self.state_array[i, 2]) > self.starts[i, 2] + 0.05
+            airborne = max(self.max_height[i], self.state_array[i, 2]) > self.rest_height + 0.05
             return CollisionClass.AGENT_GROUND if airborne else None
         if kb is BodyKind.BOX:
             return CollisionClass.AGENT_BOX
@@ -164,13 +165,33 @@ class Simulation:
         if motor_state:
             self.controller.rotor_speeds[:] = rotor_speeds
 
+    def set_targets(self, positions: NDArray[np.float64] | None, yaw: NDArray[np.float64] | None = None,
+                    *, velocities: bool = False) -> None:
+        """Command the agents from outside: positions (n, 3) m (or velocities m/s with ``velocities``).
+
+        From then on the task's own set-points are ignored (the task still judges completion);
+        ``None`` hands control back to the task.
+        """
+        if positions is None:
+            self._external = False
+            return
+        self._external = True
+        arr = np.asarray(positions, dtype=float).reshape(self.n, 3)
+        if velocities:
+            self.shaper.set_velocity_targets(arr)
+        else:
+            self.shaper.set_position_targets(arr)
+        if yaw is not None:
+            self.shaper.yaw[:] = yaw
+
     # ------------------------------------------------------------------- loop
     def _planner_tick(self) -> None:
         t = self.time
-        if self.task is not None:
+        if self.task is not None and not self._external:
             targets, yaws = self.task.targets(t)
             self.shaper.set_position_targets(targets)
             self.shaper.yaw[:] = yaws
+        if self.task is not None:
             if self.task.update(t, self.state_array[:, :3]):
                 self._finish(ExitStatus.COMPLETED)
                 return

@@ -542,50 +542,69 @@ def _reverse(tour, pos, i, j):  # pragma: no cover - numba
 
 @numba.njit(cache=True)
 def _two_opt(dist, tour, nn, eps):  # pragma: no cover - numba
-    """First-improvement 2-opt from neighbour lists with don't-look bits (in place)."""
+    """First-improvement 2-opt from neighbour lists with don't-look bits (in place).
+
+    Don't-look bits can leave an improving move behind, so the sweeps restart with every bit
+    clear until one full sweep finds nothing: the result is a 2-opt local optimum with respect
+    to the neighbour lists.
+    """
     n = tour.shape[0]
     pos = np.empty(n, dtype=np.int64)
     for k in range(n):
         pos[tour[k]] = k
     dont_look = np.zeros(n, dtype=np.bool_)
+    while _two_opt_sweeps(dist, tour, pos, nn, dont_look, eps):
+        dont_look[:] = False
+
+
+@numba.njit(cache=True)
+def _two_opt_sweeps(dist, tour, pos, nn, dont_look, eps):  # pragma: no cover - numba
+    """Sweep the cities whose don't-look bit is clear until none improves; True if any move."""
+    n = tour.shape[0]
+    any_move = False
     improved = True
     while improved:
         improved = False
         for c1 in range(n):
             if dont_look[c1]:
                 continue
-            moved = False
-            for direction in range(2):  # 0: c1's successor edge, 1: its predecessor edge
-                p1 = pos[c1]
-                c1_next = tour[(p1 + 1) % n] if direction == 0 else tour[(p1 - 1) % n]
-                radius = dist[c1, c1_next]
-                for h in range(nn.shape[1]):
-                    c2 = nn[c1, h]
-                    d12 = dist[c1, c2]
-                    if d12 >= radius:
-                        break  # gain needs a shorter new edge at c1
-                    p2 = pos[c2]
-                    c2_next = tour[(p2 + 1) % n] if direction == 0 else tour[(p2 - 1) % n]
-                    if c2_next == c1 or c2 == c1_next:
-                        continue
-                    gain = radius + dist[c2, c2_next] - d12 - dist[c1_next, c2_next]
-                    if gain > eps:
-                        # new edges (c1, c2), (c1_next, c2_next): reverse c1_next..c2
-                        if direction == 0:
-                            _reverse(tour, pos, (p1 + 1) % n, p2)
-                        else:
-                            _reverse(tour, pos, p2, (p1 - 1) % n)
-                        dont_look[c1_next] = False
-                        dont_look[c2] = False
-                        dont_look[c2_next] = False
-                        moved = True
-                        break
-                if moved:
-                    break
-            if moved:
+            if _improve_city(dist, tour, pos, nn, dont_look, c1, eps):
                 improved = True
+                any_move = True
             else:
                 dont_look[c1] = True
+    return any_move
+
+
+@numba.njit(cache=True)
+def _improve_city(dist, tour, pos, nn, dont_look, c1, eps):  # pragma: no cover - numba
+    """Apply the first improving 2-opt move that adds an edge (c1, near neighbour); True if any."""
+    n = tour.shape[0]
+    for direction in range(2):  # 0: replace c1's successor edge, 1: its predecessor edge
+        p1 = pos[c1]
+        c1_next = tour[(p1 + 1) % n] if direction == 0 else tour[(p1 - 1) % n]
+        radius = dist[c1, c1_next]
+        for h in range(nn.shape[1]):
+            c2 = nn[c1, h]
+            d12 = dist[c1, c2]
+            if d12 >= radius:
+                break  # an improving move has a new edge shorter than a removed one
+            p2 = pos[c2]
+            c2_next = tour[(p2 + 1) % n] if direction == 0 else tour[(p2 - 1) % n]
+            if c2_next == c1 or c2 == c1_next:
+                continue
+            gain = radius + dist[c2, c2_next] - d12 - dist[c1_next, c2_next]
+            if gain > eps:
+                # new edges (c1, c2) and (c1_next, c2_next): reverse the path c1_next .. c2
+                if direction == 0:
+                    _reverse(tour, pos, (p1 + 1) % n, p2)
+                else:
+                    _reverse(tour, pos, p2, (p1 - 1) % n)
+                dont_look[c1_next] = False
+                dont_look[c2] = False
+                dont_look[c2_next] = False
+                return True
+    return False
 
 
 @numba.njit(cache=True)
