@@ -128,7 +128,11 @@ def _cmd_design(args: argparse.Namespace) -> int:
     from pybullet_swarm.control.design import design_controller, format_table
     from pybullet_swarm.vehicle import load_vehicle
 
-    params = load_vehicle(args.vehicle)
+    try:
+        params = load_vehicle(args.vehicle)
+    except OSError as exc:  # e.g. a name too long for the file system
+        raise ConfigError(f"must be a bundled vehicle name or a vehicle .yaml file ({exc.strerror})",
+                          source="--vehicle") from None
     if args.physics_hz <= 0 or args.control_hz <= 0:
         raise ConfigError("rates must be > 0", source="--physics-hz/--control-hz")
     try:

@@ -159,6 +159,7 @@ def solve_runs(instance: TSPInstance, params: ACOParams, *, runs: int, seed: int
                progress: bool = False) -> RunSummary:
     """Run ``runs`` independent colonies, run i seeded with ``seed + i``."""
     dist = instance.distance_matrix()
+    solve_tsp(dist, dataclasses.replace(params, iterations=1), seed=seed)  # JIT load, untimed
     lengths: list[float] = []
     times: list[float] = []
     best_tour: tuple[int, ...] = ()

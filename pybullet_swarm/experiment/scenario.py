@@ -12,13 +12,12 @@ from typing import Annotated, Any, Literal, Mapping, Sequence, Union
 
 import numpy as np
 import pydantic
-import yaml
 from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.resources import bundled_scenarios, scenarios_dir
-from pybullet_swarm.validation import read_yaml, validate
+from pybullet_swarm.validation import _short, check_plain, parse_yaml, read_yaml, validate
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 PosVec3 = Annotated[list[Annotated[float, Field(gt=0)]], Field(min_length=3, max_length=3)]
@@ -26,7 +25,8 @@ PosFloat = Annotated[float, Field(gt=0, le=1e6)]
 
 
 class _Strict(pydantic.BaseModel):
-    model_config = pydantic.ConfigDict(extra="forbid", strict=True, frozen=True)
+    # allow_inf_nan=False: .nan/.inf pass no bound check, e.g. a waypoint at [.nan, 0, 1]
+    model_config = pydantic.ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
 
 
 class SimSection(_Strict):
@@ -187,8 +187,8 @@ def parse_override(text: str, *, source: str = "--set") -> tuple[str, Any]:
     if not key or any(not part for part in key.split(".")):
         raise ConfigError(f"expected key.path=value, got {text!r}", source=source)
     try:
-        value = yaml.safe_load(raw) if raw.strip() else None
-    except yaml.YAMLError:
+        value = parse_yaml(raw, source=source) if raw.strip() else None
+    except ConfigError:
         raise ConfigError(f"value is not valid YAML, got {raw!r}", source=source, field=key) from None
     return key, value
 
@@ -197,6 +197,8 @@ def apply_overrides(data: dict[str, Any], overrides: Mapping[str, Any] | Sequenc
     """Set nested keys of ``data`` from ``{'a.b': v}`` or ``['a.b=v', ...]``; returns ``data``."""
     items = overrides.items() if isinstance(overrides, Mapping) else (parse_override(s) for s in overrides)
     for key, value in items:
+        if not isinstance(key, str) or not key or any(not part for part in key.split(".")):
+            raise ConfigError(f"expected a key.path, got {_short(key)}", source=source)
         node = data
         parts = key.split(".")
         for depth, part in enumerate(parts[:-1]):
@@ -205,7 +207,7 @@ def apply_overrides(data: dict[str, Any], overrides: Mapping[str, Any] | Sequenc
                 nxt = {}
                 node[part] = nxt
             elif not isinstance(nxt, dict):
-                raise ConfigError(f"cannot set a field inside a {type(nxt).__name__}", source=source,
+                raise ConfigError(f"must be a mapping to set {key} inside it, got {_short(nxt)}", source=source,
                                   field=".".join(parts[: depth + 1]))
             node = nxt
         node[parts[-1]] = value
@@ -227,6 +229,9 @@ def _check_agents(s: Scenario, source: str) -> None:
         vehicle = load_vehicle(s.agents.vehicle)
     except ConfigError as exc:
         raise ConfigError(exc.detail, source=source, field="agents.vehicle") from None
+    except OSError as exc:  # e.g. a name too long for the file system
+        raise ConfigError(f"must be a bundled vehicle name or a vehicle .yaml file ({exc.strerror}), "
+                          f"got {_short(s.agents.vehicle)}", source=source, field="agents.vehicle") from None
     if s.agents.start is not None and len(s.agents.start) != s.agents.count:
         raise ConfigError(f"must hold agents.count ({s.agents.count}) positions, got {len(s.agents.start)}",
                           source=source, field="agents.start")
@@ -267,13 +272,17 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
     """Validate plain scenario data (as read from YAML) into a ``Scenario``."""
     if not isinstance(data, dict):
         raise ConfigError(f"must be a mapping of scenario sections, got {type(data).__name__}", source=source)
+    check_plain(data, source=source)
     f = validate(_ScenarioFile, data, source=source)
     kind = f.task.get("kind")
     from pybullet_swarm import tasks as _tasks  # registry of task models, filled by the tasks layer
 
     models = {**TASK_MODELS, **_tasks.TASK_MODELS}
-    if kind not in models:
-        raise ConfigError(f"must be one of {', '.join(sorted(models))}, got {kind!r}", source=source, field="task.kind")
+    if "kind" not in f.task:
+        raise ConfigError("is required", source=source, field="task.kind")
+    if not isinstance(kind, str) or kind not in models:  # not hashable: a list or a mapping
+        raise ConfigError(f"must be one of {', '.join(sorted(models))}, got {_short(kind)}", source=source,
+                          field="task.kind")
     task = validate(models[kind], f.task, source=source, prefix="task")
     _check_rates(f.sim, source)
     resolved = f.model_dump(mode="json")
@@ -290,17 +299,25 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
     return s
 
 
+def _is_file(p: Path) -> bool:
+    """``p.is_file()``, False also for names the file system refuses (too long, ...)."""
+    try:
+        return p.is_file()
+    except OSError:
+        return False
+
+
 def resolve_scenario_path(path_or_name: str | Path) -> Path:
     """A scenario file from a path or a bundled name ('hover', 'construction')."""
     p = Path(path_or_name)
-    if p.is_file():
+    if _is_file(p):
         return p
     candidate = scenarios_dir() / f"{path_or_name}.yaml"
-    if p.suffix == "" and candidate.is_file():
+    if p.suffix == "" and _is_file(candidate):
         return candidate
-    if p.suffix in (".yaml", ".yml") and not p.is_file():
+    if p.suffix in (".yaml", ".yml"):
         bundled = scenarios_dir() / p.name
-        if p.parent == Path(".") and bundled.is_file():
+        if p.parent == Path(".") and _is_file(bundled):
             return bundled
         raise ConfigError("file not found", source=str(p))
     raise ConfigError(f"no scenario file or bundled scenario named {str(path_or_name)!r}; bundled: "

@@ -124,16 +124,16 @@ class ACOParams:
                                      ) from None
         for name, high in (("alpha", None), ("beta", None), ("rho", 1.0), ("q0", 1.0),
                            ("xi", 1.0)):
-            _check_real(name, getattr(self, name), low=0.0, high=high)
+            _check_real(f"ACOParams.{name}", getattr(self, name), low=0.0, high=high)
             object.__setattr__(self, name, float(getattr(self, name)))  # one numba signature
         for name in ("ants", "iterations", "ls_neighbours"):
-            _check_int(name, getattr(self, name), low=1)
+            _check_int(f"ACOParams.{name}", getattr(self, name), low=1)
             object.__setattr__(self, name, int(getattr(self, name)))
         if self.candidates is not None:
-            _check_int("candidates", self.candidates, low=1)
+            _check_int("ACOParams.candidates", self.candidates, low=1)
             object.__setattr__(self, "candidates", int(self.candidates))
         if self.tau0 is not None:
-            _check_real("tau0", self.tau0, low=0.0)
+            _check_real("ACOParams.tau0", self.tau0, low=0.0)
             if self.tau0 == 0.0:
                 raise ValueError("ACOParams.tau0: expected a number > 0 or None, got 0")
             object.__setattr__(self, "tau0", float(self.tau0))
@@ -309,10 +309,10 @@ class _Colony:
         rho = self.params.rho
         if self.params.variant is Variant.AS:
             self.tau *= 1.0 - rho
-            _deposit(self.tau, tours, 1.0 / lengths)
+            _deposit(self.tau, tours, 1.0 / np.maximum(lengths, self.eps))
         else:
             a, b = best_tour, np.roll(best_tour, -1)
-            self.tau[a, b] = (1.0 - rho) * self.tau[a, b] + rho / best_len
+            self.tau[a, b] = (1.0 - rho) * self.tau[a, b] + rho / max(best_len, self.eps)
             self.tau[b, a] = self.tau[a, b]
 
 
@@ -323,13 +323,13 @@ def _check_real(name: str, value: object, *, low: float, high: float | None = No
     ok = ok and (high is None or float(value) <= high)  # type: ignore[arg-type]
     if not ok:
         bounds = f"in [{low:g}, {high:g}]" if high is not None else f">= {low:g}"
-        raise ValueError(f"ACOParams.{name}: expected a finite number {bounds}, got {value!r}")
+        raise ValueError(f"{name}: expected a finite number {bounds}, got {value!r}")
 
 
 def _check_int(name: str, value: object, *, low: int) -> None:
     """Refuse a parameter that is not an integer >= low."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ValueError(f"ACOParams.{name}: expected an integer >= {low}, got {value!r}")
+        raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
 
 
 def _check_dist(dist: ArrayLike) -> NDArray[np.float64]:

@@ -100,12 +100,7 @@ class TSPInstance:
 
 def tsplib_dir() -> Path:
     """Directory of the bundled TSPLIB instances."""
-    try:
-        return scenarios_dir() / "tsplib"
-    except NotADirectoryError:
-        # importlib.resources (Python 3.11) rejects the path hook that setuptools' editable
-        # install puts in the namespace path; a source checkout keeps the data beside the package.
-        return Path(__file__).resolve().parents[2] / "scenarios" / "tsplib"
+    return scenarios_dir() / "tsplib"
 
 
 def bundled_instances() -> list[str]:
@@ -128,14 +123,13 @@ def load_tsplib(path_or_name: str | os.PathLike[str]) -> TSPInstance:
     path = Path(path_or_name)
     if not path.is_file():
         bundled = tsplib_dir() / (path.name if path.suffix == ".tsp" else f"{path.name}.tsp")
-        if path.parent == Path(".") and bundled.is_file():
-            path = bundled
-        else:
+        if path.parent != Path("."):
+            raise ConfigError("no such file", source=str(path_or_name))
+        if not bundled.is_file():
             names = ", ".join(bundled_instances()) or "none"
-            raise ConfigError(
-                f"no such file and no bundled instance of that name (bundled: {names})",
-                source=str(path_or_name),
-            )
+            raise ConfigError(f"no such file and no bundled instance of that name "
+                              f"(bundled: {names})", source=str(path_or_name))
+        path = bundled
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
@@ -157,11 +151,43 @@ def parse_tsplib(text: str, *, source: str = "<string>") -> TSPInstance:
         ConfigError: a required keyword is missing or malformed, the edge weight type is not
             supported, or ``NODE_COORD_SECTION`` does not hold exactly ``DIMENSION`` nodes.
     """
-    spec: dict[str, str] = {}
-    comments: list[str] = []
-    coord_lines: list[tuple[int, str]] = []
+    scan = _scan(text, source)
+    if not scan.has_coords:
+        _check_spec(scan.spec, source)
+        raise ConfigError("missing (the node coordinates)", source=source,
+                          field="NODE_COORD_SECTION")
+    spec = scan.spec
+    n = _dimension(spec, source)
+    coords = _read_coords(scan.coord_lines, n, source)
+    name = spec.get("NAME") or Path(source).stem
+    return TSPInstance(
+        name=name,
+        comment=" ".join(scan.comments),
+        dimension=n,
+        edge_weight_type=EdgeWeightType(spec["EDGE_WEIGHT_TYPE"]),
+        coords=coords,
+        optimum=_optimum(spec, name, source),
+    )
+
+
+@dataclass
+class _Scan:
+    """What a pass over a TSPLIB file collected."""
+
+    spec: dict[str, str] = field(default_factory=dict)  # specification keywords -> values
+    comments: list[str] = field(default_factory=list)
+    coord_lines: list[tuple[int, str]] = field(default_factory=list)  # (line number, text)
+    has_coords: bool = False
+
+
+def _scan(text: str, source: str) -> _Scan:
+    """Split a file into specification values, comments and NODE_COORD_SECTION lines.
+
+    The specification is checked when NODE_COORD_SECTION starts, so a file with an unusable
+    specification fails on its header rather than on its data.
+    """
+    scan = _Scan()
     section: str | None = None
-    has_coords = False
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if not line:
@@ -172,36 +198,20 @@ def parse_tsplib(text: str, *, source: str = "<string>") -> TSPInstance:
                 raise ConfigError(f"line {lineno}: expected 'KEYWORD : value', got {line[:40]!r}",
                                   source=source)
             if section == "NODE_COORD_SECTION":
-                coord_lines.append((lineno, line))
+                scan.coord_lines.append((lineno, line))
             continue
         key, value = match.group(1), (match.group(2) or "").strip()
         if key == "EOF":
             break
-        if key.endswith("_SECTION"):
-            section = key
-            if key == "NODE_COORD_SECTION":
-                _check_spec(spec, source)
-                has_coords = True
-            continue
-        section = None
-        if key == "COMMENT":
-            comments.append(value)
-        else:
-            spec[key] = value
-    if not has_coords:
-        _check_spec(spec, source)
-        raise ConfigError("missing (the node coordinates)", source=source, field="NODE_COORD_SECTION")
-    n = _dimension(spec, source)
-    coords = _read_coords(coord_lines, n, source)
-    name = spec.get("NAME") or Path(source).stem
-    return TSPInstance(
-        name=name,
-        comment=" ".join(comments),
-        dimension=n,
-        edge_weight_type=EdgeWeightType(spec["EDGE_WEIGHT_TYPE"]),
-        coords=coords,
-        optimum=_optimum(spec, name, source),
-    )
+        section = key if key.endswith("_SECTION") else None
+        if key == "NODE_COORD_SECTION":
+            _check_spec(scan.spec, source)
+            scan.has_coords = True
+        elif key == "COMMENT":
+            scan.comments.append(value)
+        elif section is None:
+            scan.spec[key] = value
+    return scan
 
 
 def _check_spec(spec: dict[str, str], source: str) -> None:
@@ -258,7 +268,8 @@ def _read_coords(lines: list[tuple[int, str]], n: int, source: str) -> NDArray[n
             raise ConfigError(f"line {lineno}: node index {index} outside 1..{n}", source=source,
                               field=where)
         if not np.isnan(coords[index - 1, 0]):
-            raise ConfigError(f"line {lineno}: node {index} given twice", source=source, field=where)
+            raise ConfigError(f"line {lineno}: node {index} given twice", source=source,
+                              field=where)
         for axis, token in enumerate(parts[1:]):
             try:
                 value = float(token)

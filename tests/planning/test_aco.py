@@ -150,7 +150,8 @@ def test_bad_params_name_the_field(field: str, value: object) -> None:
 
 
 def test_params_accept_enum_values_as_strings() -> None:
-    params = ACOParams(variant="as", schedule="linear", local_search="2opt")  # type: ignore[arg-type]
+    params = ACOParams(variant="as", schedule="linear",  # type: ignore[arg-type]
+                       local_search="2opt")
     assert params.variant is Variant.AS
     assert params.schedule is Schedule.LINEAR
     assert params.local_search is LocalSearch.TWO_OPT

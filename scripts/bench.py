@@ -1,0 +1,129 @@
+#!/usr/bin/env python3
+"""Benchmark: N cf2x agents hovering with the full stack, against the bare floor of the same bodies.
+
+Full stack: attitude loop, mixer and motors at the physics rate (240 Hz), position loop at
+48 Hz, planner/task ticks, contacts read every physics step, recording on. Floor: the same
+Bullet bodies with only the state reads, the two wrench calls per drone and the physics step.
+
+    python scripts/bench.py --agents 1,5,50,100,200 --sim-seconds 10 --json bench.json
+
+Prints one row per N and writes a JSON list of objects with at least ``agents`` and
+``real_time_factor``. Figures depend on the machine; nothing here is asserted.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pybullet_swarm.experiment.scenario import load_scenario
+from pybullet_swarm.experiment.simulation import Simulation
+
+
+def hover_scenario(n: int):
+    """hover_swarm with n cf2x agents starting in the air at 1 m, holding position."""
+    return load_scenario("hover_swarm", {
+        "agents.count": n,
+        "agents.vehicle": "cf2x",
+        "agents.spacing": 0.3,
+        "task.time_limit_s": 1e5,
+        "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 0.0]}],
+        "task.hold_s": 1e4,
+    })
+
+
+def start_hovering(sim: Simulation) -> None:
+    """Lift every agent to 1 m with its rotors at hover speed, so the timing sees steady hover."""
+    w = sim.params.hover_rotor_speed(sim.scenario.sim.gravity)
+    for i in range(sim.n):
+        p = sim.starts[i]
+        sim.world.reset_agent(i, [p[0], p[1], 1.0])
+    sim.world.read_agent_states(sim.state_array)
+    sim.shaper.reset(sim.state_array[:, :3])
+    sim.set_targets(sim.state_array[:, :3].copy())
+    sim.controller.rotor_speeds[:] = w
+    sim.controller.rotor_commands[:] = w
+
+
+def bench_full(n: int, sim_seconds: float) -> tuple[float, Simulation]:
+    """Wall-clock seconds for ``sim_seconds`` of the full stack with n agents."""
+    sim = Simulation(hover_scenario(n))
+    start_hovering(sim)
+    sim.step(sim.physics_hz // 2)          # warm-up: compiled kernels loaded, caches hot
+    steps = int(round(sim_seconds * sim.physics_hz))
+    t0 = time.perf_counter()
+    sim.step(steps)
+    wall = time.perf_counter() - t0
+    if sim.exit_status.value != "running":
+        raise RuntimeError(f"benchmark run ended early: {sim.exit_status.value}")
+    return wall, sim
+
+
+def bench_floor(sim: Simulation, sim_seconds: float) -> float:
+    """Wall-clock seconds of the bare floor on the same World and bodies (one force and one torque
+    call, two state reads per drone per step, and the physics step)."""
+    import pybullet as pb
+
+    world = sim.world
+    cid = world._cid            # the benchmark measures the World's own client, on purpose
+    bodies = list(world.agent_bodies)
+    gp, gv, af, at, st = (pb.getBasePositionAndOrientation, pb.getBaseVelocity, pb.applyExternalForce,
+                          pb.applyExternalTorque, pb.stepSimulation)
+    wf = pb.WORLD_FRAME
+    f = [0.0, 0.0, sim.params.mass * sim.scenario.sim.gravity]
+    zero = [0.0, 0.0, 0.0]
+    steps = int(round(sim_seconds * sim.physics_hz))
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        for b in bodies:
+            pos, _q = gp(b, cid)
+            gv(b, cid)
+            af(b, -1, f, pos, wf, cid)
+            at(b, -1, zero, wf, cid)
+        st(cid)
+    return time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--agents", default="1,5,50,100,200", help="comma-separated agent counts")
+    ap.add_argument("--sim-seconds", type=float, default=10.0, help="simulated seconds per measurement")
+    ap.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the results as JSON")
+    args = ap.parse_args(argv)
+    counts = [int(x) for x in args.agents.split(",") if x.strip()]
+    rows = []
+    print(f"{'N':>5} {'full RTF':>10} {'us/drone-step':>14} {'floor RTF':>10} {'floor us/d-s':>13} {'full/floor':>10}")
+    for n in counts:
+        wall, sim = bench_full(n, args.sim_seconds)
+        floor = bench_floor(sim, args.sim_seconds)
+        steps = int(round(args.sim_seconds * sim.physics_hz))
+        sim.close()
+        row = {
+            "agents": n,
+            "sim_seconds": args.sim_seconds,
+            "physics_hz": sim.physics_hz,
+            "real_time_factor": args.sim_seconds / wall,
+            "us_per_drone_step": wall / (steps * n) * 1e6,
+            "floor_real_time_factor": args.sim_seconds / floor,
+            "floor_us_per_drone_step": floor / (steps * n) * 1e6,
+            "ratio_to_floor": floor / wall,
+        }
+        rows.append(row)
+        print(f"{n:>5} {row['real_time_factor']:>10.1f} {row['us_per_drone_step']:>14.2f} "
+              f"{row['floor_real_time_factor']:>10.1f} {row['floor_us_per_drone_step']:>13.2f} "
+              f"{row['ratio_to_floor']:>10.2f}", flush=True)
+    if args.json is not None:
+        meta = {"python": sys.version.split()[0], "machine": platform.machine(), "numpy": np.__version__}
+        for r in rows:
+            r.update(meta)
+        args.json.write_text(json.dumps(rows, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
