@@ -7,7 +7,8 @@ Bullet bodies with only the state reads, the two wrench calls per drone and the 
 
     python scripts/bench.py --agents 1,5,50,100,200 --sim-seconds 10 --json bench.json
 
-Prints one row per N and writes a JSON list of objects with at least ``agents`` and
+Full stack and floor are measured alternately (``--repeats``) on the same bodies and the best
+of each is kept. Prints one row per N and writes a JSON list of objects with at least ``agents`` and
 ``real_time_factor``. Figures depend on the machine; nothing here is asserted.
 """
 from __future__ import annotations
@@ -50,18 +51,15 @@ def start_hovering(sim: Simulation) -> None:
     sim.controller.rotor_commands[:] = w
 
 
-def bench_full(n: int, sim_seconds: float) -> tuple[float, Simulation]:
-    """Wall-clock seconds for ``sim_seconds`` of the full stack with n agents."""
-    sim = Simulation(hover_scenario(n))
-    start_hovering(sim)
-    sim.step(sim.physics_hz // 2)          # warm-up: compiled kernels loaded, caches hot
+def bench_full(sim: Simulation, sim_seconds: float) -> float:
+    """Wall-clock seconds for ``sim_seconds`` of the full stack."""
     steps = int(round(sim_seconds * sim.physics_hz))
     t0 = time.perf_counter()
     sim.step(steps)
     wall = time.perf_counter() - t0
     if sim.exit_status.value != "running":
         raise RuntimeError(f"benchmark run ended early: {sim.exit_status.value}")
-    return wall, sim
+    return wall
 
 
 def bench_floor(sim: Simulation, sim_seconds: float) -> float:
@@ -93,14 +91,24 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--agents", default="1,5,50,100,200", help="comma-separated agent counts")
     ap.add_argument("--sim-seconds", type=float, default=10.0, help="simulated seconds per measurement")
+    ap.add_argument("--repeats", type=int, default=3,
+                    help="alternate full and floor measurements this many times; the best of each is kept")
     ap.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the results as JSON")
     args = ap.parse_args(argv)
     counts = [int(x) for x in args.agents.split(",") if x.strip()]
     rows = []
     print(f"{'N':>5} {'full RTF':>10} {'us/drone-step':>14} {'floor RTF':>10} {'floor us/d-s':>13} {'full/floor':>10}")
     for n in counts:
-        wall, sim = bench_full(n, args.sim_seconds)
-        floor = bench_floor(sim, args.sim_seconds)
+        sim = Simulation(hover_scenario(n))
+        start_hovering(sim)
+        sim.step(sim.physics_hz // 2)          # warm-up: compiled kernels loaded, caches hot
+        part = args.sim_seconds / max(args.repeats, 1)
+        walls, floors = [], []
+        for _ in range(max(args.repeats, 1)):  # alternate, so both see the same machine state
+            walls.append(bench_full(sim, part))
+            floors.append(bench_floor(sim, part))
+        wall = min(walls) * args.repeats
+        floor = min(floors) * args.repeats
         steps = int(round(args.sim_seconds * sim.physics_hz))
         sim.close()
         row = {

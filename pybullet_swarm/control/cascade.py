@@ -74,55 +74,72 @@ class CascadeController:
 
     def reset(self, n: int, rotor_speed: float = 0.0) -> None:
         """Clear integrators and motor states for ``n`` agents; rotors start at ``rotor_speed`` rad/s."""
+        K = kernels
         self.n = n
+        # One per-agent array shared by the compiled kernels; the attributes below are views of it.
+        self.ctrl = np.zeros((n, K.CTRL_COLS))
+        self.R_des = self.ctrl[:, K.C_RDES:K.C_RDES + 9].reshape(n, 3, 3)  # desired attitude
+        self.R_des[:] = np.eye(3)
+        self.thrust_acc = self.ctrl[:, K.C_THRUST]                # m/s^2, specific thrust command
+        self.yaw_rate = self.ctrl[:, K.C_YAWRATE]                 # rad/s, yaw-rate reference
+        self.att_integral = self.ctrl[:, K.C_INTEG:K.C_INTEG + 3]  # rad s
+        self.rotor_speeds = self.ctrl[:, K.C_W:K.C_W + 4]         # rad/s, motor state
+        self.rotor_commands = self.ctrl[:, K.C_WCMD:K.C_WCMD + 4]  # rad/s
+        self.body_rates = self.ctrl[:, K.C_RATES:K.C_RATES + 3]   # rad/s
+        self.rotor_speeds[:] = rotor_speed
+        self.rotor_commands[:] = rotor_speed
         self.pos_integral = np.zeros((n, 3))    # m s
-        self.att_integral = np.zeros((n, 3))    # rad s
-        self.R_des = np.tile(np.eye(3), (n, 1, 1))
-        self.thrust_acc = np.zeros(n)           # m/s^2, specific thrust command
-        self.yaw_rate = np.zeros(n)             # rad/s, yaw-rate reference
-        self.rotor_speeds = np.full((n, 4), float(rotor_speed))   # rad/s, motor state
-        self.rotor_commands = np.full((n, 4), float(rotor_speed))  # rad/s
-        self.wrench = np.zeros((n, 6))          # world force N (3) and torque N m (3)
-        self.body_rates = np.zeros((n, 3))      # rad/s
+        self.forces = np.zeros((n, 3))          # N, world frame
+        self.torques = np.zeros((n, 3))         # N m, world frame
         self.status = np.zeros(n, dtype=np.int64)
-        self.scal = np.array([self.params.mass, self.params.max_rotor_speed, self.motor_alpha, self.physics_dt,
-                              self.drag, self.ground_radius, 1.0])
+        c = np.zeros(K.CONST_LEN)
+        c[K.K_GAINS:K.K_GAINS + 9] = self.att_gains.ravel()
+        c[K.K_INTMAX:K.K_INTMAX + 3] = self.ATTITUDE_INTEGRAL_LIMIT
+        c[K.K_INERTIA:K.K_INERTIA + 3] = self.inertia
+        c[K.K_MIXER:K.K_MIXER + 16] = self.mixer.ravel()
+        c[K.K_MIXINV:K.K_MIXINV + 16] = self.mixer_inv.ravel()
+        c[K.K_MASS] = self.params.mass
+        c[K.K_WMAX] = self.params.max_rotor_speed
+        c[K.K_ALPHA] = self.motor_alpha
+        c[K.K_DT] = self.physics_dt
+        c[K.K_DRAG] = self.drag
+        c[K.K_GROUND_R] = self.ground_radius
+        c[K.K_CLOSED] = 1.0
+        self.const = c
         self.pos_scal = np.array([self.control_dt, self.gravity, self.max_tilt_tan, self.max_acc])
+        self._pos_key: tuple[int, int] | None = None
+        self._pos_args: tuple = ()
 
     @property
-    def forces(self) -> NDArray[np.float64]:
-        """World-frame forces (n, 3) N of the last physics update."""
-        return self.wrench[:, :3]
-
-    @property
-    def torques(self) -> NDArray[np.float64]:
-        """World-frame torques (n, 3) N m of the last physics update."""
-        return self.wrench[:, 3:]
+    def wrench(self) -> NDArray[np.float64]:
+        """World-frame force N (3) and torque N m (3) per agent, (n, 6) (a copy)."""
+        return np.concatenate([self.forces, self.torques], axis=1)
 
     def set_closed_loop(self, closed: bool) -> None:
         """Run the attitude loop (True) or hold ``rotor_commands`` as set from outside (False)."""
-        self.scal[kernels.P_CLOSED_LOOP] = 1.0 if closed else 0.0
+        self.const[kernels.K_CLOSED] = 1.0 if closed else 0.0
 
     def position_update(self, state: NDArray[np.float64], ref: Reference) -> None:
         """Run the position loop once: state (n, 13) and references -> desired attitude and thrust."""
-        kernels.position_tick(state, ref.positions, ref.velocities, ref.accelerations, ref.yaw, self.pos_gains,
-                              self.pos_integral, self.POSITION_INTEGRAL_LIMIT, self.pos_scal, self.R_des,
-                              self.thrust_acc)
-        self.yaw_rate[:] = ref.yaw_rate
+        key = (id(state), id(ref))
+        if key != self._pos_key:   # bind the argument tuple once per (state, reference) pair
+            self._pos_key = key
+            self._pos_args = (state, ref.positions, ref.velocities, ref.accelerations, ref.yaw, ref.yaw_rate,
+                              self.pos_gains, self.pos_integral, self.POSITION_INTEGRAL_LIMIT, self.pos_scal,
+                              self.ctrl)
+        kernels.position_tick(*self._pos_args)
 
     def physics_args(self, state: NDArray[np.float64]) -> tuple:
         """Arguments of ``kernels.physics_tick`` for ``state`` (n, 13); the arrays are updated in place,
-        so the tuple stays valid for the life of the run (callers in hot loops bind it once)."""
-        return (state, self.R_des, self.thrust_acc, self.yaw_rate, self.att_integral, self.rotor_speeds,
-                self.rotor_commands, self.wrench, self.body_rates, self.status, self.att_gains,
-                self.ATTITUDE_INTEGRAL_LIMIT, self.inertia, self.mixer, self.mixer_inv, self.scal)
+        so the tuple stays valid for the life of the run (hot loops bind it once)."""
+        return (state, self.ctrl, self.forces, self.torques, self.status, self.const)
 
     def physics_update(self, state: NDArray[np.float64]) -> int:
-        """Attitude loop, mixer, motors and wrench for one physics step (fills ``wrench``).
+        """Attitude loop, mixer, motors and wrench for one physics step (fills ``forces``, ``torques``).
 
         Returns the worst agent status (see ``kernels.STATUS_*``).
         """
-        return kernels.physics_tick(*self.physics_args(state))
+        return kernels.physics_tick(state, self.ctrl, self.forces, self.torques, self.status, self.const)
 
     def __call__(self, state: SwarmState, ref: Reference, dt: float) -> NDArray[np.float64]:
         """Controller protocol: one position and one attitude update; returns rotor commands (n, 4) rad/s.

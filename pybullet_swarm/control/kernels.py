@@ -14,7 +14,6 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.vehicle.dynamics import motor_update_row
 
 STATUS_OK = 0
 STATUS_FLIPPED = 1
@@ -44,12 +43,12 @@ def position_tick(
     v_ref: NDArray[np.float64],       # (n, 3) m/s
     a_ref: NDArray[np.float64],       # (n, 3) m/s^2
     yaw_ref: NDArray[np.float64],     # (n,) rad
+    yaw_rate_ref: NDArray[np.float64],  # (n,) rad/s
     gains: NDArray[np.float64],       # (3, 3) rows x, y, z; cols kp, kd, ki
     integ: NDArray[np.float64],       # (n, 3) m s, integral of the position error (in/out)
     int_max: NDArray[np.float64],     # (3,) m/s^2, bound on |ki * integral| per axis
     scal: NDArray[np.float64],        # (4,) period s, gravity m/s^2, tan(max tilt), max specific thrust m/s^2
-    R_des: NDArray[np.float64],       # (n, 3, 3) out: desired attitude, body -> world
-    thrust_acc: NDArray[np.float64],  # (n,) out: commanded specific thrust along body z, m/s^2
+    ctrl: NDArray[np.float64],        # (n, CTRL_COLS) out: desired attitude and specific thrust (C_RDES, C_THRUST)
 ) -> None:
     """PID position loop with anti-windup: references and state -> desired attitude and thrust."""
     dt, g, max_tilt_tan, max_acc = scal[0], scal[1], scal[2], scal[3]
@@ -106,49 +105,67 @@ def position_tick(
         xx = yy * zz - yz * zy
         xy = yz * zx - yx * zz
         xz = yx * zy - yy * zx
-        R_des[i, 0, 0], R_des[i, 1, 0], R_des[i, 2, 0] = xx, xy, xz
-        R_des[i, 0, 1], R_des[i, 1, 1], R_des[i, 2, 1] = yx, yy, yz
-        R_des[i, 0, 2], R_des[i, 1, 2], R_des[i, 2, 2] = zx, zy, zz
+        ctrl[i, C_RDES + 0], ctrl[i, C_RDES + 3], ctrl[i, C_RDES + 6] = xx, xy, xz
+        ctrl[i, C_RDES + 1], ctrl[i, C_RDES + 4], ctrl[i, C_RDES + 7] = yx, yy, yz
+        ctrl[i, C_RDES + 2], ctrl[i, C_RDES + 5], ctrl[i, C_RDES + 8] = zx, zy, zz
         t = fx * R[0, 2] + fy * R[1, 2] + fz * R[2, 2]
-        thrust_acc[i] = t if t > 0.0 else 0.0
+        ctrl[i, C_THRUST] = t if t > 0.0 else 0.0
+        ctrl[i, C_YAWRATE] = yaw_rate_ref[i]
 
 
-# Layout of the scalar parameters of ``physics_tick`` (one float array, to keep calls cheap).
-P_MASS, P_WMAX, P_ALPHA, P_DT, P_DRAG, P_GROUND_R, P_CLOSED_LOOP = range(7)
+# Column layout of the per-agent controller array ``ctrl`` (n, CTRL_COLS) shared by the kernels;
+# ``CascadeController`` exposes named views of it.
+C_RDES = 0          # 9: desired attitude, body -> world, row-major
+C_THRUST = 9        # 1: commanded specific thrust, m/s^2
+C_YAWRATE = 10      # 1: yaw-rate reference, rad/s
+C_INTEG = 11        # 3: integral of the attitude error, rad s
+C_W = 14            # 4: rotor speeds (motor state), rad/s
+C_WCMD = 18         # 4: rotor speed commands, rad/s
+C_RATES = 22        # 3: body rates, rad/s
+CTRL_COLS = 25
+
+# Layout of the constant array ``const`` of ``physics_tick``.
+K_GAINS = 0         # 9: attitude gains (3, 3) rows roll, pitch, yaw; cols kp [1/s^2], kd [1/s], ki [1/s^3]
+K_INTMAX = 9        # 3: bound on |ki * integral| per axis, rad/s^2
+K_INERTIA = 12      # 3: kg m^2
+K_MIXER = 15        # 16: (4, 4) w^2 -> [T, tau]
+K_MIXINV = 31       # 16: (4, 4) [T, tau] -> w^2
+K_MASS = 47         # kg, nominal (the controller's belief)
+K_WMAX = 48         # rad/s
+K_ALPHA = 49        # 1 - exp(-dt / tau_motor)
+K_DT = 50           # s, physics period
+K_DRAG = 51         # N/(m/s), linear drag (0: none)
+K_GROUND_R = 52     # m, rotor radius for ground effect (0: none)
+K_CLOSED = 53       # 1: run the attitude loop, 0: hold the rotor commands (open loop)
+CONST_LEN = 54
 
 
 @numba.njit(cache=True)
 def physics_tick(
     state: NDArray[np.float64],        # (n, 13) position, quaternion, velocity, angular velocity (world)
-    R_des: NDArray[np.float64],        # (n, 3, 3) desired attitude, body -> world
-    thrust_acc: NDArray[np.float64],   # (n,) m/s^2, commanded specific thrust
-    yaw_rate_ref: NDArray[np.float64], # (n,) rad/s
-    integ: NDArray[np.float64],        # (n, 3) rad s, integral of the attitude error (in/out)
-    w: NDArray[np.float64],            # (n, 4) rad/s, rotor speeds (in/out)
-    w_cmd: NDArray[np.float64],        # (n, 4) rad/s, rotor speed commands (out, or in when open loop)
-    wrench: NDArray[np.float64],       # (n, 6) out: world force N (3) and torque N m (3)
-    body_rates: NDArray[np.float64],   # (n, 3) rad/s out
+    ctrl: NDArray[np.float64],         # (n, CTRL_COLS) controller state, see C_* above (in/out)
+    force: NDArray[np.float64],        # (n, 3) out: world force, N
+    torque: NDArray[np.float64],       # (n, 3) out: world torque, N m
     status: NDArray[np.int64],         # (n,) out: STATUS_*
-    gains: NDArray[np.float64],        # (3, 3) rows roll, pitch, yaw; cols kp [1/s^2], kd [1/s], ki [1/s^3]
-    int_max: NDArray[np.float64],      # (3,) rad/s^2, bound on |ki * integral| per axis
-    inertia: NDArray[np.float64],      # (3,) kg m^2
-    mixer: NDArray[np.float64],        # (4, 4) w^2 -> [T, tau]
-    mixer_inv: NDArray[np.float64],    # (4, 4) [T, tau] -> w^2
-    scal: NDArray[np.float64],         # (7,) see P_* above
+    const: NDArray[np.float64],        # (CONST_LEN,) see K_* above
 ) -> int:
     """Attitude loop, mixer, motor lag and rotor wrench for every agent, one physics step.
 
     Returns the worst status over agents (0 when every agent is upright and finite).
     """
-    mass = scal[P_MASS]
-    w_max = scal[P_WMAX]
-    alpha = scal[P_ALPHA]
-    dt = scal[P_DT]
-    drag = scal[P_DRAG]
-    ground_radius = scal[P_GROUND_R]
-    closed_loop = scal[P_CLOSED_LOOP] > 0.5
+    gains = const[K_GAINS:K_GAINS + 9].reshape(3, 3)
+    int_max = const[K_INTMAX:K_INTMAX + 3]
+    mixer = const[K_MIXER:K_MIXER + 16].reshape(4, 4)
+    mixer_inv = const[K_MIXINV:K_MIXINV + 16].reshape(4, 4)
+    mass = const[K_MASS]
+    w_max = const[K_WMAX]
+    alpha = const[K_ALPHA]
+    dt = const[K_DT]
+    drag = const[K_DRAG]
+    ground_radius = const[K_GROUND_R]
+    closed_loop = const[K_CLOSED] > 0.5
     wmax2 = w_max * w_max
-    jx, jy, jz = inertia[0], inertia[1], inertia[2]
+    jx, jy, jz = const[K_INERTIA], const[K_INERTIA + 1], const[K_INERTIA + 2]
     worst = 0
     R = np.empty((3, 3))
     for i in range(state.shape[0]):
@@ -164,8 +181,9 @@ def physics_tick(
         if bad:
             status[i] = STATUS_NONFINITE
             worst = STATUS_NONFINITE
-            for k in range(6):
-                wrench[i, k] = 0.0
+            for k in range(3):
+                force[i, k] = 0.0
+                torque[i, k] = 0.0
             continue
         x, y, z, qw = state[i, 3], state[i, 4], state[i, 5], state[i, 6]
         R[0, 0] = 1 - 2 * (y * y + z * z)
@@ -187,34 +205,34 @@ def physics_tick(
         p = R[0, 0] * wx + R[1, 0] * wy + R[2, 0] * wz
         q = R[0, 1] * wx + R[1, 1] * wy + R[2, 1] * wz
         r = R[0, 2] * wx + R[1, 2] * wy + R[2, 2] * wz
-        body_rates[i, 0] = p
-        body_rates[i, 1] = q
-        body_rates[i, 2] = r
+        ctrl[i, C_RATES] = p
+        ctrl[i, C_RATES + 1] = q
+        ctrl[i, C_RATES + 2] = r
         if closed_loop:
             # Attitude error e_R = 1/2 vee(R_d^T R - R^T R_d), from M = R_d^T R.
-            m01 = R_des[i, 0, 0] * R[0, 1] + R_des[i, 1, 0] * R[1, 1] + R_des[i, 2, 0] * R[2, 1]
-            m02 = R_des[i, 0, 0] * R[0, 2] + R_des[i, 1, 0] * R[1, 2] + R_des[i, 2, 0] * R[2, 2]
-            m10 = R_des[i, 0, 1] * R[0, 0] + R_des[i, 1, 1] * R[1, 0] + R_des[i, 2, 1] * R[2, 0]
-            m12 = R_des[i, 0, 1] * R[0, 2] + R_des[i, 1, 1] * R[1, 2] + R_des[i, 2, 1] * R[2, 2]
-            m20 = R_des[i, 0, 2] * R[0, 0] + R_des[i, 1, 2] * R[1, 0] + R_des[i, 2, 2] * R[2, 0]
-            m21 = R_des[i, 0, 2] * R[0, 1] + R_des[i, 1, 2] * R[1, 1] + R_des[i, 2, 2] * R[2, 1]
+            m01 = ctrl[i, C_RDES + 0] * R[0, 1] + ctrl[i, C_RDES + 3] * R[1, 1] + ctrl[i, C_RDES + 6] * R[2, 1]
+            m02 = ctrl[i, C_RDES + 0] * R[0, 2] + ctrl[i, C_RDES + 3] * R[1, 2] + ctrl[i, C_RDES + 6] * R[2, 2]
+            m10 = ctrl[i, C_RDES + 1] * R[0, 0] + ctrl[i, C_RDES + 4] * R[1, 0] + ctrl[i, C_RDES + 7] * R[2, 0]
+            m12 = ctrl[i, C_RDES + 1] * R[0, 2] + ctrl[i, C_RDES + 4] * R[1, 2] + ctrl[i, C_RDES + 7] * R[2, 2]
+            m20 = ctrl[i, C_RDES + 2] * R[0, 0] + ctrl[i, C_RDES + 5] * R[1, 0] + ctrl[i, C_RDES + 8] * R[2, 0]
+            m21 = ctrl[i, C_RDES + 2] * R[0, 1] + ctrl[i, C_RDES + 5] * R[1, 1] + ctrl[i, C_RDES + 8] * R[2, 1]
             e0 = 0.5 * (m21 - m12)
             e1 = 0.5 * (m02 - m20)
             e2 = 0.5 * (m10 - m01)
-            a0 = -gains[0, 0] * e0 - gains[0, 1] * p - gains[0, 2] * integ[i, 0]
-            a1 = -gains[1, 0] * e1 - gains[1, 1] * q - gains[1, 2] * integ[i, 1]
-            a2 = -gains[2, 0] * e2 - gains[2, 1] * (r - yaw_rate_ref[i]) - gains[2, 2] * integ[i, 2]
-            integ[i, 0] += e0 * dt
-            integ[i, 1] += e1 * dt
-            integ[i, 2] += e2 * dt
+            a0 = -gains[0, 0] * e0 - gains[0, 1] * p - gains[0, 2] * ctrl[i, C_INTEG]
+            a1 = -gains[1, 0] * e1 - gains[1, 1] * q - gains[1, 2] * ctrl[i, C_INTEG + 1]
+            a2 = -gains[2, 0] * e2 - gains[2, 1] * (r - ctrl[i, C_YAWRATE]) - gains[2, 2] * ctrl[i, C_INTEG + 2]
+            ctrl[i, C_INTEG] += e0 * dt
+            ctrl[i, C_INTEG + 1] += e1 * dt
+            ctrl[i, C_INTEG + 2] += e2 * dt
             for k in range(3):
                 if gains[k, 2] > 0.0:
                     lim = int_max[k] / gains[k, 2]
-                    if integ[i, k] > lim:
-                        integ[i, k] = lim
-                    elif integ[i, k] < -lim:
-                        integ[i, k] = -lim
-            u0 = mass * thrust_acc[i]
+                    if ctrl[i, C_INTEG + k] > lim:
+                        ctrl[i, C_INTEG + k] = lim
+                    elif ctrl[i, C_INTEG + k] < -lim:
+                        ctrl[i, C_INTEG + k] = -lim
+            u0 = mass * ctrl[i, C_THRUST]
             u1 = jx * a0 + (jz - jy) * q * r
             u2 = jy * a1 + (jx - jz) * r * p
             u3 = jz * a2 + (jy - jx) * p * q
@@ -233,14 +251,20 @@ def physics_tick(
                     v = 0.0
                 elif v > wmax2:
                     v = wmax2
-                w_cmd[i, k] = math.sqrt(v)
-        motor_update_row(w, i, w_cmd[i], alpha, w_max)
+                ctrl[i, C_WCMD + k] = math.sqrt(v)
+        for k in range(4):
+            c = ctrl[i, C_WCMD + k]
+            if c < 0.0:
+                c = 0.0
+            elif c > w_max:
+                c = w_max
+            ctrl[i, C_W + k] += (c - ctrl[i, C_W + k]) * alpha
         thrust = 0.0
         tx = 0.0
         ty = 0.0
         tz = 0.0
         for k in range(4):
-            w2 = w[i, k] * w[i, k]
+            w2 = ctrl[i, C_W + k] * ctrl[i, C_W + k]
             thrust += mixer[0, k] * w2
             tx += mixer[1, k] * w2
             ty += mixer[2, k] * w2
@@ -255,8 +279,8 @@ def physics_tick(
                 den = 0.5
             thrust /= den
         for k in range(3):
-            wrench[i, k] = R[k, 2] * thrust - drag * state[i, 7 + k]
-            wrench[i, 3 + k] = R[k, 0] * tx + R[k, 1] * ty + R[k, 2] * tz
+            force[i, k] = R[k, 2] * thrust - drag * state[i, 7 + k]
+            torque[i, k] = R[k, 0] * tx + R[k, 1] * ty + R[k, 2] * tz
     return worst
 
 

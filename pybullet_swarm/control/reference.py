@@ -55,6 +55,9 @@ class ReferenceShaper:
         self.yaw_rate = np.zeros(n)        # rad/s
         self.target = np.zeros((n, 3))     # m or m/s
         self.velocity_mode = np.zeros(n, dtype=np.bool_)
+        self._ref = Reference(self.p, self.v, self.a, self.yaw, self.yaw_rate)
+        self._args = (self.target, self.velocity_mode, self.p, self.v, self.a,
+                      self.v_max if self.v_max is not None else np.zeros(3), self.a_max, self.dt)
 
     def reset(self, positions: NDArray[np.float64], yaw: NDArray[np.float64] | None = None) -> None:
         """Start at rest at ``positions`` (n, 3) m, holding them."""
@@ -94,10 +97,10 @@ class ReferenceShaper:
                 self.v[~vm] = self.target[~vm]
                 self.p[~vm] += self.v[~vm] * self.dt
         else:
-            shape_references(self.target, self.velocity_mode, self.p, self.v, self.a, self.v_max, self.a_max, self.dt)
-        return self.reference
+            shape_references(*self._args)
+        return self._ref
 
     @property
     def reference(self) -> Reference:
-        """The current references (views)."""
-        return Reference(self.p, self.v, self.a, self.yaw, self.yaw_rate)
+        """The current references (views of the shaper's arrays, updated in place)."""
+        return self._ref

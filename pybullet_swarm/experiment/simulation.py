@@ -231,32 +231,33 @@ class Simulation:
         """Advance by ``n_physics`` physics steps (default: one control period); returns the status."""
         steps = self.control_every if n_physics is None else int(n_physics)
         t0 = time.perf_counter()
-        world, ctrl, shaper = self.world, self.controller, self.shaper
+        world, ctrl, shaper, contacts = self.world, self.controller, self.shaper, self.contacts
         state = self.state_array
         tick = physics_tick
         args = ctrl.physics_args(state)
-        wrench = ctrl.wrench
+        forces, torques = ctrl.forces, ctrl.torques
         apply, advance, read, contact_pairs = (world.apply_agent_wrenches, world.step, world.read_agent_states,
                                                world.contact_pairs)
         ce, pe, re = self.control_every, self.planner_every, self.record_every
         running = ExitStatus.RUNNING
-        for _ in range(steps):
-            if self.exit_status is not running:
-                break
-            k = self.step_count
+        closed = not self.open_loop
+        k = self.step_count
+        end = k + steps
+        while k < end and self.exit_status is running:
             if k % pe == 0:
                 self._planner_tick()
                 if self.exit_status is not running:
                     break
-            if k % ce == 0 and not self.open_loop:
+            if closed and k % ce == 0:
                 ctrl.position_update(state, shaper.step())
             worst = tick(*args)
-            apply(wrench)
+            apply(forces, torques)
             advance()
-            self.step_count = k = k + 1
+            k += 1
+            self.step_count = k
             read(state)
             pairs = contact_pairs()
-            if pairs or self.contacts._prev:
+            if pairs or contacts._prev:
                 self._on_contacts(pairs)
             if worst:
                 self._on_status(worst)

@@ -43,6 +43,9 @@ with _quiet_stdout(), _quiet_stdout(sys.stderr):
 
 
 
+_NO_PAIRS: frozenset[tuple[int, int]] = frozenset()
+
+
 class BodyKind(str, enum.Enum):
     """What a Bullet body is, for classifying contacts."""
 
@@ -212,37 +215,41 @@ class World:
         cid = self._cid
         gp, gv = self._get_pose, self._get_vel
         poses = []
-        rows = []
+        keep = poses.append
+        flat: list[float] = []
         for b in self._agents:
-            pose = gp(b, cid)
-            vel = gv(b, cid)
-            poses.append(pose[0])
-            rows.append(pose[0] + pose[1] + vel[0] + vel[1])
+            pos, orn = gp(b, cid)
+            vel, ang = gv(b, cid)
+            keep(pos)
+            flat += pos
+            flat += orn
+            flat += vel
+            flat += ang
         self._poses = poses
-        out[:] = rows
+        out.reshape(-1)[:] = flat
 
-    def apply_agent_wrenches(self, wrench: NDArray[np.float64]) -> None:
+    def apply_agent_wrenches(self, forces: NDArray[np.float64], torques: NDArray[np.float64]) -> None:
         """Apply one world-frame force at the centre of mass and one torque per agent.
 
-        ``wrench`` (n, 6) holds force N (3) and torque N m (3); it acts during the next physics
-        step only. Points of application come from the last ``read_agent_states``.
+        Forces (n, 3) N and torques (n, 3) N m act during the next physics step only; the
+        points of application come from the last ``read_agent_states``.
         """
         cid = self._cid
         af, at = self._apply_force, self._apply_torque
         wf = pb.WORLD_FRAME
-        for b, w, pos in zip(self._agents, wrench.tolist(), self._poses):
-            af(b, -1, w[:3], pos, wf, cid)
-            at(b, -1, w[3:], wf, cid)
+        for b, f, pos, t in zip(self._agents, forces.tolist(), self._poses, torques.tolist()):
+            af(b, -1, f, pos, wf, cid)
+            at(b, -1, t, wf, cid)
 
     def step(self) -> None:
         """Advance the physics by one time step."""
         self._step(self._cid)
 
-    def contact_pairs(self) -> set[tuple[int, int]]:
+    def contact_pairs(self) -> frozenset[tuple[int, int]] | set[tuple[int, int]]:
         """Body pairs (a < b) in contact now, from one Bullet query."""
-        pts = self._contacts(physicsClientId=self._cid)
+        pts = self._contacts(-1, -1, -2, -2, self._cid)
         if not pts:
-            return set()
+            return _NO_PAIRS
         return {(p[1], p[2]) if p[1] < p[2] else (p[2], p[1]) for p in pts}
 
     def reset_agent(self, index: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1),

@@ -80,7 +80,7 @@ def test_non_finite_state_is_diverged(make_sim):
     sim2.world.reset_agent(0, [1.5, 1.5, float("nan")])
     sim2.step(10)
     assert sim2.exit_status is ExitStatus.DIVERGED
-    assert np.isfinite(sim2.controller.wrench).all()
+    assert np.isfinite(sim2.controller.forces).all()
 
 
 def test_recorder_budget_one_megabyte_per_agent_per_ten_minutes():
