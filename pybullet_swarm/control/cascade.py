@@ -86,6 +86,8 @@ class CascadeController:
         self.rotor_speeds = self.ctrl[:, K.C_W:K.C_W + 4]         # rad/s, motor state
         self.rotor_commands = self.ctrl[:, K.C_WCMD:K.C_WCMD + 4]  # rad/s
         self.body_rates = self.ctrl[:, K.C_RATES:K.C_RATES + 3]   # rad/s
+        self.mass = self.ctrl[:, K.C_MASS]                       # kg, airframe + known payload
+        self.mass[:] = self.params.mass
         self.rotor_speeds[:] = rotor_speed
         self.rotor_commands[:] = rotor_speed
         self.pos_integral = np.zeros((n, 3))    # m s
@@ -114,6 +116,10 @@ class CascadeController:
     def wrench(self) -> NDArray[np.float64]:
         """World-frame force N (3) and torque N m (3) per agent, (n, 6) (a copy)."""
         return np.concatenate([self.forces, self.torques], axis=1)
+
+    def set_payload(self, agent: int, mass: float) -> None:
+        """Tell the controller that ``agent`` carries ``mass`` kg (thrust feed-forward; 0 when empty)."""
+        self.mass[agent] = self.params.mass + float(mass)
 
     def set_closed_loop(self, closed: bool) -> None:
         """Run the attitude loop (True) or hold ``rotor_commands`` as set from outside (False)."""

@@ -122,7 +122,8 @@ C_INTEG = 11        # 3: integral of the attitude error, rad s
 C_W = 14            # 4: rotor speeds (motor state), rad/s
 C_WCMD = 18         # 4: rotor speed commands, rad/s
 C_RATES = 22        # 3: body rates, rad/s
-CTRL_COLS = 25
+C_MASS = 25         # 1: mass the thrust is computed for (airframe + payload), kg
+CTRL_COLS = 26
 
 # Layout of the constant array ``const`` of ``physics_tick``.
 K_GAINS = 0         # 9: attitude gains (3, 3) rows roll, pitch, yaw; cols kp [1/s^2], kd [1/s], ki [1/s^3]
@@ -130,7 +131,7 @@ K_INTMAX = 9        # 3: bound on |ki * integral| per axis, rad/s^2
 K_INERTIA = 12      # 3: kg m^2
 K_MIXER = 15        # 16: (4, 4) w^2 -> [T, tau]
 K_MIXINV = 31       # 16: (4, 4) [T, tau] -> w^2
-K_MASS = 47         # kg, nominal (the controller's belief)
+K_MASS = 47         # kg, airframe mass (unused by the kernel: each agent's mass is ctrl[:, C_MASS])
 K_WMAX = 48         # rad/s
 K_ALPHA = 49        # 1 - exp(-dt / tau_motor)
 K_DT = 50           # s, physics period
@@ -157,7 +158,6 @@ def physics_tick(
     int_max = const[K_INTMAX:K_INTMAX + 3]
     mixer = const[K_MIXER:K_MIXER + 16].reshape(4, 4)
     mixer_inv = const[K_MIXINV:K_MIXINV + 16].reshape(4, 4)
-    mass = const[K_MASS]
     w_max = const[K_WMAX]
     alpha = const[K_ALPHA]
     dt = const[K_DT]
@@ -232,7 +232,7 @@ def physics_tick(
                         ctrl[i, C_INTEG + k] = lim
                     elif ctrl[i, C_INTEG + k] < -lim:
                         ctrl[i, C_INTEG + k] = -lim
-            u0 = mass * ctrl[i, C_THRUST]
+            u0 = ctrl[i, C_MASS] * ctrl[i, C_THRUST]
             u1 = jx * a0 + (jz - jy) * q * r
             u2 = jy * a1 + (jx - jz) * r * p
             u3 = jz * a2 + (jy - jx) * p * q

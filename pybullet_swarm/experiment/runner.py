@@ -60,6 +60,7 @@ def write_run(result: RunResult, out: Path, *, plots: bool = True) -> Path:
     if plots:
         from pybullet_swarm.plotting.run_plots import plot_run
 
-        plot_run(result.timeseries, out / "plots", result.metrics)
+        plot_run(result.timeseries, out / "plots", result.metrics, scenario=result.scenario.data,
+                 events=result.events)
     write_json(out / "metrics.json", result.metrics)   # last: its presence marks a finished run
     return out

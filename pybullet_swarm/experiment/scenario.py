@@ -277,7 +277,7 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
     kind = f.task.get("kind")
     from pybullet_swarm import tasks as _tasks  # registry of task models, filled by the tasks layer
 
-    models = {**TASK_MODELS, **_tasks.TASK_MODELS}
+    models = {**TASK_MODELS, **_tasks.task_models()}
     if "kind" not in f.task:
         raise ConfigError("is required", source=source, field="task.kind")
     if not isinstance(kind, str) or kind not in models:  # not hashable: a list or a mapping

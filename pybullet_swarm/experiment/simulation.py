@@ -16,12 +16,14 @@ from numpy.typing import NDArray
 from pybullet_swarm.control.cascade import CascadeController
 from pybullet_swarm.control.kernels import STATUS_FLIPPED, STATUS_NONFINITE, physics_tick
 from pybullet_swarm.control.reference import ReferenceShaper
-from pybullet_swarm.control.rotations import quat_to_matrix
+from pybullet_swarm.control.rotations import quat_to_euler, quat_to_matrix
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.recorder import Recorder, TimeSeries
 from pybullet_swarm.experiment.scenario import Scenario, WaypointsTask
 from pybullet_swarm.metrics.flight import flight_metrics
 from pybullet_swarm.metrics.collisions import COLLISION_CLASSES, CollisionClass, ContactTracker
+from pybullet_swarm.planning.base import Action, Command, CommandKind, Observation, TaskInfo, WorldView
+from pybullet_swarm.tasks.construction import PLACED, ConstructionRuntime, ConstructionTask
 from pybullet_swarm.tasks.waypoints import WaypointsRuntime
 from pybullet_swarm.types import Event, ExitStatus, SwarmState
 from pybullet_swarm.vehicle import VehicleParams, load_vehicle
@@ -66,15 +68,22 @@ class Simulation:
         self.scenario = scenario
         self.seed = scenario.seed if seed is None else int(seed)
         self.rng = np.random.default_rng(self.seed)
+        from pybullet_swarm.planning.registry import AVOIDANCE, DEFAULT_PLANNER, PLANNERS
+
+        kind = scenario.task.kind
         planner = planner if planner is not None else scenario.planner.name
-        avoidance = avoidance if avoidance is not None else scenario.avoidance
-        if planner not in (None, "waypoints"):
-            raise ConfigError(f"planner {planner!r} is not available yet; available: waypoints",
+        planner = planner or DEFAULT_PLANNER.get(kind)
+        if planner not in PLANNERS:
+            raise ConfigError(f"unknown planner {planner!r}; available: {', '.join(PLANNERS)}",
                               source=scenario.source, field="planner.name")
-        if avoidance not in ("none",):
-            raise ConfigError(f"avoidance {avoidance!r} is not available yet; available: none",
+        if kind not in PLANNERS[planner][2]:
+            raise ConfigError(f"planner {planner!r} does not solve {kind!r} tasks (it solves "
+                              f"{', '.join(PLANNERS[planner][2])})", source=scenario.source, field="planner.name")
+        avoidance = avoidance if avoidance is not None else scenario.avoidance
+        if avoidance not in AVOIDANCE:
+            raise ConfigError(f"avoidance {avoidance!r} is not available yet; available: {', '.join(AVOIDANCE)}",
                               source=scenario.source, field="avoidance")
-        self.planner_name = planner or "waypoints"
+        self.planner_name = planner
         self.avoidance_name = avoidance
         s = scenario.sim
         self.physics_hz = s.physics_hz
@@ -111,7 +120,16 @@ class Simulation:
         self.time_limit = float(sc.task.time_limit_s)
         cap = int(math.ceil(self.time_limit * s.record_hz)) + 2
         self.recorder = Recorder(n, cap) if self.record_enabled else None
-        self.task = WaypointsRuntime(sc.task, self.starts) if isinstance(sc.task, WaypointsTask) else None
+        self.ghost = sc.collisions == "ghost"
+        self.diameter = float(max(p.collision_size[0], p.collision_size[1]))   # m, agent "diameter"
+        self.task: Any = None
+        self.construction: ConstructionRuntime | None = None
+        if isinstance(sc.task, WaypointsTask):
+            self.task = WaypointsRuntime(sc.task, self.starts)
+        elif isinstance(sc.task, ConstructionTask):
+            self.construction = ConstructionRuntime(sc.task, self.world, agent_half_height=0.5 * p.collision_size[2],
+                                                    agent_radius=p.radius, ghost=sc.collisions == "ghost")
+            self.task = self.construction
         self.max_height = self.starts[:, 2].copy()   # m, highest recorded altitude per agent
         self.contacts = ContactTracker(self._classify, self.dt, debounce_s=0.1)
         self.events: list[Event] = []
@@ -121,6 +139,43 @@ class Simulation:
         self.open_loop = False
         self._external = False
         self._wall_time = 0.0
+        self.info = self._task_info()
+        self._make_planner()
+
+    def _task_info(self) -> TaskInfo:
+        sc, p = self.scenario, self.params
+        v = sc.velocity_limits()
+        extra: dict[str, Any] = {}
+        kw: dict[str, Any] = {}
+        if isinstance(self.task, WaypointsRuntime):
+            extra["schedule"] = self.task.targets
+        if self.construction is not None:
+            c = self.construction
+            kw = dict(depot=c.start.copy(), slots=c.slots.copy(), box_size=c.size, grasp_height=c.grasp_height)
+            extra.update(search_height=c.spec.search_height, attach_threshold=c.spec.attach_threshold,
+                         view_radius=c.view_radius)
+        return TaskInfo(arena_size=np.asarray(sc.arena.size, dtype=float), n_agents=self.n, agent_radius=p.radius,
+                        v_max=np.full(3, np.inf) if v is None else v, extra=extra, **kw)
+
+    def _make_planner(self) -> None:
+        from pybullet_swarm.planning.registry import PLANNERS
+
+        factory = PLANNERS[self.planner_name][0]
+        params = dict(self.scenario.planner.params) if self.scenario.planner.name in (None, self.planner_name) else {}
+        try:
+            if getattr(factory, "centralized", False):
+                self.planner = factory(**params)
+                self.planner.reset(self.n, self.rng, self.info)
+                self.agent_planners = None
+            else:
+                self.planner = None
+                self.agent_planners = [factory(**params) for _ in range(self.n)]
+                child = self.rng.spawn(self.n)
+                for i, pl in enumerate(self.agent_planners):
+                    pl.reset(i, child[i], self.info)
+        except TypeError as exc:
+            raise ConfigError(f"bad parameters for planner {self.planner_name!r}: {exc}",
+                              source=self.scenario.source, field="planner.params") from None
 
     def _classify(self, a: int, b: int) -> CollisionClass | None:
         ka, kb = self.world.body_kind(a), self.world.body_kind(b)
@@ -135,7 +190,13 @@ class Simulation:
             airborne = max(self.max_height[i], self.state_array[i, 2]) > self.rest_height + 0.05
             return CollisionClass.AGENT_GROUND if airborne else None
         if kb is BodyKind.BOX:
-            return CollisionClass.AGENT_BOX
+            c = self.construction
+            if c is None:
+                return CollisionClass.AGENT_BOX
+            box = c.body_to_box[b]
+            if c.carried_by[box] == self.agent_index[a]:
+                return None
+            return CollisionClass.AGENT_STRUCTURE if c.state[box] == PLACED else CollisionClass.AGENT_BOX
         return CollisionClass.AGENT_OBSTACLE
 
     # ----------------------------------------------------------------- access
@@ -187,16 +248,83 @@ class Simulation:
     # ------------------------------------------------------------------- loop
     def _planner_tick(self) -> None:
         t = self.time
-        if self.task is not None and not self._external:
-            targets, yaws = self.task.targets(t)
-            self.shaper.set_position_targets(targets)
-            self.shaper.yaw[:] = yaws
-        if self.task is not None:
-            if self.task.update(t, self.state_array[:, :3]):
-                self._finish(ExitStatus.COMPLETED)
-                return
+        done = False
+        if self.construction is not None:
+            done = self.construction.update(t)
+        elif self.task is not None:
+            done = self.task.update(t, self.state_array[:, :3])
+        if done:
+            self._finish(ExitStatus.COMPLETED)
+            return
+        if not self._external:
+            if self.planner is not None:
+                commands = self.planner.plan_all(self.world_view())
+            else:
+                assert self.agent_planners is not None
+                commands = [pl.plan(obs, None) for pl, obs in zip(self.agent_planners, self.observations())]
+            self._apply(commands)
         if t >= self.time_limit - 1e-9:
             self._finish(ExitStatus.TIMEOUT)
+
+    def _apply(self, commands: list[Command]) -> None:
+        """Turn commands into shaper targets and task actions."""
+        sh = self.shaper
+        t = self.time
+        for i, cmd in enumerate(commands):
+            if cmd.kind == CommandKind.POSITION:
+                sh.target[i] = cmd.vector
+                sh.velocity_mode[i] = False
+            elif cmd.kind == CommandKind.VELOCITY:
+                sh.target[i] = cmd.vector
+                sh.velocity_mode[i] = True
+            else:
+                sh.target[i] = sh.p[i]
+                sh.velocity_mode[i] = False
+            sh.yaw[i] = cmd.yaw
+            if cmd.action and self.construction is not None:
+                body = self.world.agent_bodies[i]
+                if cmd.action == Action.GRASP:
+                    if self.construction.grasp(i, body, self.state_array[i, :3], t) >= 0:
+                        self.controller.set_payload(i, self.construction.spec.box_mass)
+                elif cmd.action == Action.RELEASE:
+                    if self.construction.release(i, body, t) >= 0:
+                        self.controller.set_payload(i, 0.0)
+
+    def world_view(self) -> WorldView:
+        """Everything now (for centralised planners)."""
+        s = self.state_array
+        c = self.construction
+        if c is None:
+            empty3 = np.zeros((0, 3))
+            return WorldView(self.time, s[:, :3].copy(), s[:, 7:10].copy(), np.full(self.n, -1), empty3,
+                             np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=bool))
+        return WorldView(self.time, s[:, :3].copy(), s[:, 7:10].copy(), c.carrying(self.n), c.positions.copy(),
+                         c.state.copy(), c.slot_box.copy(), c.slot_open)
+
+    def observations(self) -> list[Observation]:
+        """Each agent's local observation: own state, neighbours in the sensing radius, visible objects."""
+        from scipy.spatial import cKDTree
+
+        s = self.state_array
+        pos, vel = s[:, :3], s[:, 7:10]
+        yaw = quat_to_euler(s[:, 3:7])[:, 2]
+        r = self.scenario.agents.sensing_radius
+        near = cKDTree(pos).query_ball_point(pos, r) if self.n > 1 else [[0]]
+        carrying = self.construction.carrying(self.n) if self.construction is not None else np.full(self.n, -1)
+        out = []
+        t = self.time
+        no3 = np.zeros((0, 3))
+        noi = np.zeros(0, dtype=np.int64)
+        for i in range(self.n):
+            nb = np.array([j for j in near[i] if j != i], dtype=np.int64)
+            if self.construction is not None:
+                boxes, slots = self.construction.visible(pos[i])
+                bpos, spos = self.construction.positions[boxes], self.construction.slots[slots]
+            else:
+                boxes, slots, bpos, spos = noi, noi, no3, no3
+            out.append(Observation(i, t, pos[i].copy(), vel[i].copy(), float(yaw[i]), int(carrying[i]), nb,
+                                   pos[nb].copy(), vel[nb].copy(), bpos, boxes, spos, slots))
+        return out
 
     def _finish(self, status: ExitStatus, agent: int | None = None, detail: str = "") -> None:
         if self.exit_status is ExitStatus.RUNNING:
@@ -241,6 +369,7 @@ class Simulation:
         ce, pe, re = self.control_every, self.planner_every, self.record_every
         running = ExitStatus.RUNNING
         closed = not self.open_loop
+        ghost = self.ghost and self.n > 1
         k = self.step_count
         end = k + steps
         while k < end and self.exit_status is running:
@@ -257,6 +386,8 @@ class Simulation:
             self.step_count = k
             read(state)
             pairs = contact_pairs()
+            if ghost:
+                pairs = self._with_ghost_overlaps(pairs)
             if pairs or contacts._prev:
                 self._on_contacts(pairs)
             if worst:
@@ -266,6 +397,26 @@ class Simulation:
         self._wall_time += time.perf_counter() - t0
         return self.exit_status
 
+    def _with_ghost_overlaps(self, pairs: Any) -> Any:
+        """Add overlapping agent pairs (their contacts are disabled in ghost mode) to ``pairs``."""
+        pos = self.state_array[:, :3]
+        reach = 2.0 * self.params.radius + 0.01
+        if self.n <= 64:
+            d2 = np.sum((pos[:, None, :] - pos[None, :, :]) ** 2, axis=2)
+            ii, jj = np.nonzero(np.triu(d2 < reach * reach, 1))
+            cand = zip(ii.tolist(), jj.tolist())
+        else:
+            from scipy.spatial import cKDTree
+
+            cand = cKDTree(pos).query_pairs(reach)
+        bodies = self.world.agent_bodies
+        extra = set()
+        for i, j in cand:
+            a, b = bodies[i], bodies[j]
+            if self.world.overlapping(a, b):
+                extra.add((a, b) if a < b else (b, a))
+        return (set(pairs) | extra) if extra else pairs
+
     def _sample(self) -> None:
         """Work done at the recording rate: the recorder and the altitude high-water mark."""
         np.maximum(self.max_height, self.state_array[:, 2], out=self.max_height)
@@ -273,6 +424,9 @@ class Simulation:
             s = self.state_array
             self.recorder.record(self.time, s[:, :7], s[:, 7:], self.controller.rotor_speeds, self.shaper.p,
                                  self.shaper.v)
+            if self.construction is not None:
+                self.construction.read()
+                self.recorder.record_extra("box_positions", self.construction.positions)
 
     def run(self) -> RunResult:
         """Run until the task completes, the time limit passes, or an agent crashes."""
@@ -299,18 +453,49 @@ class Simulation:
             "vehicle": self.params.name,
             "crashed_agent": self.crashed_agent,
             "completion_time_s": self.task.completed_at if self.task is not None else None,
+            **(self.construction.metrics() if self.construction is not None else {}),
             "collisions": {c: self.contacts.counts[c] for c in COLLISION_CLASSES},
             "collision_time_s": {c: round(self.contacts.time_s[c], 9) for c in COLLISION_CLASSES},
         }
         if ts is not None and ts.t.size:
             m.update(flight_metrics(ts, self.params.km))
+            m.update(self._swarm_metrics(ts))
+        if self.construction is not None:
+            m.update(self._construction_metrics(m))
         return m
+
+    def _swarm_metrics(self, ts: TimeSeries) -> dict[str, Any]:
+        from pybullet_swarm.metrics.construction import proximity_metrics, utility_of_space
+
+        pos = ts.positions.astype(float)
+        out = proximity_metrics(ts.t, pos, self.diameter)
+        out["utility_of_space"] = utility_of_space(pos[:, :, :2], self.scenario.arena.size)
+        return out
+
+    def _construction_metrics(self, m: dict[str, Any]) -> dict[str, Any]:
+        from pybullet_swarm.metrics.construction import task_lower_bound
+
+        c = self.construction
+        assert c is not None
+        v = self.scenario.velocity_limits()
+        lb = task_lower_bound(self.starts, c.start, c.slots, np.full(3, 1e9) if v is None else v,
+                              grasp_height=c.grasp_height)
+        done = m.get("completion_time_s")
+        return {"task_lower_bound_s": lb["task_lower_bound_s"],
+                "efficiency": (lb["task_lower_bound_s"] / done) if done else None}
 
     def result(self) -> RunResult:
         """The run's result now."""
         empty = Recorder(self.n, 1).series()
         ts = self.recorder.series() if self.recorder is not None else empty
-        return RunResult(self.exit_status, self.metrics(), list(self.events), ts, self.scenario)
+        return RunResult(self.exit_status, self.metrics(), self.all_events(), ts, self.scenario)
+
+    def all_events(self) -> list[Event]:
+        """Contact, crash and task events in time order."""
+        events = list(self.events)
+        if self.construction is not None:
+            events += self.construction.events
+        return sorted(events, key=lambda e: e.time_s)
 
     def close(self) -> None:
         """Release the Bullet client."""

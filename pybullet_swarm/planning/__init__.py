@@ -4,9 +4,13 @@ from __future__ import annotations
 
 def available_planners() -> dict[str, str]:
     """Planner names with a one-line description."""
-    return {"waypoints": "centralised: every agent follows the task's timed set-points (default)"}
+    from pybullet_swarm.planning.registry import PLANNERS
+
+    return {name: f"{desc} [tasks: {', '.join(kinds)}]" for name, (_, desc, kinds) in PLANNERS.items()}
 
 
 def available_avoidance() -> dict[str, str]:
     """Avoidance layer names with a one-line description."""
-    return {"none": "no local avoidance (default)"}
+    from pybullet_swarm.planning.registry import AVOIDANCE
+
+    return dict(AVOIDANCE)

@@ -70,13 +70,55 @@ def plot_rotors(ts: TimeSeries, path: Path) -> Path:
     return _save(fig, path)
 
 
-def plot_run(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any] | None = None) -> list[Path]:
-    """Draw every figure of a run into ``out_dir``; returns the files written."""
+def plot_run(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any] | None = None, *,
+             scenario: dict[str, Any] | None = None, events: list[Any] | None = None) -> list[Path]:
+    """Draw every figure of a run into ``out_dir``; returns the files written.
+
+    Args:
+        ts: the recorded time series.
+        out_dir: figure directory.
+        metrics: the run's metrics (for annotations).
+        scenario: the resolved scenario data (for task figures).
+        events: the run's events (for the collision timeline).
+    """
     out_dir = Path(out_dir)
     if ts.t.size == 0:
         return []
-    return [
+    files = [
         plot_positions(ts, out_dir / "position.png"),
         plot_attitude(ts, out_dir / "attitude.png"),
         plot_rotors(ts, out_dir / "rotor_speeds.png"),
     ]
+    if scenario is not None:
+        files += _swarm_figures(ts, out_dir, metrics or {}, scenario, events or [])
+    return files
+
+
+def _swarm_figures(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any], scenario: dict[str, Any],
+                   events: list[Any]) -> list[Path]:
+    from pybullet_swarm.metrics.construction import (acceleration_series, box_to_goal_distance,
+                                                     nearest_neighbour_distances)
+    from pybullet_swarm.plotting import construction_plots as cp
+    from pybullet_swarm.vehicle import load_vehicle
+
+    files = []
+    pos = ts.positions.astype(float)
+    task = scenario.get("task", {})
+    arena = scenario.get("arena", {}).get("size", [3.0, 1.0])
+    vehicle = load_vehicle(scenario.get("agents", {}).get("vehicle", "quad150"))
+    diameter = max(vehicle.collision_size[0], vehicle.collision_size[1])
+    if pos.shape[1] > 1:
+        files.append(cp.plot_nn_distance(ts.t, nearest_neighbour_distances(pos), diameter,
+                                         out_dir / "nn_distance.png"))
+    files.append(cp.plot_collision_timeline(events, float(ts.t[-1]), out_dir / "collision_timeline.png"))
+    files.append(cp.plot_acceleration(ts.t, acceleration_series(ts.t, ts.velocities.astype(float)),
+                                      out_dir / "acceleration.png", agent=0))
+    if task.get("kind") == "construction":
+        boxes = np.asarray(task["boxes"], dtype=float)
+        slots = np.asarray(task["structure"], dtype=float)
+        files.append(cp.plot_top_view(pos, arena, boxes, slots, float(task["box_size"]), out_dir / "top_view.png"))
+        if "box_positions" in ts.extra:
+            total = box_to_goal_distance(ts.extra["box_positions"].astype(float), slots)
+            files.append(cp.plot_box_to_goal(ts.t, total, out_dir / "box_to_goal.png",
+                                             completion_time=metrics.get("completion_time_s")))
+    return files

@@ -104,11 +104,14 @@ class VehicleParams:
 
 def _resolve(name_or_path: str | Path) -> Path:
     p = Path(name_or_path)
-    if p.suffix in (".yaml", ".yml") and p.is_file():
-        return p
-    candidate = urdf_dir() / f"{name_or_path}.yaml"
-    if candidate.is_file():
-        return candidate
+    try:
+        if p.suffix in (".yaml", ".yml") and p.is_file():
+            return p
+        candidate = urdf_dir() / f"{name_or_path}.yaml"
+        if candidate.is_file():
+            return candidate
+    except OSError:   # e.g. a name too long for the file system
+        pass
     raise ConfigError(
         f"unknown vehicle {str(name_or_path)!r}, expected one of {', '.join(bundled_vehicles())} "
         "or a path to a vehicle .yaml file"

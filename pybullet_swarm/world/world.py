@@ -124,8 +124,15 @@ class World:
         body = pb.createMultiBody(float(mass), shape, visual, basePosition=list(map(float, center)),
                                   baseOrientation=orn, physicsClientId=cid)
         pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=cid)
+        if mass > 0.0:
+            # resting boxes fall asleep and cost nothing until something touches them
+            pb.changeDynamics(body, -1, activationState=pb.ACTIVATION_STATE_ENABLE_SLEEPING, physicsClientId=cid)
         self._register(body, kind, name or f"{kind.value}{body}")
         return body
+
+    def wake(self, body: int) -> None:
+        """Wake a sleeping body up (before attaching it, for example)."""
+        pb.changeDynamics(body, -1, activationState=pb.ACTIVATION_STATE_WAKE_UP, physicsClientId=self._cid)
 
     def add_cylinder(self, center: Sequence[float], radius: float, height: float, *, name: str = "",
                      kind: BodyKind = BodyKind.OBSTACLE, color: Sequence[float] = (0.5, 0.5, 0.5, 1.0)) -> int:
@@ -159,6 +166,8 @@ class World:
         mass: float,
         inertia: Sequence[float],
         yaws: NDArray[np.float64] | None = None,
+        contact_stiffness: float = 2000.0,
+        contact_damping: float = 40.0,
     ) -> None:
         """Load one URDF per agent at ``positions`` (n, 3) m; mass and inertia override the file's.
 
@@ -174,8 +183,12 @@ class World:
             with _quiet_stdout():
                 body = pb.loadURDF(str(urdf), basePosition=positions[i].tolist(), baseOrientation=orn,
                                    flags=flags, physicsClientId=cid)
+            # Low friction and compliant contacts (as with propeller guards): a bump pushes an
+            # airframe aside instead of levering it over in one physics step.
             pb.changeDynamics(body, -1, mass=float(mass), localInertiaDiagonal=[float(v) for v in inertia],
-                              linearDamping=0.0, angularDamping=0.0, lateralFriction=0.6, physicsClientId=cid)
+                              linearDamping=0.0, angularDamping=0.0, lateralFriction=0.2,
+                              contactStiffness=contact_stiffness, contactDamping=contact_damping,
+                              physicsClientId=cid)
             self._agents.append(body)
             self._register(body, BodyKind.AGENT, f"agent{i}")
         self._poses = [self._get_pose(b, cid)[0] for b in self._agents]
@@ -278,10 +291,29 @@ class World:
         pb.changeDynamics(body, -1, mass=float(mass), physicsClientId=self._cid)
 
     # ------------------------------------------------------------ constraints
-    def attach(self, parent: int, child: int, offset: Sequence[float]) -> int:
-        """Hold ``child`` rigidly at ``offset`` (m, parent frame) below ``parent``; returns a handle."""
-        return pb.createConstraint(parent, -1, child, -1, pb.JOINT_FIXED, [0, 0, 0], list(map(float, offset)),
-                                   [0, 0, 0], physicsClientId=self._cid)
+    def attach(self, parent: int, child: int, max_force: float = 2.0) -> int:
+        """Hold ``child`` rigidly to ``parent`` at their current relative pose; returns a handle.
+
+        ``max_force`` (N) is the grip: a harder pull (a collision) makes the held body slip.
+        """
+        cid = self._cid
+        self.wake(child)
+        pp, po = pb.getBasePositionAndOrientation(parent, physicsClientId=cid)
+        cp, co = pb.getBasePositionAndOrientation(child, physicsClientId=cid)
+        ip, io = pb.invertTransform(pp, po)
+        rel_p, rel_o = pb.multiplyTransforms(ip, io, cp, co)
+        c = pb.createConstraint(parent, -1, child, -1, pb.JOINT_FIXED, [0, 0, 0], rel_p, [0, 0, 0],
+                                parentFrameOrientation=rel_o, physicsClientId=cid)
+        pb.changeConstraint(c, maxForce=float(max_force), physicsClientId=cid)
+        return c
+
+    def set_pair_collision(self, a: int, b: int, enabled: bool) -> None:
+        """Enable or disable contacts between two bodies."""
+        pb.setCollisionFilterPair(a, b, -1, -1, int(enabled), physicsClientId=self._cid)
+
+    def overlapping(self, a: int, b: int) -> bool:
+        """True when two bodies' collision shapes overlap (works with their contacts disabled)."""
+        return bool(pb.getClosestPoints(a, b, 0.0, physicsClientId=self._cid))
 
     def detach(self, constraint: int) -> None:
         """Remove a constraint made by ``attach``."""

@@ -1,0 +1,164 @@
+"""Shortest path: the thesis's centralised baseline for the construction task.
+
+Boxes are assigned in structure order (bottom layer first); each agent climbs to its cruise
+altitude, flies in a straight line to its box, descends, grasps, climbs, flies to its slot,
+waits until the slot is open, descends, releases and climbs. Other agents are ignored at run
+time (this baseline collides, as in the thesis). Agent i cruises at
+``search_height + i * altitude_step``: with the default step of 0.2 m the loaded airframes
+(about 13 cm tall with a box) do not share a cruise altitude, so the physical simulation
+survives the crossings; ``altitude_step: 0`` gives the thesis's single search height (run it
+with ``collisions: ghost``, as the thesis detected collisions without simulating them).
+Centralised: it reads the whole ``WorldView``.
+"""
+from __future__ import annotations
+
+import enum
+from typing import ClassVar
+
+import numpy as np
+
+from pybullet_swarm.planning.base import Action, Command, TaskInfo, WorldView
+
+
+class Phase(enum.IntEnum):
+    """Where an agent is in its delivery."""
+
+    IDLE = 0
+    TO_BOX = 1
+    DESCEND_BOX = 2
+    LIFT = 3
+    TO_SLOT = 4
+    DESCEND_SLOT = 5
+    CLIMB = 6
+    DONE = 7
+
+
+class ShortestPath:
+    """Centralised straight-line delivery in structure order.
+
+    Args:
+        arrive_tol: m, horizontal distance at which a waypoint counts as reached.
+        release_clearance: m, how far above its slot a box is let go.
+    """
+
+    name: ClassVar[str] = "shortest_path"
+    centralized: ClassVar[bool] = True
+
+    def __init__(self, arrive_tol: float = 0.01, release_clearance: float = 0.004, altitude_step: float = 0.2,
+                 release_tol: float = 0.005) -> None:
+        if arrive_tol <= 0 or release_clearance < 0 or altitude_step < 0:
+            raise ValueError("arrive_tol must be > 0, release_clearance and altitude_step >= 0")
+        self.arrive_tol = float(arrive_tol)
+        self.release_clearance = float(release_clearance)
+        self.altitude_step = float(altitude_step)
+        self.release_tol = float(release_tol)
+
+    def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
+        """Order the slots bottom layer first and clear the assignments."""
+        self.info = info
+        self.n = n
+        base = float(info.extra.get("search_height", 0.45))
+        self.hs = base + self.altitude_step * np.arange(n)   # m, cruise altitude of each agent
+        self.gh = info.grasp_height
+        slots = info.slots
+        self.order = list(np.lexsort((slots[:, 1], slots[:, 0], np.round(slots[:, 2], 6))))
+        self.phase = np.full(n, Phase.IDLE, dtype=np.int64)
+        self.box = np.full(n, -1, dtype=np.int64)
+        self.slot = np.full(n, -1, dtype=np.int64)
+        self.next_slot = 0
+        self.attach = float(info.extra.get("attach_threshold", 0.02))
+
+    def _assign(self, i: int, view: WorldView) -> None:
+        taken_boxes = set(self.box[self.box >= 0].tolist())
+        while self.next_slot < len(self.order) and view.slot_filled[self.order[self.next_slot]] >= 0:
+            self.next_slot += 1
+        if self.next_slot >= len(self.order):
+            self.phase[i] = Phase.DONE
+            return
+        free = [b for b in range(len(view.box_state)) if view.box_state[b] == 0 and b not in taken_boxes]
+        if not free:
+            self.phase[i] = Phase.DONE
+            return
+        p = view.positions[i]
+        d = [np.linalg.norm(view.box_positions[b, :2] - p[:2]) for b in free]
+        self.box[i] = free[int(np.argmin(d))]
+        self.slot[i] = self.order[self.next_slot]
+        self.next_slot += 1
+        self.phase[i] = Phase.TO_BOX
+
+    def _near_xy(self, p: np.ndarray, q: np.ndarray) -> bool:
+        return bool(np.linalg.norm(p[:2] - q[:2]) <= self.arrive_tol)
+
+    def _cruise(self, i: int, p: np.ndarray, target: np.ndarray) -> Command:
+        """Go to ``target`` at cruise altitude: climb first, then fly straight."""
+        if not self._near_xy(p, target) and abs(p[2] - self.h) > 0.03:
+            return Command.goto([p[0], p[1], self.h])
+        return Command.goto(target)
+
+    def _step(self, i: int, view: WorldView) -> Command:
+        p = view.positions[i]
+        self.h = float(self.hs[i])
+        ph = Phase(self.phase[i])
+        if ph == Phase.IDLE:
+            self._assign(i, view)
+            ph = Phase(self.phase[i])
+        if ph == Phase.DONE:
+            return Command.goto([p[0], p[1], self.h])
+        b, s = self.box[i], self.slot[i]
+        if ph == Phase.TO_BOX:
+            if view.box_state[b] != 0:           # someone took or placed it meanwhile: choose again
+                self.phase[i] = Phase.IDLE
+                self.box[i] = -1
+                return Command.goto([p[0], p[1], self.h])
+            above = np.array([*view.box_positions[b, :2], self.h])
+            if self._near_xy(p, above) and abs(p[2] - self.h) < 0.05:
+                self.phase[i] = Phase.DESCEND_BOX
+            return self._cruise(i, p, above)
+        if ph == Phase.DESCEND_BOX:
+            grasp = view.box_positions[b] + [0.0, 0.0, self.gh]
+            if view.carrying[i] == b:
+                self.phase[i] = Phase.LIFT
+                return Command.goto([p[0], p[1], self.h])
+            act = Action.GRASP if np.linalg.norm(p - grasp) <= 0.6 * self.attach else Action.NONE
+            return Command.goto(grasp, act)
+        if ph == Phase.LIFT:
+            if view.carrying[i] != b:            # lost the box: start over
+                self.phase[i] = Phase.IDLE
+                self.box[i] = -1
+                self.next_slot = min(self.next_slot, self.order.index(s))
+                return Command.goto([p[0], p[1], self.h])
+            if abs(p[2] - self.h) < 0.05:
+                self.phase[i] = Phase.TO_SLOT
+            return Command.goto([p[0], p[1], self.h])
+        # where the agent must be for the box it holds (at its actual offset) to hang just above the slot
+        drop = self.info.slots[s] + [0.0, 0.0, self.release_clearance]
+        offset = view.box_positions[b] - p if view.carrying[i] == b else np.array([0.0, 0.0, -self.gh])
+        slot_top = drop - offset
+        if ph == Phase.TO_SLOT:
+            above = np.array([slot_top[0], slot_top[1], self.h])
+            if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
+                self.phase[i] = Phase.DESCEND_SLOT
+                self._targets = getattr(self, "_targets", {})
+                self._targets[(i, s)] = slot_top
+            return self._cruise(i, p, above)
+        if ph == Phase.DESCEND_SLOT:
+            if view.carrying[i] != b:
+                self.phase[i] = Phase.CLIMB
+                return Command.goto([p[0], p[1], self.h])
+            err = view.box_positions[b] - drop
+            speed = np.linalg.norm(view.velocities[i])
+            ok = np.hypot(err[0], err[1]) <= self.release_tol and abs(err[2]) <= self.release_tol and speed < 0.02
+            if not hasattr(self, "_targets"):
+                self._targets = {}
+            # the drop point is fixed once the descent starts, so box swing does not move the target
+            target = self._targets.setdefault((i, s), slot_top)
+            return Command.goto(target, Action.RELEASE if ok else Action.NONE)
+        # CLIMB
+        if abs(p[2] - self.h) < 0.05:
+            self.phase[i] = Phase.IDLE
+            self.box[i] = -1
+        return Command.goto([p[0], p[1], self.h])
+
+    def plan_all(self, view: WorldView) -> list[Command]:
+        """One command per agent."""
+        return [self._step(i, view) for i in range(self.n)]

@@ -1,0 +1,25 @@
+"""The default planner of waypoint tasks: every agent follows the task's timed set-points."""
+from __future__ import annotations
+
+from typing import Callable, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pybullet_swarm.planning.base import Command, TaskInfo, WorldView
+
+
+class WaypointFollower:
+    """Centralised: reads the task's schedule (``info.extra['schedule']``: t -> (targets (n, 3), yaws (n,)))."""
+
+    name: ClassVar[str] = "waypoints"
+    centralized: ClassVar[bool] = True
+
+    def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
+        """Keep the task's schedule."""
+        self.schedule: Callable[[float], tuple[NDArray[np.float64], NDArray[np.float64]]] = info.extra["schedule"]
+
+    def plan_all(self, view: WorldView) -> list[Command]:
+        """Each agent's active set-point."""
+        targets, yaws = self.schedule(view.time_s)
+        return [Command.goto(targets[i], yaw=float(yaws[i])) for i in range(len(targets))]

@@ -1,0 +1,315 @@
+"""The construction task of the reference thesis: carry boxes from a depot into a structure.
+
+Boxes are real rigid bodies. An agent that asks to GRASP within ``attach_threshold`` of a free
+box's grasp point (straight above the box, at ``grasp_height``) holds it with a fixed
+constraint; RELEASE removes the constraint and the box settles under gravity. A slot is open
+when it is empty and every slot under it is filled; a box counts as placed when it rests within
+``place_tolerance_m`` and ``place_tolerance_deg`` of a slot. The task is completed when every
+slot is filled and the structure has stood still for ``settle_s``.
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Annotated, Any, Literal
+
+import numpy as np
+import pydantic
+from numpy.typing import NDArray
+from pydantic import Field
+
+from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.tasks import TASK_MODELS
+from pybullet_swarm.types import Event
+
+if TYPE_CHECKING:  # pragma: no cover
+    from pybullet_swarm.experiment.scenario import Scenario
+    from pybullet_swarm.world import World
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+
+FREE, CARRIED, PLACED = 0, 1, 2
+
+
+class ConstructionTask(pydantic.BaseModel):
+    """Scenario section ``task`` of kind ``construction``."""
+
+    model_config = pydantic.ConfigDict(extra="forbid", strict=True, frozen=True)
+
+    kind: Literal["construction"]
+    time_limit_s: float = Field(500.0, gt=0.0, le=1e5)
+    boxes: Annotated[list[Vec3], Field(min_length=1, max_length=500)]       # m, box centres at the start
+    structure: Annotated[list[Vec3], Field(min_length=1, max_length=500)]   # m, goal slot centres
+    box_size: float = Field(0.1, gt=0.0, le=2.0)                # m, cube edge
+    box_mass: float = Field(0.01, gt=0.0, le=10.0)              # kg
+    box_friction: float = Field(0.8, ge=0.0, le=5.0)
+    attach_threshold: float = Field(0.02, gt=0.0, le=1.0)       # m, agent to grasp point
+    grasp_gap: float = Field(0.005, ge=0.0, le=0.5)             # m, airframe bottom to box top when held
+    place_tolerance_m: float = Field(0.01, gt=0.0, le=1.0)
+    place_tolerance_deg: float = Field(10.0, gt=0.0, le=45.0)
+    settle_s: float = Field(1.0, ge=0.0, le=100.0)
+    settle_speed: float = Field(0.01, gt=0.0, le=10.0)          # m/s, "still" below this
+    search_height: float = Field(0.45, gt=0.0, le=100.0)        # m, cruise altitude of the planners
+    grip_force: float = Field(2.0, gt=0.0, le=1000.0)           # N, a harder pull on a held box makes it slip
+    view_radius: float | None = Field(None, gt=0.0, le=100.0)   # m (default: 2 x agent radius)
+
+    def check(self, scenario: Scenario, source: str) -> None:
+        """Refuse boxes outside the arena, overlapping boxes or slots, and unsupported slots."""
+        h = 0.5 * self.box_size
+        lx, ly = scenario.arena.size
+        boxes = np.asarray(self.boxes, dtype=float)
+        slots = np.asarray(self.structure, dtype=float)
+        if len(slots) > len(boxes):
+            raise ConfigError(f"needs at most as many slots as boxes ({len(boxes)}), got {len(slots)}",
+                              source=source, field="task.structure")
+        for name, pts in (("boxes", boxes), ("structure", slots)):
+            for i, p in enumerate(pts):
+                if not (h - 1e-9 <= p[0] <= lx - h + 1e-9 and h - 1e-9 <= p[1] <= ly - h + 1e-9):
+                    raise ConfigError(f"box at ({p[0]:g}, {p[1]:g}) is outside the arena [0, {lx:g}] x [0, {ly:g}] m "
+                                      f"(box size {self.box_size:g} m)", source=source, field=f"task.{name}[{i}]")
+                if p[2] < h - 1e-6:
+                    raise ConfigError(f"box centre must be at least box_size / 2 = {h:g} m above the ground, "
+                                      f"got z = {p[2]:g}", source=source, field=f"task.{name}[{i}]")
+            j, k = _first_overlap(pts, self.box_size)
+            if j >= 0:
+                raise ConfigError(f"boxes {j} and {k} overlap", source=source, field=f"task.{name}[{k}]")
+        for i, p in enumerate(boxes):
+            if p[2] > h + 1e-6 and not _supported(p, boxes, self.box_size):
+                raise ConfigError("box floats: nothing under it", source=source, field=f"task.boxes[{i}]")
+        for i, p in enumerate(slots):
+            if p[2] > h + 1e-6 and not _supported(p, slots, self.box_size):
+                raise ConfigError("slot has nothing under it (no slot or ground supports its centre)",
+                                  source=source, field=f"task.structure[{i}]")
+        for i, p in enumerate(boxes):
+            d = np.max(np.abs(slots - p), axis=1)
+            if np.any(d < self.box_size - 1e-9):
+                raise ConfigError("box starts inside a goal slot", source=source, field=f"task.boxes[{i}]")
+
+
+TASK_MODELS["construction"] = ConstructionTask
+
+
+def _first_overlap(pts: NDArray[np.float64], size: float) -> tuple[int, int]:
+    for k in range(1, len(pts)):
+        d = np.max(np.abs(pts[:k] - pts[k]), axis=1)
+        hit = np.nonzero(d < size - 1e-9)[0]
+        if hit.size:
+            return int(hit[0]), k
+    return -1, -1
+
+
+def supporters(slots: NDArray[np.float64], size: float) -> list[NDArray[np.int64]]:
+    """For each slot, the slots directly under it whose top face touches its bottom face and
+    whose footprint overlaps its own."""
+    out = []
+    for p in slots:
+        dz = p[2] - slots[:, 2]
+        under = (np.abs(dz - size) < 1e-6) & (np.abs(slots[:, 0] - p[0]) < size - 1e-9) & (
+            np.abs(slots[:, 1] - p[1]) < size - 1e-9)
+        out.append(np.nonzero(under)[0])
+    return out
+
+
+def _supported(p: NDArray[np.float64], pts: NDArray[np.float64], size: float) -> bool:
+    """True when the centre of the box at ``p`` lies over the union of the footprints of the
+    boxes right under it (so it cannot tip over)."""
+    dz = p[2] - pts[:, 2]
+    under = pts[(np.abs(dz - size) < 1e-6)]
+    if under.size == 0:
+        return False
+    h = 0.5 * size
+    inside = (np.abs(under[:, 0] - p[0]) <= h + 1e-9) & (np.abs(under[:, 1] - p[1]) <= h + 1e-9)
+    if inside.any():
+        return True
+    # centre over a gap between supports: supported when supports lie on both sides of it
+    near = under[(np.abs(under[:, 0] - p[0]) < size) & (np.abs(under[:, 1] - p[1]) < size)]
+    if len(near) < 2:
+        return False
+    lo_x, hi_x = near[:, 0].min() - h, near[:, 0].max() + h
+    lo_y, hi_y = near[:, 1].min() - h, near[:, 1].max() + h
+    return bool(lo_x <= p[0] <= hi_x and lo_y <= p[1] <= hi_y)
+
+
+def _box_tilt_and_yaw_error(q: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Tilt (angle of the box axis closest to vertical from vertical) and yaw error modulo 90 deg,
+    both rad, of cube orientations q (B, 4) (x, y, z, w)."""
+    from pybullet_swarm.control.rotations import quat_to_matrix
+
+    R = quat_to_matrix(q)
+    zc = np.abs(R[:, 2, :])                  # |vertical component| of each box axis
+    k = np.argmax(zc, axis=1)
+    tilt = np.arccos(np.clip(zc[np.arange(len(q)), k], -1.0, 1.0))
+    # heading of one horizontal box axis, folded into [-45, 45) deg
+    j = (k + 1) % 3
+    ax = R[np.arange(len(q)), :, j]
+    yaw = np.arctan2(ax[:, 1], ax[:, 0])
+    yaw = (yaw + np.pi / 4) % (np.pi / 2) - np.pi / 4
+    return tilt, np.abs(yaw)
+
+
+class ConstructionRuntime:
+    """Bodies, grasps and placements of a construction run.
+
+    Args:
+        spec: the validated task section.
+        world: the World to build the boxes in.
+        agent_half_height: m, half the airframe's height (for the grasp point).
+        agent_radius: m.
+    """
+
+    def __init__(self, spec: ConstructionTask, world: World, *, agent_half_height: float, agent_radius: float,
+                 ghost: bool = False) -> None:
+        from pybullet_swarm.world import BodyKind
+
+        self.spec = spec
+        self.world = world
+        self.ghost = ghost   # carried boxes pass through other agents, as the agents do
+        self.size = spec.box_size
+        self.start = np.asarray(spec.boxes, dtype=float)          # (B, 3)
+        self.slots = np.asarray(spec.structure, dtype=float)      # (S, 3)
+        self.B, self.S = len(self.start), len(self.slots)
+        self.grasp_height = agent_half_height + spec.grasp_gap + 0.5 * spec.box_size
+        self.view_radius = spec.view_radius if spec.view_radius is not None else 2.0 * agent_radius
+        self.bodies = [world.add_box(p, [spec.box_size] * 3, mass=spec.box_mass, kind=BodyKind.BOX, name=f"box{i}",
+                                     color=(0.55, 0.45, 0.3, 1.0), friction=spec.box_friction)
+                       for i, p in enumerate(self.start)]
+        self.body_to_box = {b: i for i, b in enumerate(self.bodies)}
+        self.support = supporters(self.slots, spec.box_size)
+        self.positions = self.start.copy()                       # (B, 3) m
+        self.quaternions = np.tile([0.0, 0.0, 0.0, 1.0], (self.B, 1))
+        self.speeds = np.zeros(self.B)                           # m/s
+        self.state = np.zeros(self.B, dtype=np.int64)            # FREE / CARRIED / PLACED
+        self.carried_by = np.full(self.B, -1, dtype=np.int64)
+        self.slot_box = np.full(self.S, -1, dtype=np.int64)      # box in each slot, -1 when empty
+        self._constraints: dict[int, int] = {}
+        self.still_since: float | None = None
+        self.completed_at: float | None = None
+        self.events: list[Event] = []
+        self.grasps = 0
+        self.releases = 0
+
+    # ------------------------------------------------------------ bookkeeping
+    def read(self) -> None:
+        """Read box poses and speeds from the World."""
+        for i, b in enumerate(self.bodies):
+            p, q = self.world.body_pose(b)
+            v, _ = self.world.body_velocity(b)
+            self.positions[i] = p
+            self.quaternions[i] = q
+            self.speeds[i] = float(np.linalg.norm(v))
+
+    def _update_slots(self, t: float) -> None:
+        tilt, yaw = _box_tilt_and_yaw_error(self.quaternions)
+        tol_a = math.radians(self.spec.place_tolerance_deg)
+        aligned = (tilt <= tol_a) & (yaw <= tol_a)
+        loose = self.state != CARRIED
+        new_slot_box = np.full(self.S, -1, dtype=np.int64)
+        d = np.linalg.norm(self.positions[None, :, :] - self.slots[:, None, :], axis=2)   # (S, B)
+        for s in range(self.S):
+            cand = np.nonzero((d[s] <= self.spec.place_tolerance_m) & aligned & loose)[0]
+            if cand.size:
+                new_slot_box[s] = cand[np.argmin(d[s, cand])]
+        for s in range(self.S):
+            if new_slot_box[s] != self.slot_box[s]:
+                if new_slot_box[s] >= 0:
+                    self.events.append(Event(t, "placed", f"box{new_slot_box[s]}", f"slot{s}"))
+                else:
+                    self.events.append(Event(t, "unplaced", f"box{self.slot_box[s]}", f"slot{s}"))
+        self.slot_box = new_slot_box
+        placed = np.zeros(self.B, dtype=bool)
+        placed[new_slot_box[new_slot_box >= 0]] = True
+        self.state = np.where(self.state == CARRIED, CARRIED, np.where(placed, PLACED, FREE))
+
+    @property
+    def slot_open(self) -> NDArray[np.bool_]:
+        """(S,) True for empty slots whose supporting slots are all filled."""
+        filled = self.slot_box >= 0
+        return np.array([not filled[s] and bool(np.all(filled[self.support[s]])) for s in range(self.S)])
+
+    @property
+    def boxes_placed(self) -> int:
+        """Number of filled slots."""
+        return int(np.count_nonzero(self.slot_box >= 0))
+
+    def grasp_points(self) -> NDArray[np.float64]:
+        """(B, 3) m, where an agent's centre must be to grasp each box."""
+        return self.positions + np.array([0.0, 0.0, self.grasp_height])
+
+    # ----------------------------------------------------------------- actions
+    def grasp(self, agent: int, agent_body: int, agent_pos: NDArray[np.float64], t: float) -> int:
+        """Attach the nearest free box within the attach threshold; returns its id or -1."""
+        if agent in self.carried_by:
+            return -1
+        d = np.linalg.norm(self.grasp_points() - agent_pos, axis=1)
+        d[self.state != FREE] = np.inf
+        i = int(np.argmin(d))
+        if not np.isfinite(d[i]) or d[i] > self.spec.attach_threshold:
+            return -1
+        body = self.bodies[i]
+        self._constraints[i] = self.world.attach(agent_body, body, max_force=self.spec.grip_force)
+        for other in self._ghost_partners(i, agent_body):
+            self.world.set_pair_collision(other, body, False)
+        self.state[i] = CARRIED
+        self.carried_by[i] = agent
+        self.grasps += 1
+        self.events.append(Event(t, "grasp", f"agent{agent}", f"box{i}", f"{d[i] * 100:.1f} cm from grasp point"))
+        return i
+
+    def release(self, agent: int, agent_body: int, t: float) -> int:
+        """Let go of the box ``agent`` holds; returns its id or -1."""
+        held = np.nonzero(self.carried_by == agent)[0]
+        if held.size == 0:
+            return -1
+        i = int(held[0])
+        self.world.detach(self._constraints.pop(i))
+        for other in self._ghost_partners(i, agent_body):
+            self.world.set_pair_collision(other, self.bodies[i], True)
+        self.state[i] = FREE
+        self.carried_by[i] = -1
+        self.releases += 1
+        self.events.append(Event(t, "release", f"agent{agent}", f"box{i}"))
+        return i
+
+    def _ghost_partners(self, box: int, agent_body: int) -> list[int]:
+        """Bodies a carried box must not touch: its carrier; in ghost mode also every agent and every
+        other carried box (agents and their loads pass through each other, contacts are still counted)."""
+        if not self.ghost:
+            return [agent_body]
+        others = [self.bodies[j] for j in np.nonzero(self.state == CARRIED)[0] if j != box]
+        return [*self.world.agent_bodies, *others]
+
+    def carrying(self, n: int) -> NDArray[np.int64]:
+        """(n,) box held by each agent, or -1."""
+        out = np.full(n, -1, dtype=np.int64)
+        held = np.nonzero(self.carried_by >= 0)[0]
+        out[self.carried_by[held]] = held
+        return out
+
+    # ---------------------------------------------------------------- progress
+    def update(self, t: float) -> bool:
+        """Read the boxes, update the slots and check completion at time ``t``; True once completed."""
+        self.read()
+        self._update_slots(t)
+        if self.completed_at is not None:
+            return True
+        if self.boxes_placed == self.S and np.all(self.speeds[self.slot_box] < self.spec.settle_speed):
+            if self.still_since is None:
+                self.still_since = t
+            if t - self.still_since >= self.spec.settle_s - 1e-9:
+                self.completed_at = t
+                return True
+        else:
+            self.still_since = None
+        return False
+
+    def visible(self, p: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Free boxes and open slots within the view radius of position ``p`` (3,) m."""
+        r = self.view_radius
+        free = np.nonzero((self.state == FREE) & (np.linalg.norm(self.grasp_points() - p, axis=1) <= r + self.grasp_height))[0]
+        open_ = np.nonzero(self.slot_open & (np.linalg.norm(self.slots + [0.0, 0.0, self.grasp_height] - p, axis=1)
+                                             <= r + self.grasp_height))[0]
+        return free, open_
+
+    def metrics(self) -> dict[str, Any]:
+        """Task metrics of the run so far."""
+        return {"boxes_placed": self.boxes_placed, "boxes_total": self.S, "grasps": self.grasps,
+                "releases": self.releases}
