@@ -41,7 +41,8 @@ def _add_run(sub: Any) -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
                    help="override a scenario field (repeatable), e.g. --set agents.count=20")
     p.add_argument("--gui", action="store_true", help="watch in the Bullet GUI")
-    p.add_argument("--video", action="store_true", help="render a video of the run")
+    p.add_argument("--video", action="store_true",
+                   help="render RUN_DIR/video.mp4 (GIF without an MP4 encoder), 4x faster than real time")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
     p.set_defaults(func=_cmd_run)
@@ -75,8 +76,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pybullet_swarm.experiment.runner import run
     from pybullet_swarm.experiment.scenario import load_scenario
 
-    if args.video:
-        raise ConfigError("not available yet (video rendering comes with the construction task)", source="--video")
     scenario = load_scenario(args.scenario, args.overrides)
     seed = scenario.seed if args.seed is None else args.seed
     if seed < 0:
@@ -84,7 +83,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     planner = args.planner or scenario.planner.name or "waypoints"
     out = args.out or default_run_dir(scenario.name, planner, seed)
     result = run(scenario, planner=args.planner, avoidance=args.avoidance, seed=seed, out=out, gui=args.gui,
-                 plots=not args.no_plots)
+                 plots=not args.no_plots, video=args.video, quiet=args.quiet)
     if not args.quiet:
         print(f"{scenario.name}: {result.exit_status.value} after {result.metrics['sim_time_s']:.2f} s simulated "
               f"({result.metrics['real_time_factor'] or 0:.1f}x real time)")

@@ -25,6 +25,7 @@ def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = Fal
             write(fh)
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, 0o644)   # mkstemp makes files private; results are for sharing
         os.replace(tmp, path)
     except BaseException:
         try:

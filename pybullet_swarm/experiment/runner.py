@@ -20,6 +20,8 @@ def run(
     overrides: Mapping[str, Any] | Sequence[str] = (),
     gui: bool = False,
     plots: bool = True,
+    video: bool = False,
+    quiet: bool = True,
 ) -> RunResult:
     """Run a scenario to its end and return the result.
 
@@ -32,6 +34,8 @@ def run(
         overrides: ``key.path=value`` overrides applied to the scenario.
         gui: watch in the Bullet GUI.
         plots: draw the figures into ``out/plots`` (only with ``out``).
+        video: render ``out/video.mp4`` (``.gif`` when no MP4 encoder is installed; needs ``out``).
+        quiet: no progress bar.
 
     Returns:
         The exit status, metrics, events and time series.
@@ -40,8 +44,18 @@ def run(
         scenario = load_scenario(scenario, overrides)
     elif overrides:
         scenario = scenario.with_overrides(overrides)
-    with Simulation(scenario, seed=seed, planner=planner, avoidance=avoidance, gui=gui) as sim:
+    if video and out is None:
+        raise ValueError("video needs an output directory (out=...)")
+    video_path = None
+    if video and out is not None:
+        Path(out).mkdir(parents=True, exist_ok=True)
+        video_path = Path(out) / "video.mp4"
+    with Simulation(scenario, seed=seed, planner=planner, avoidance=avoidance, gui=gui, video=video_path,
+                    video_quiet=quiet) as sim:
         result = sim.run()
+        written = sim.close_video()
+    if written is not None:
+        result.metrics["video"] = written.name
     if out is not None:
         result = dataclasses.replace(result, run_dir=write_run(result, Path(out), plots=plots))
     return result

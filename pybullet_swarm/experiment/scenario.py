@@ -62,6 +62,7 @@ class AgentsSection(_Strict):
     spacing: PosFloat = 0.5                  # m, between neighbours of the layout
     origin: Annotated[list[float], Field(min_length=2, max_length=2)] | None = None  # m, layout centre (default: arena centre)
     sensing_radius: PosFloat = 1.0           # m, neighbours within it are observed
+    start_jitter: float = Field(0.0, ge=0.0, le=1.0)  # m, uniform horizontal noise on start positions (per seed)
 
 
 class LimitsSection(_Strict):

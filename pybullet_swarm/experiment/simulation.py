@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -64,7 +65,8 @@ class Simulation:
     """
 
     def __init__(self, scenario: Scenario, *, seed: int | None = None, planner: str | None = None,
-                 avoidance: str | None = None, gui: bool = False, record: bool = True) -> None:
+                 avoidance: str | None = None, gui: bool = False, record: bool = True,
+                 video: Path | None = None, video_quiet: bool = False) -> None:
         self.scenario = scenario
         self.seed = scenario.seed if seed is None else int(seed)
         self.rng = np.random.default_rng(self.seed)
@@ -96,6 +98,9 @@ class Simulation:
         self.gui = gui
         self.record_enabled = record
         self._build()
+        self.video = None
+        if video is not None:
+            self._open_video(Path(video), video_quiet)
 
     # ------------------------------------------------------------------ set-up
     def _build(self) -> None:
@@ -106,6 +111,9 @@ class Simulation:
             self.world.add_walls(sc.arena.size, sc.arena.wall_height)
         self.rest_height = 0.5 * p.collision_size[2] + 1e-3
         self.starts = sc.start_positions(self.rest_height)
+        jitter = sc.agents.start_jitter
+        if jitter > 0.0:   # hand placement is never exact; the seed decides how
+            self.starts[:, :2] += self.rng.uniform(-jitter, jitter, size=(n, 2))
         self.world.add_agents(p.urdf_path, self.starts, mass=p.mass, inertia=p.inertia)
         if sc.collisions == "ghost":
             self.world.set_agent_collisions(False)
@@ -176,6 +184,38 @@ class Simulation:
         except TypeError as exc:
             raise ConfigError(f"bad parameters for planner {self.planner_name!r}: {exc}",
                               source=self.scenario.source, field="planner.params") from None
+
+    #: simulated frames per second of a video, and the playback rate (4x faster than real time)
+    VIDEO_SIM_HZ = 5
+    VIDEO_FPS = 20
+
+    def _open_video(self, path: Path, quiet: bool) -> None:
+        from pybullet_swarm.experiment.video import VideoWriter, camera_for_arena
+
+        if self.physics_hz % self.VIDEO_SIM_HZ:
+            raise ConfigError(f"must be a multiple of {self.VIDEO_SIM_HZ} Hz for video, got {self.physics_hz}",
+                              source=self.scenario.source, field="sim.physics_hz")
+        self.video_every = self.physics_hz // self.VIDEO_SIM_HZ
+        height = max(1.0, float(np.max(self.starts[:, 2])) + 0.5)
+        if self.construction is not None:
+            height = max(0.6, self.construction.spec.search_height + 0.2)
+        self.camera = camera_for_arena(self.scenario.arena.size, height)
+        total = int(self.time_limit * self.VIDEO_SIM_HZ) + 1
+        self.video = VideoWriter(path, fps=self.VIDEO_FPS, size=(480, 270), progress_total=total, quiet=quiet)
+        self._frame()
+
+    def _frame(self) -> None:
+        from pybullet_swarm.experiment.video import render_frame
+
+        assert self.video is not None
+        self.video.add(render_frame(self.world, self.camera, self.video.size))
+
+    def close_video(self) -> Path | None:
+        """Finish the video (if any); returns its file."""
+        if self.video is None:
+            return None
+        v, self.video = self.video, None
+        return v.close()
 
     def _classify(self, a: int, b: int) -> CollisionClass | None:
         ka, kb = self.world.body_kind(a), self.world.body_kind(b)
@@ -394,6 +434,8 @@ class Simulation:
                 self._on_status(worst)
             if k % re == 0:
                 self._sample()
+                if self.video is not None and k % self.video_every == 0:
+                    self._frame()
         self._wall_time += time.perf_counter() - t0
         return self.exit_status
 
@@ -498,7 +540,9 @@ class Simulation:
         return sorted(events, key=lambda e: e.time_s)
 
     def close(self) -> None:
-        """Release the Bullet client."""
+        """Finish the video and release the Bullet client."""
+        if self.video is not None:
+            self.close_video()
         self.world.close()
 
     def __enter__(self) -> Simulation:

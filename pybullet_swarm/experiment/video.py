@@ -292,7 +292,7 @@ class VideoWriter:
         self._sink: _Mp4Sink | _GifSink | None = None  # opened with the first frame
         self._closed = False
         self._bar = tqdm(total=progress_total, desc=self.path.name, unit="frame", file=sys.stderr,
-                         disable=quiet, dynamic_ncols=True)
+                         disable=quiet, dynamic_ncols=True, mininterval=1.0)
 
     def add(self, frame: NDArray[np.uint8]) -> None:
         """Append one RGB frame (height, width, 3) uint8."""

@@ -66,6 +66,8 @@ class ShortestPath:
         self.box = np.full(n, -1, dtype=np.int64)
         self.slot = np.full(n, -1, dtype=np.int64)
         self.next_slot = 0
+        self.home: np.ndarray | None = None   # m, start positions (parking spots)
+        self.offset = np.tile([0.0, 0.0, -info.grasp_height], (n, 1))   # m, held box relative to agent
         self.attach = float(info.extra.get("attach_threshold", 0.02))
 
     def _assign(self, i: int, view: WorldView) -> None:
@@ -102,8 +104,8 @@ class ShortestPath:
         if ph == Phase.IDLE:
             self._assign(i, view)
             ph = Phase(self.phase[i])
-        if ph == Phase.DONE:
-            return Command.goto([p[0], p[1], self.h])
+        if ph == Phase.DONE:   # nothing left to carry: park above the start, out of the others' way
+            return self._cruise(i, p, np.array([self.home[i, 0], self.home[i, 1], self.h]))
         b, s = self.box[i], self.slot[i]
         if ph == Phase.TO_BOX:
             if view.box_state[b] != 0:           # someone took or placed it meanwhile: choose again
@@ -127,13 +129,15 @@ class ShortestPath:
                 self.box[i] = -1
                 self.next_slot = min(self.next_slot, self.order.index(s))
                 return Command.goto([p[0], p[1], self.h])
-            if abs(p[2] - self.h) < 0.05:
+            if abs(p[2] - self.h) < 0.05 and np.linalg.norm(view.velocities[i]) < 0.02:
                 self.phase[i] = Phase.TO_SLOT
+                # where the box hangs under this agent, measured once while hovering steadily
+                # (measuring it in flight would feed the airframe's tilt back into the target)
+                self.offset[i] = view.box_positions[b] - p
             return Command.goto([p[0], p[1], self.h])
         # where the agent must be for the box it holds (at its actual offset) to hang just above the slot
         drop = self.info.slots[s] + [0.0, 0.0, self.release_clearance]
-        offset = view.box_positions[b] - p if view.carrying[i] == b else np.array([0.0, 0.0, -self.gh])
-        slot_top = drop - offset
+        slot_top = drop - self.offset[i]
         if ph == Phase.TO_SLOT:
             above = np.array([slot_top[0], slot_top[1], self.h])
             if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
@@ -161,4 +165,6 @@ class ShortestPath:
 
     def plan_all(self, view: WorldView) -> list[Command]:
         """One command per agent."""
+        if self.home is None:
+            self.home = view.positions.copy()
         return [self._step(i, view) for i in range(self.n)]

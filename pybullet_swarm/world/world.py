@@ -272,6 +272,12 @@ class World:
         pb.resetBasePositionAndOrientation(b, list(position), list(quaternion), physicsClientId=self._cid)
         pb.resetBaseVelocity(b, list(velocity), list(angular_velocity), physicsClientId=self._cid)
 
+    def reset_body(self, body: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1)) -> None:
+        """Teleport any body to a pose, at rest."""
+        pb.resetBasePositionAndOrientation(body, list(map(float, position)), list(map(float, quaternion)),
+                                           physicsClientId=self._cid)
+        pb.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=self._cid)
+
     def body_pose(self, body: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Position (3,) m and quaternion (4,) of any body."""
         pos, orn = pb.getBasePositionAndOrientation(body, physicsClientId=self._cid)

@@ -1,0 +1,119 @@
+"""The construction task: grasp and release physics, slot order, validation, completion, full runs."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import pybullet_swarm
+from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.experiment.scenario import load_scenario
+from pybullet_swarm.tasks.construction import CARRIED, FREE, PLACED
+from pybullet_swarm.types import ExitStatus
+
+
+def _hover_to(sim, target, seconds):
+    sim.set_targets(np.asarray(target, dtype=float).reshape(sim.n, 3))
+    sim.step(int(seconds * sim.physics_hz))
+
+
+def test_carried_box_follows_and_released_box_settles_in_its_slot(make_sim):
+    sim = make_sim(load_scenario("construction_single", {"agents.start_jitter": 0.0}))
+    c = sim.construction
+    body = sim.world.agent_bodies[0]
+    box = 4
+    grasp = c.grasp_points()[box]
+    _hover_to(sim, [grasp[0], grasp[1], 0.45], 12)
+    _hover_to(sim, grasp, 6)
+    assert np.linalg.norm(sim.state.positions[0] - grasp) < c.spec.attach_threshold
+    assert c.grasp(0, body, sim.state.positions[0], sim.time) == box
+    sim.controller.set_payload(0, c.spec.box_mass)
+    assert c.state[box] == CARRIED
+    _hover_to(sim, [grasp[0], grasp[1], 0.45], 5)
+    c.read()
+    lifted = c.positions[box] - sim.state.positions[0]
+    assert c.positions[box, 2] > 0.3                       # it came up with the agent
+    assert np.allclose(lifted, [0.0, 0.0, -c.grasp_height], atol=0.01)
+    slot = c.slots[0]
+    above = slot + [0.0, 0.0, 0.45 - slot[2]]
+    _hover_to(sim, above, 20)
+    drop = slot + [0.0, 0.0, 0.004] - lifted
+    _hover_to(sim, drop, 6)
+    assert c.release(0, body, sim.time) == box
+    sim.controller.set_payload(0, 0.0)
+    _hover_to(sim, above, 3)
+    c.update(sim.time)
+    assert c.state[box] == PLACED
+    assert c.slot_box[0] == box
+    assert np.linalg.norm(c.positions[box] - slot) < c.spec.place_tolerance_m
+    assert [e.kind for e in c.events] == ["grasp", "release", "placed"]
+
+
+def test_grasp_refused_beyond_attach_threshold(make_sim):
+    sim = make_sim(load_scenario("construction_single", {"agents.start_jitter": 0.0}))
+    c = sim.construction
+    far = c.grasp_points()[0] + [0.0, 0.0, c.spec.attach_threshold * 1.5]
+    assert c.grasp(0, sim.world.agent_bodies[0], far, 0.0) == -1
+    assert np.all(c.state == FREE)
+
+
+def test_slots_open_bottom_layer_first(make_sim):
+    sim = make_sim(load_scenario("construction_single"))
+    c = sim.construction
+    bottom = np.isclose(c.slots[:, 2], 0.05)
+    assert np.array_equal(c.slot_open, bottom)
+    c.slot_box[:] = -1
+    c.slot_box[0] = 0                     # slot 0 at (2.7, 0.2, 0.05) holds a box
+    above0 = np.nonzero(np.isclose(c.slots[:, 1], 0.2) & np.isclose(c.slots[:, 2], 0.15))[0][0]
+    assert c.slot_open[above0]
+    top0 = np.nonzero(np.isclose(c.slots[:, 1], 0.2) & np.isclose(c.slots[:, 2], 0.25))[0][0]
+    assert not c.slot_open[top0]
+    assert not c.slot_open[0]             # filled
+
+
+@pytest.mark.parametrize(("override", "field", "text"), [
+    ({"task.boxes": [[3.5, 0.5, 0.05]], "task.structure": [[2.7, 0.2, 0.05]]}, "task.boxes[0]", "outside the arena"),
+    ({"task.boxes": [[0.4, 0.3, 0.05], [0.45, 0.3, 0.05]], "task.structure": [[2.7, 0.2, 0.05]]}, "task.boxes[1]",
+     "overlap"),
+    ({"task.boxes": [[0.4, 0.3, 0.05]]}, "task.structure", "at most as many slots as boxes"),
+    ({"task.structure": [[2.7, 0.2, 0.05], [2.7, 0.6, 0.15]]}, "task.structure[1]", "nothing under it"),
+    ({"task.structure": [[2.7, 0.2, 0.02]]}, "task.structure[0]", "above the ground"),
+])
+def test_bad_construction_layouts_are_refused(override, field, text):
+    with pytest.raises(ConfigError) as err:
+        load_scenario("construction", override)
+    assert err.value.field == field
+    assert text in str(err.value)
+    assert "\n" not in str(err.value)
+    assert str(err.value).startswith("construction.yaml: ")
+
+
+def test_completion_needs_every_slot_and_a_still_structure(make_sim):
+    sc = load_scenario("construction_single", {"task.boxes": [[0.4, 0.5, 0.05]],
+                                               "task.structure": [[2.7, 0.5, 0.05]], "task.settle_s": 1.0})
+    sim = make_sim(sc)
+    c = sim.construction
+    assert not c.update(0.0)
+    sim.world.reset_body(c.bodies[0], [2.7, 0.5, 0.05])
+    assert not c.update(1.0)            # filled, but the structure must stand still for 1 s first
+    assert c.update(2.05)
+    assert c.completed_at == pytest.approx(2.05)
+
+
+@pytest.mark.slow
+def test_shortest_path_completes_construction_single():
+    r = pybullet_swarm.run("construction_single", planner="shortest_path")
+    assert r.exit_status is ExitStatus.COMPLETED
+    m = r.metrics
+    assert m["boxes_placed"] == m["boxes_total"] == 9
+    assert m["task_lower_bound_s"] < m["completion_time_s"] < 500
+    assert 0 < m["efficiency"] < 1
+    kinds = [e.kind for e in r.events]
+    assert kinds.count("grasp") == kinds.count("placed") == 9
+
+
+@pytest.mark.slow
+def test_shortest_path_completes_construction_with_five_agents():
+    r = pybullet_swarm.run("construction", planner="shortest_path", seed=0)
+    assert r.exit_status is ExitStatus.COMPLETED
+    assert r.metrics["boxes_placed"] == 9
+    assert r.metrics["completion_time_s"] < 200
