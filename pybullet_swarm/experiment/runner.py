@@ -76,5 +76,7 @@ def write_run(result: RunResult, out: Path, *, plots: bool = True) -> Path:
 
         plot_run(result.timeseries, out / "plots", result.metrics, scenario=result.scenario.data,
                  events=result.events)
+    for artifact in result.artifacts.values():
+        artifact.write(out, plots)
     write_json(out / "metrics.json", result.metrics)   # last: its presence marks a finished run
     return out

@@ -112,6 +112,7 @@ class _ScenarioFile(_Strict):
     task: dict[str, Any]
     planner: PlannerSection = PlannerSection()
     avoidance: str = "none"
+    avoidance_params: dict[str, Any] = Field(default_factory=dict)
     collisions: Literal["physical", "ghost"] = "physical"
 
 

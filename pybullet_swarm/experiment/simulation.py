@@ -37,6 +37,7 @@ class RunResult:
 
     Attributes:
         exit_status: how it ended.
+        artifacts: objects that write extra files into a run directory (e.g. a pheromone medium).
         metrics: the metrics written to ``metrics.json`` (plain JSON data).
         events: contact onsets, crashes and task events, in time order.
         timeseries: recorded samples.
@@ -50,6 +51,7 @@ class RunResult:
     timeseries: TimeSeries
     scenario: Scenario
     run_dir: Any = None
+    artifacts: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 
 class Simulation:
@@ -70,11 +72,12 @@ class Simulation:
         self.scenario = scenario
         self.seed = scenario.seed if seed is None else int(seed)
         self.rng = np.random.default_rng(self.seed)
-        from pybullet_swarm.planning.registry import AVOIDANCE, DEFAULT_PLANNER, PLANNERS
+        from pybullet_swarm.planning.registry import avoidance_layers, default_planner, planners
 
+        PLANNERS = planners()
         kind = scenario.task.kind
         planner = planner if planner is not None else scenario.planner.name
-        planner = planner or DEFAULT_PLANNER.get(kind)
+        planner = planner or default_planner(kind)
         if planner not in PLANNERS:
             raise ConfigError(f"unknown planner {planner!r}; available: {', '.join(PLANNERS)}",
                               source=scenario.source, field="planner.name")
@@ -82,8 +85,8 @@ class Simulation:
             raise ConfigError(f"planner {planner!r} does not solve {kind!r} tasks (it solves "
                               f"{', '.join(PLANNERS[planner][2])})", source=scenario.source, field="planner.name")
         avoidance = avoidance if avoidance is not None else scenario.avoidance
-        if avoidance not in AVOIDANCE:
-            raise ConfigError(f"avoidance {avoidance!r} is not available yet; available: {', '.join(AVOIDANCE)}",
+        if avoidance not in avoidance_layers():
+            raise ConfigError(f"unknown avoidance {avoidance!r}; available: {', '.join(avoidance_layers())}",
                               source=scenario.source, field="avoidance")
         self.planner_name = planner
         self.avoidance_name = avoidance
@@ -138,6 +141,10 @@ class Simulation:
             self.construction = ConstructionRuntime(sc.task, self.world, agent_half_height=0.5 * p.collision_size[2],
                                                     agent_radius=p.radius, ghost=sc.collisions == "ghost")
             self.task = self.construction
+        else:
+            from pybullet_swarm.tasks import TASK_RUNTIMES
+
+            self.task = TASK_RUNTIMES[sc.task.kind](sc.task, self)
         self.max_height = self.starts[:, 2].copy()   # m, highest recorded altitude per agent
         self.contacts = ContactTracker(self._classify, self.dt, debounce_s=0.1)
         self.events: list[Event] = []
@@ -162,13 +169,22 @@ class Simulation:
             kw = dict(depot=c.start.copy(), slots=c.slots.copy(), box_size=c.size, grasp_height=c.grasp_height)
             extra.update(search_height=c.spec.search_height, attach_threshold=c.spec.attach_threshold,
                          view_radius=c.view_radius)
+        elif self.task is not None and hasattr(self.task, "task_info"):
+            kw = dict(self.task.task_info())
+            extra.update(kw.pop("extra", {}))
         return TaskInfo(arena_size=np.asarray(sc.arena.size, dtype=float), n_agents=self.n, agent_radius=p.radius,
                         v_max=np.full(3, np.inf) if v is None else v, extra=extra, **kw)
 
     def _make_planner(self) -> None:
-        from pybullet_swarm.planning.registry import PLANNERS
+        from pybullet_swarm.planning.registry import avoidance_layers, planners
 
-        factory = PLANNERS[self.planner_name][0]
+        factory = planners()[self.planner_name][0]
+        # A planner may bring a shared medium (e.g. a pheromone grid): ``make_medium(sim) -> medium``.
+        make_medium = getattr(factory, "make_medium", None)
+        self.medium = make_medium(self) if callable(make_medium) else None
+        av_factory = avoidance_layers()[self.avoidance_name][0]
+        av_params = dict(self.scenario.data.get("avoidance_params", {}) or {})
+        self.avoidance_layer = av_factory(self, **av_params) if av_factory is not None else None
         params = dict(self.scenario.planner.params) if self.scenario.planner.name in (None, self.planner_name) else {}
         try:
             if getattr(factory, "centralized", False):
@@ -291,8 +307,10 @@ class Simulation:
         done = False
         if self.construction is not None:
             done = self.construction.update(t)
-        elif self.task is not None:
+        elif isinstance(self.task, WaypointsRuntime):
             done = self.task.update(t, self.state_array[:, :3])
+        elif self.task is not None:
+            done = self.task.update(t, self)
         if done:
             self._finish(ExitStatus.COMPLETED)
             return
@@ -301,8 +319,13 @@ class Simulation:
                 commands = self.planner.plan_all(self.world_view())
             else:
                 assert self.agent_planners is not None
-                commands = [pl.plan(obs, None) for pl, obs in zip(self.agent_planners, self.observations())]
+                obs = self.observations()
+                commands = [pl.plan(o, self.medium) for pl, o in zip(self.agent_planners, obs)]
+            if self.avoidance_layer is not None:
+                commands = self.avoidance_layer.filter(commands, self)
             self._apply(commands)
+        if self.medium is not None:
+            self.medium.step(1.0 / self.scenario.sim.planner_hz)
         if t >= self.time_limit - 1e-9:
             self._finish(ExitStatus.TIMEOUT)
 
@@ -504,6 +527,12 @@ class Simulation:
             m.update(self._swarm_metrics(ts))
         if self.construction is not None:
             m.update(self._construction_metrics(m))
+        elif self.task is not None and hasattr(self.task, "metrics") and not isinstance(self.task, WaypointsRuntime):
+            m.update(self.task.metrics(self, ts))
+        if self.medium is not None and hasattr(self.medium, "metrics"):
+            m.update(self.medium.metrics())
+        if self.avoidance_layer is not None and hasattr(self.avoidance_layer, "metrics"):
+            m.update(self.avoidance_layer.metrics())
         return m
 
     def _swarm_metrics(self, ts: TimeSeries) -> dict[str, Any]:
@@ -530,13 +559,20 @@ class Simulation:
         """The run's result now."""
         empty = Recorder(self.n, 1).series()
         ts = self.recorder.series() if self.recorder is not None else empty
-        return RunResult(self.exit_status, self.metrics(), self.all_events(), ts, self.scenario)
+        return RunResult(self.exit_status, self.metrics(), self.all_events(), ts, self.scenario,
+                         artifacts=self.artifacts())
+
+    def artifacts(self) -> dict[str, Any]:
+        """Objects that write their own files into a run directory: ``write(out_dir, plots) -> [Path]``
+        (the planner's medium, the avoidance layer, the task), by name."""
+        found = {"medium": self.medium, "avoidance": self.avoidance_layer, "task": self.task}
+        return {k: v for k, v in found.items() if v is not None and callable(getattr(v, "write", None))}
 
     def all_events(self) -> list[Event]:
         """Contact, crash and task events in time order."""
         events = list(self.events)
-        if self.construction is not None:
-            events += self.construction.events
+        if self.task is not None and hasattr(self.task, "events"):
+            events += self.task.events
         return sorted(events, key=lambda e: e.time_s)
 
     def close(self) -> None:

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 def available_planners() -> dict[str, str]:
     """Planner names with a one-line description."""
-    from pybullet_swarm.planning.registry import PLANNERS
+    from pybullet_swarm.planning.registry import planners
 
-    return {name: f"{desc} [tasks: {', '.join(kinds)}]" for name, (_, desc, kinds) in PLANNERS.items()}
+    return {name: f"{desc} [tasks: {', '.join(kinds)}]" for name, (_, desc, kinds) in planners().items()}
 
 
 def available_avoidance() -> dict[str, str]:
     """Avoidance layer names with a one-line description."""
-    from pybullet_swarm.planning.registry import AVOIDANCE
+    from pybullet_swarm.planning.registry import avoidance_layers
 
-    return dict(AVOIDANCE)
+    return {name: desc for name, (_, desc) in avoidance_layers().items()}

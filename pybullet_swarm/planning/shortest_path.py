@@ -168,3 +168,9 @@ class ShortestPath:
         if self.home is None:
             self.home = view.positions.copy()
         return [self._step(i, view) for i in range(self.n)]
+
+
+from pybullet_swarm.planning.registry import register_planner  # noqa: E402
+
+register_planner("shortest_path", ShortestPath, "centralised baseline: boxes in structure order, straight lines at "
+                 "a cruise altitude, other agents ignored", ("construction",), default_for=("construction",))

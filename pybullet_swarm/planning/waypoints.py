@@ -23,3 +23,9 @@ class WaypointFollower:
         """Each agent's active set-point."""
         targets, yaws = self.schedule(view.time_s)
         return [Command.goto(targets[i], yaw=float(yaws[i])) for i in range(len(targets))]
+
+
+from pybullet_swarm.planning.registry import register_planner  # noqa: E402
+
+register_planner("waypoints", WaypointFollower, "centralised: every agent follows the task's timed set-points",
+                 ("waypoints",), default_for=("waypoints",))
