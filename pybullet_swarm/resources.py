@@ -7,7 +7,7 @@ installed package carries them as ``pybullet_swarm._urdf`` and ``pybullet_swarm.
 from __future__ import annotations
 
 import functools
-import importlib.resources
+import importlib.util
 from pathlib import Path
 
 _MARKERS = {"urdf": "quad150.yaml", "scenarios": "hover.yaml"}
@@ -18,12 +18,14 @@ def data_dir(kind: str) -> Path:
     """Directory of bundled data of ``kind`` ('urdf' or 'scenarios')."""
     marker = _MARKERS[kind]
     try:
-        root = importlib.resources.files(f"pybullet_swarm._{kind}")
-        candidate = Path(str(root))
+        spec = importlib.util.find_spec(f"pybullet_swarm._{kind}")
+    except (ModuleNotFoundError, ValueError):
+        spec = None
+    # a data-only (namespace) package: its directories are the search locations
+    for location in (spec.submodule_search_locations or []) if spec is not None else []:
+        candidate = Path(location)
         if (candidate / marker).is_file():
             return candidate
-    except (ModuleNotFoundError, NotADirectoryError, TypeError):
-        pass  # not installed as a package (source checkout or editable install)
     candidate = Path(__file__).resolve().parent.parent / kind
     if (candidate / marker).is_file():
         return candidate
