@@ -173,7 +173,8 @@ class Simulation:
             kw = dict(self.task.task_info())
             extra.update(kw.pop("extra", {}))
         return TaskInfo(arena_size=np.asarray(sc.arena.size, dtype=float), n_agents=self.n, agent_radius=p.radius,
-                        v_max=np.full(3, np.inf) if v is None else v, extra=extra, **kw)
+                        v_max=np.full(3, np.inf) if v is None else v, a_max=sc.acceleration_limits(), extra=extra,
+                        **kw)
 
     def _make_planner(self) -> None:
         from pybullet_swarm.planning.registry import avoidance_layers, planners
@@ -197,7 +198,9 @@ class Simulation:
                 child = self.rng.spawn(self.n)
                 for i, pl in enumerate(self.agent_planners):
                     pl.reset(i, child[i], self.info)
-        except TypeError as exc:
+        except ConfigError as exc:
+            raise (exc.with_source(self.scenario.source) if exc.source is None else exc) from None
+        except (TypeError, ValueError) as exc:
             raise ConfigError(f"bad parameters for planner {self.planner_name!r}: {exc}",
                               source=self.scenario.source, field="planner.params") from None
 

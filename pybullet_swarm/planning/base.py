@@ -75,6 +75,7 @@ class TaskInfo:
         n_agents: swarm size.
         agent_radius: m, radius of the circle enclosing an airframe.
         v_max: (3,) m/s per-axis velocity limit.
+        a_max: (3,) m/s^2 per-axis acceleration limit.
         depot: (B, 3) m, box start positions (empty when the task has no boxes).
         slots: (S, 3) m, goal slot centres.
         box_size: m, edge of a box (0 when none).
@@ -87,6 +88,7 @@ class TaskInfo:
     n_agents: int
     agent_radius: float
     v_max: NDArray[np.float64]
+    a_max: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.full(3, np.inf))
     depot: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
     slots: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
     box_size: float = 0.0
