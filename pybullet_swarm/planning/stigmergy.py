@@ -1,0 +1,758 @@
+"""Stigmergy planners of the construction thesis: 3-D stigmergy (chapter 5) and layered stigmergy (chapter 6).
+
+Decentralised: each agent sees its own state, its neighbours within the sensing radius, the free
+boxes and open slots within its view radius, and the shared pheromone grid; nothing else.
+
+**3-D stigmergy** (``stigmergy``, thesis Fig. 5.1 and appendix A). An agent alternates between
+looking for a box and looking for a goal. Each time it needs somewhere to look it takes the next
+strategy of a cycle (appendix A): a uniformly random point of the arena; then the cell with the
+strongest pheromone of the wanted sign (+ for boxes, - for goals; among equally strong cells one
+drawn at random, ``ties``); then a random point within ``local_radius`` of itself; then random
+again, and so on. Without any pheromone of that sign it searches at random. It flies to that
+point watching for a free box (or, carrying one, for an open slot); when one comes into view it
+goes for it. Pheromone rules (thesis Table 5.2), all in one layer that never fades (fatigue 0):
+grasping a box sets the agent's cell to +1, placing one sets it to -1, and while looking for a
+box the agent leaves a trail of 0.2 in every empty cell it passes.
+
+**Layered stigmergy** (``layered_stigmergy``, thesis chapter 6 and appendix B) adds a second
+layer: every agent marks its cell with 2 each tick and the marks fade at 2/s, so they show
+where the agents are and were a moment ago. An agent may not move into a cell holding another
+agent's mark: when one lies ahead of it, within ``lookahead`` along its way, it stops and chooses
+a new search point by the cycle above (the thesis's "a search is recalculated based on the
+pheromones in the 1st grid"), and keeps to it for as long as a mark lasts (1 s) before it goes
+for a seen object again. Its own marks it ignores (the grid remembers who marked each cell).
+
+What this platform needs beyond the thesis, whose agents moved boxes by being near them:
+
+* Altitudes. The task lets an agent see an object only near its grasp point (view radius 2
+  agent radii, as in the thesis), so agents fly low, at three levels derived from the layout every
+  agent is told (``TaskInfo.depot`` and ``slots``): over the open floor level with the middle of
+  the structure's grasp points, so that from beside the structure slots of every layer are in
+  view; over the depot high enough for a carried box to clear the waiting boxes; over the
+  structure at the task's ``search_height``, clear of the finished structure. An agent climbs
+  before it enters a higher zone and descends after leaving it. A search point over the
+  structure is moved to the edge of its zone (on the agent's side), where the agent sees its
+  slots. The layout is used for nothing else: boxes and slots are still found by seeing them,
+  guided by the pheromones.
+* Grasping and placing. An agent goes above the object, descends straight down, grasps within
+  60 % of the attach threshold, and places its box from ``release_clearance`` above the slot,
+  where the box hangs at the offset it had when grasped (measured from the box it saw then).
+  Boxes lying beside the structure, whose descent would scrape it, are left alone.
+* Claims. An agent leaves a box or slot to a neighbour already working over it (lower, or at
+  the same height and nearer), so two agents never descend onto one object.
+"""
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.planning.base import Action, Command, CommandKind, Observation, TaskInfo
+from pybullet_swarm.planning.pheromone_grid import DepositRule, LayerSpec, PheromoneGrid
+
+
+class Layer(str, enum.Enum):
+    """Pheromone layers of the stigmergy planners."""
+
+    TASK = "task"           # thesis layer 1: +1 box found, -1 box placed, 0.2 trail; never fades by default
+    PRESENCE = "presence"   # thesis layer 2 (layered variant): where the agents are; fades in about 1 s
+
+
+class Phase(enum.IntEnum):
+    """Where an agent is in its cycle (thesis Fig. 5.1: states 0-3, with the flying steps split out)."""
+
+    CHOOSE_BOX = 0    # thesis state 0: choose where to look for a box
+    SEEK_BOX = 1      # thesis state 1: fly there, watching for a free box
+    FETCH = 2         # a box is in view: above it, straight down, grasp
+    LIFT = 3          # holding a box: climb back to the flying altitude
+    CHOOSE_GOAL = 4   # thesis state 2: choose where to look for an open slot
+    SEEK_GOAL = 5     # thesis state 3: fly there, watching for an open slot
+    DELIVER = 6       # an open slot in view: above it, straight down, release
+    CLIMB = 7         # box placed: climb back
+
+
+class TieBreak(str, enum.Enum):
+    """Which of several equally strong pheromone cells an agent heads for."""
+
+    RANDOM = "random"     # any, drawn with the agent's own generator (spreads the agents out)
+    NEAREST = "nearest"   # the nearest to the agent
+
+
+class Strategy(enum.IntEnum):
+    """How the next search point is chosen (appendix A, column 6 of the agent data)."""
+
+    RANDOM = 0      # anywhere in the arena
+    PHEROMONE = 1   # the strongest pheromone of the wanted sign
+    LOCAL = 2       # near the agent
+
+
+ALTITUDE_TOL = 0.03
+"""m: an agent counts as at a flying altitude within this."""
+COLUMN_TOL = 0.01
+"""m: horizontal distance from an object's column at which the straight descent starts."""
+SETTLED_SPEED = 0.03
+"""m/s: an agent starts a descent only below this speed."""
+RELEASE_SPEED = 0.02
+"""m/s: an agent lets go of its box only below this speed."""
+VERTICAL_CLEARANCE = 0.03
+"""m: a carried box or an airframe stays this far above what it flies over."""
+GRASP_FRACTION = 0.6
+"""An agent asks to grasp within this fraction of the attach threshold (margin for tracking error)."""
+AHEAD_DEG = 70.0
+"""deg: a presence mark blocks the way when its cell lies within this angle of the direction of travel."""
+
+
+def _field_error(name: str, message: str) -> ConfigError:
+    return ConfigError(message, field=f"planner.params.{name}")
+
+
+@dataclasses.dataclass(frozen=True)
+class StigmergyParams:
+    """Parameters of the 3-D stigmergy planner (defaults: thesis Tables 5.1 and 5.2).
+
+    Attributes:
+        cell_size: m, edge of a pheromone cell (thesis: 10 cm, a 30 x 10 x 10 grid).
+        grid_height: m, top of the pheromone grid.
+        box_pheromone: value set in the agent's cell when it grasps a box (> 0).
+        goal_pheromone: value set in the agent's cell when it places a box (< 0).
+        trail_pheromone: value set in every empty cell an agent passes while looking for a box (>= 0).
+        fatigue: value units per second by which the task layer fades (thesis: 0).
+        local_radius: m, half-width of the square of a local random search point (thesis: 20 cm).
+        distance_scale: m; when given, nearer pheromone cells appear stronger (value / (1 + d / scale)),
+            otherwise the strongest cell wins.
+        ties: ``random`` or ``nearest``: which of equally strong cells (e.g. every found box's +1) wins.
+        floor_altitude: m, flying altitude over the open floor (default: level with the middle of
+            the structure's grasp points, so that slots of every layer are in view from beside it).
+        look_altitude: m, flying altitude over the depot (default: half the view range above a
+            box's grasp point, raised if a carried box would not clear the depot's boxes).
+        cruise_altitude: m, flying altitude over the structure (default: the task's search height,
+            raised if a carried box would not clear the finished structure).
+        arrive_tol: m, horizontal distance at which a search point counts as reached.
+        structure_margin: m, keep-out zone around the structure beyond one agent radius.
+        release_clearance: m, height of the box above its slot when it is let go.
+        release_tol: m, per-axis position error within which the box is let go.
+        snapshot_s: s, period of the pheromone snapshots kept for the figures.
+    """
+
+    cell_size: float = 0.1
+    grid_height: float = 1.0
+    box_pheromone: float = 1.0
+    goal_pheromone: float = -1.0
+    trail_pheromone: float = 0.2
+    fatigue: float = 0.0
+    local_radius: float = 0.2
+    distance_scale: float | None = None
+    ties: TieBreak = TieBreak.RANDOM
+    floor_altitude: float | None = None
+    look_altitude: float | None = None
+    cruise_altitude: float | None = None
+    arrive_tol: float = 0.05
+    structure_margin: float = 0.02
+    release_clearance: float = 0.004
+    release_tol: float = 0.005
+    snapshot_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("cell_size", "grid_height", "local_radius", "arrive_tol", "release_tol"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise _field_error(name, f"must be a number > 0, got {v!r}")
+        for name in ("trail_pheromone", "fatigue", "structure_margin", "release_clearance", "snapshot_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise _field_error(name, f"must be a number >= 0, got {v!r}")
+        if not (isinstance(self.box_pheromone, (int, float)) and self.box_pheromone > 0):
+            raise _field_error("box_pheromone",
+                               f"must be > 0 (boxes are the positive pheromone), got {self.box_pheromone!r}")
+        if not (isinstance(self.goal_pheromone, (int, float)) and self.goal_pheromone < 0):
+            raise _field_error("goal_pheromone",
+                               f"must be < 0 (goals are the negative pheromone), got {self.goal_pheromone!r}")
+        try:
+            object.__setattr__(self, "ties", TieBreak(self.ties))
+        except ValueError:
+            raise _field_error("ties", f"must be one of {[t.value for t in TieBreak]}, got {self.ties!r}") from None
+        for name in ("distance_scale", "floor_altitude", "look_altitude", "cruise_altitude"):
+            v = getattr(self, name)
+            if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise _field_error(name, f"must be null or a number > 0, got {v!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class LayeredStigmergyParams(StigmergyParams):
+    """Parameters of the layered stigmergy planner: those of 3-D stigmergy plus the presence layer
+    (defaults: thesis Table 6.1).
+
+    Attributes:
+        presence_pheromone: value an agent sets in its cell every tick (> 0).
+        presence_fatigue: value units per second by which presence marks fade (> 0; 2/s erases a 2 in 1 s).
+        lookahead: m, how far along its way an agent checks for other agents' marks.
+    """
+
+    presence_pheromone: float = 2.0
+    presence_fatigue: float = 2.0
+    lookahead: float = 0.2
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("presence_pheromone", "presence_fatigue", "lookahead"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise _field_error(name, f"must be a number > 0, got {v!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Zone:
+    """Rectangles of the floor over which agents fly at least at one altitude.
+
+    Attributes:
+        lo: (k, 2) m, lower corners.
+        hi: (k, 2) m, upper corners.
+        altitude: m, least flying altitude over them.
+    """
+
+    lo: NDArray[np.float64]
+    hi: NDArray[np.float64]
+    altitude: float
+
+    def contains(self, xy: NDArray[np.float64]) -> bool:
+        """True when the point (2,) m lies in the zone."""
+        return bool(np.any(np.all((xy >= self.lo) & (xy <= self.hi), axis=1)))
+
+    def entry(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> float | None:
+        """Fraction of the way from a (2,) to b (2,) m at which the segment enters the zone (0 when a
+        is inside), or None when it stays out."""
+        if len(self.lo) == 0:
+            return None
+        d = b - a
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = (self.lo - a) / d
+            t2 = (self.hi - a) / d
+        tlo, thi = np.minimum(t1, t2), np.maximum(t1, t2)
+        flat = d == 0.0                                   # axis without motion: inside the slab or never
+        within = (a >= self.lo) & (a <= self.hi)
+        tlo = np.where(flat, np.where(within, -np.inf, np.inf), tlo)
+        thi = np.where(flat, np.where(within, np.inf, -np.inf), thi)
+        t_in, t_out = tlo.max(axis=1), thi.min(axis=1)
+        hit = (t_out >= np.maximum(t_in, 0.0)) & (t_in <= 1.0)
+        if not hit.any():
+            return None
+        return float(max(0.0, t_in[hit].min()))
+
+
+def _around(xy: NDArray[np.float64], half: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    cols = np.unique(np.round(np.asarray(xy, dtype=float).reshape(-1, 2), 9), axis=0)
+    return cols - half, cols + half
+
+
+@dataclasses.dataclass(frozen=True)
+class FlightGeometry:
+    """Flying altitudes over the floor, derived once from the task layout every agent is told.
+
+    Three levels: the open floor, low enough to see slots of every layer from beside the structure;
+    the depot, where a carried box must clear the boxes still waiting; the structure, where it must
+    clear the finished structure. An agent climbs before it enters a higher zone.
+
+    Attributes:
+        floor_altitude: m, over the open floor.
+        depot: the depot boxes' footprints (inflated by one agent radius and a margin) and their altitude.
+        structure: the same around the structure's columns: the keep-out zone below the cruise altitude.
+        arena_lo: (2,) m, lowest reachable agent centre.
+        arena_hi: (2,) m, highest reachable agent centre.
+        view_range: m, an agent sees an object whose grasp point is this close (task rule).
+        standoff: m, how far before a higher zone an agent climbs.
+        columns: (c, 2) m, centres of the structure's columns of slots.
+        clearance: m, least horizontal (per-axis) distance from a column at which an agent's descent
+            does not touch it.
+    """
+
+    floor_altitude: float
+    depot: Zone
+    structure: Zone
+    arena_lo: NDArray[np.float64]
+    arena_hi: NDArray[np.float64]
+    view_range: float
+    standoff: float
+    columns: NDArray[np.float64]
+    clearance: float
+
+    @property
+    def look_altitude(self) -> float:
+        """m, flying altitude over the depot."""
+        return self.depot.altitude
+
+    @property
+    def cruise_altitude(self) -> float:
+        """m, flying altitude over the structure."""
+        return self.structure.altitude
+
+    @staticmethod
+    def from_task(info: TaskInfo, p: StigmergyParams) -> FlightGeometry:
+        """Derive the altitudes and zones of a construction task."""
+        gh, bs, r = info.grasp_height, info.box_size, info.agent_radius
+        view = float(info.extra.get("view_radius", 2.0 * r)) + gh
+        carried_bottom = gh + 0.5 * bs                      # m, agent centre above the bottom of its box
+        slot_grasp = info.slots[:, 2] + gh
+        # level with the middle of the structure's grasp points: slots of every layer in view from its edge
+        floor = (p.floor_altitude if p.floor_altitude is not None
+                 else max(0.5 * (slot_grasp.min() + slot_grasp.max()), carried_bottom + VERTICAL_CLEARANCE))
+        ground_grasp = 0.5 * bs + gh
+        depot_top = float(np.max(info.depot[:, 2])) + 0.5 * bs if len(info.depot) else bs
+        look = (p.look_altitude if p.look_altitude is not None
+                else max(ground_grasp + 0.5 * view, depot_top + carried_bottom + VERTICAL_CLEARANCE))
+        top = float(np.max(info.slots[:, 2])) + 0.5 * bs
+        cruise = (p.cruise_altitude if p.cruise_altitude is not None
+                  else max(float(info.extra.get("search_height", 0.0)), top + carried_bottom + VERTICAL_CLEARANCE))
+        if not floor <= look <= cruise:
+            raise _field_error("cruise_altitude", f"altitudes must rise from floor ({floor:.3f} m) to depot "
+                               f"({look:.3f} m) to structure ({cruise:.3f} m)")
+        half = 0.5 * bs + r + p.structure_margin
+        lo = np.full(2, r)
+        hi = np.maximum(np.asarray(info.arena_size, dtype=float)[:2] - r, lo)
+        cols = np.unique(np.round(info.slots[:, :2], 9), axis=0)
+        return FlightGeometry(float(floor), Zone(*_around(info.depot[:, :2], half), float(look)),
+                              Zone(*_around(cols, half), float(cruise)), lo, hi, view,
+                              standoff=max(0.03, p.structure_margin), columns=cols, clearance=0.5 * bs + r)
+
+    @property
+    def zones(self) -> tuple[Zone, Zone]:
+        """The zones, lower first."""
+        return self.depot, self.structure
+
+    def inside(self, xy: NDArray[np.float64]) -> bool:
+        """True when the point (2,) m lies in the structure's keep-out zone."""
+        return self.structure.contains(xy)
+
+    def altitude(self, xy: NDArray[np.float64]) -> float:
+        """Flying altitude, m, over the point (2,) m."""
+        return max([self.floor_altitude, *(z.altitude for z in self.zones if z.contains(xy))])
+
+    def entry(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> float | None:
+        """Fraction of the way from a (2,) to b (2,) m at which the segment enters the keep-out zone
+        (0 when a is inside), or None when it stays out."""
+        return self.structure.entry(a, b)
+
+    def outside(self, xy: NDArray[np.float64], start: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The point (2,) m itself when it lies outside the keep-out zone, else the point just outside
+        it (``standoff`` beyond an edge, within the arena) on the shortest way from ``start`` (2,) m
+        via the edge to ``xy``."""
+        if not self.inside(xy):
+            return xy
+        k = self.structure
+        cand = [np.array([x, xy[1]]) for x in (*(k.lo[:, 0] - self.standoff), *(k.hi[:, 0] + self.standoff))]
+        cand += [np.array([xy[0], y]) for y in (*(k.lo[:, 1] - self.standoff), *(k.hi[:, 1] + self.standoff))]
+        pts = np.clip(np.array(cand), self.arena_lo, self.arena_hi)
+        ok = np.array([not self.inside(c) for c in pts])
+        if not ok.any():       # the zone fills the arena across: nowhere to look from but above it
+            return xy
+        pts = pts[ok]
+        cost = np.linalg.norm(pts - xy, axis=1) + np.linalg.norm(pts - start, axis=1)
+        return pts[int(np.argmin(cost))]
+
+    def clear_of_structure(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """(k,) True for points (k, 2) m straight over a structure column (on top of a stack) or far
+        enough from every column for an agent to descend there without touching it."""
+        if len(self.columns) == 0:
+            return np.ones(len(xy), dtype=bool)
+        d = np.max(np.abs(xy[:, None, :] - self.columns[None, :, :]), axis=2)   # (k, c) m, per-axis distance
+        return np.all(d >= self.clearance, axis=1) | np.any(d <= COLUMN_TOL + 0.02, axis=1)
+
+
+class Stigmergy:
+    """3-D stigmergy (thesis chapter 5): one instance per agent, the pheromone grid shared.
+
+    Args:
+        **params: fields of ``StigmergyParams``.
+    """
+
+    name: ClassVar[str] = "stigmergy"
+    centralized: ClassVar[bool] = False
+    Params: ClassVar[type[StigmergyParams]] = StigmergyParams
+
+    def __init__(self, **params: Any) -> None:
+        self.params = self.Params(**params)
+
+    # ------------------------------------------------------------- the medium
+    @classmethod
+    def layer_specs(cls, p: StigmergyParams) -> list[LayerSpec]:
+        """The pheromone layers this planner uses."""
+        return [LayerSpec(Layer.TASK.value, fatigue=p.fatigue)]
+
+    @classmethod
+    def make_medium(cls, sim: Any) -> PheromoneGrid:
+        """The pheromone grid shared by the agents of a simulation (the planner's parameters come
+        from the scenario's ``planner.params``)."""
+        sc = sim.scenario
+        raw = dict(sc.planner.params) if sc.planner.name in (None, sim.planner_name) else {}
+        try:
+            p = cls.Params(**raw)
+        except TypeError as exc:
+            raise ConfigError(f"bad parameters for planner {cls.name!r}: {exc}", source=sc.source,
+                              field="planner.params") from None
+        except ConfigError as exc:
+            raise exc.with_source(sc.source) from None
+        return PheromoneGrid(sim.info.arena_size, cls.layer_specs(p), cell=p.cell_size, height=p.grid_height,
+                             snapshot_s=p.snapshot_s)
+
+    # ------------------------------------------------------------- protocol
+    def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
+        """Start a run as agent ``agent_id``: looking for a box, no pheromone strategy used yet."""
+        if len(info.slots) == 0 or info.box_size <= 0:
+            raise ConfigError("the stigmergy planners solve construction tasks (boxes and slots)", field="planner.name")
+        self.id = int(agent_id)
+        self.rng = rng
+        self.info = info
+        self.geo = FlightGeometry.from_task(info, self.params)
+        self.attach = float(info.extra.get("attach_threshold", 0.02))
+        self.phase = Phase.CHOOSE_BOX
+        self.strategy = Strategy.RANDOM      # the thesis starts every agent in mode 0 ("random")
+        self.target = np.zeros(2)            # m, current search point
+        self.box_id = -1
+        self.box_pos = np.zeros(3)           # m, last seen centre of the box being fetched
+        self.slot_id = -1
+        self.slot_pos = np.zeros(3)          # m, centre of the slot being served
+        self.descending = False
+        self.column = np.zeros(2)            # m, where the agent climbs after a grasp or release
+        self.climb_xy: NDArray[np.float64] | None = None   # m, where it climbs before a higher zone
+        self.holding = False
+        self.released = False
+        self.grasp_offset: NDArray[np.float64] | None = None
+        self.offset = np.array([0.0, 0.0, -info.grasp_height])   # m, held box centre relative to the agent
+        self.detour_until = -math.inf        # s, until then the agent keeps to its search point (layered variant)
+
+    def plan(self, obs: Observation, medium: PheromoneGrid | None) -> Command:
+        """The agent's command for the next planner period."""
+        self._sync(obs, medium)
+        return self._act(obs, medium)
+
+    # ------------------------------------------------------------- state
+    def _sync(self, obs: Observation, medium: PheromoneGrid | None) -> None:
+        """Notice the outcome of the last GRASP or RELEASE (the task applies them between ticks)."""
+        p = obs.position
+        if obs.carrying >= 0 and not self.holding:
+            self.holding = True
+            if self.grasp_offset is not None:
+                self.offset = self.grasp_offset
+            self._mark(medium, p, self.params.box_pheromone, "boxes_found")
+            self.column = p[:2].copy()
+            self.phase = Phase.LIFT
+            self.box_id = -1
+        elif obs.carrying < 0 and self.holding:
+            self.holding = False
+            if self.released:
+                self._mark(medium, p, self.params.goal_pheromone, "goals_found")
+                self.column = p[:2].copy()
+                self.phase = Phase.CLIMB
+            else:                        # the box slipped out of the grip: look for one again
+                self.phase = Phase.CHOOSE_BOX
+            self.released = False
+            self.slot_id = -1
+            self.descending = False
+        self.grasp_offset = None
+
+    def _mark(self, medium: PheromoneGrid | None, p: NDArray[np.float64], value: float, tally: str) -> None:
+        if medium is not None:
+            medium.deposit(Layer.TASK.value, p, value, rule=DepositRule.SET, source=self.id)
+            medium.tally(tally)
+
+    def _act(self, obs: Observation, medium: PheromoneGrid | None) -> Command:
+        steps = {Phase.SEEK_BOX: self._seek_box, Phase.FETCH: self._fetch, Phase.LIFT: self._lift,
+                 Phase.SEEK_GOAL: self._seek_goal, Phase.DELIVER: self._deliver, Phase.CLIMB: self._climb}
+        for _ in range(6):   # a step returns None when it changed the phase and the next one should act now
+            if self.phase == Phase.CHOOSE_BOX:
+                self._choose(obs, medium, +1)
+                self.phase = Phase.SEEK_BOX
+                continue
+            if self.phase == Phase.CHOOSE_GOAL:
+                self._choose(obs, medium, -1)
+                self.phase = Phase.SEEK_GOAL
+                continue
+            cmd = steps[self.phase](obs, medium)
+            if cmd is not None:
+                return cmd
+        return Command.goto(obs.position)
+
+    def _replan(self) -> None:
+        """Drop the current search point and object; choose again (by the strategy cycle)."""
+        self.phase = Phase.CHOOSE_GOAL if self.holding else Phase.CHOOSE_BOX
+        self.box_id = -1
+        self.slot_id = -1
+        self.descending = False
+
+    # ------------------------------------------------------------- search
+    def _choose(self, obs: Observation, medium: PheromoneGrid | None, sign: int) -> None:
+        """Next search point by the thesis's cycle: random, strongest pheromone, local random, random, ..."""
+        p = obs.position
+        best = None
+        if medium is not None:
+            best = medium.strongest(Layer.TASK.value, sign, near=p, distance_scale=self.params.distance_scale,
+                                    rng=self.rng if self.params.ties is TieBreak.RANDOM else None)
+        g = self.geo
+        if best is None or self.strategy == Strategy.LOCAL:
+            self.strategy = Strategy.RANDOM
+            xy = self.rng.uniform(g.arena_lo, g.arena_hi)
+        elif self.strategy == Strategy.RANDOM:
+            self.strategy = Strategy.PHEROMONE
+            xy = best[:2]
+        else:
+            self.strategy = Strategy.LOCAL
+            r = self.params.local_radius
+            xy = p[:2] + self.rng.uniform(-r, r, size=2)
+        # a point over the structure is searched from the edge of the keep-out zone, low, where the
+        # agent sees slots of every layer (over the structure it flies too high to see the bottom one)
+        self.target = g.outside(np.clip(xy, g.arena_lo, g.arena_hi), p[:2])
+        if medium is not None:
+            medium.tally(f"target_{self.strategy.name.lower()}")
+
+    def _arrived(self, p: NDArray[np.float64], xy: NDArray[np.float64]) -> bool:
+        return bool(np.hypot(*(p[:2] - xy)) <= self.params.arrive_tol
+                    and abs(p[2] - self.geo.altitude(xy)) <= 0.05)
+
+    def _seek_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        p = obs.position
+        b = self._pick(obs, obs.box_ids, obs.boxes, np.zeros(3), boxes=True)
+        if b >= 0:
+            self.box_id = int(obs.box_ids[b])
+            self.box_pos = obs.boxes[b].copy()
+            self.phase = Phase.FETCH
+            self.descending = False
+            return None
+        trail = self.params.trail_pheromone
+        if medium is not None and trail > 0 and medium.sample(Layer.TASK.value, p) == 0.0:
+            medium.deposit(Layer.TASK.value, p, trail, rule=DepositRule.SET, source=self.id)
+        if self._arrived(p, self.target):
+            self.phase = Phase.CHOOSE_BOX
+            return None
+        return self._travel(p, self.target)
+
+    def _seek_goal(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        p = obs.position
+        s = self._pick(obs, obs.slot_ids, obs.slots, self.offset)
+        if s >= 0:
+            self.slot_id = int(obs.slot_ids[s])
+            self.slot_pos = obs.slots[s].copy()
+            self.phase = Phase.DELIVER
+            self.descending = False
+            return None
+        if self._arrived(p, self.target):
+            self.phase = Phase.CHOOSE_GOAL
+            return None
+        return self._travel(p, self.target)
+
+    def _pick(self, obs: Observation, ids: NDArray[np.int64], where: NDArray[np.float64],
+              shift: NDArray[np.float64], *, boxes: bool = False) -> int:
+        """Index (into ``ids``) of the nearest visible object nobody else is working on, or -1.
+        ``shift`` (3,) m moves an object's centre to where the agent's column over it is; with
+        ``boxes``, boxes beside the structure (whose descent would scrape it) are left alone."""
+        if len(ids) == 0 or obs.time_s < self.detour_until:
+            return -1
+        cols = where[:, :2] - shift[:2]
+        free = np.array([not self._claimed(obs, c) for c in cols])
+        if boxes:
+            free &= self.geo.clear_of_structure(cols)
+        if not free.any():
+            return -1
+        d = np.hypot(*(cols - obs.position[:2]).T)
+        d[~free] = np.inf
+        return int(np.argmin(d))
+
+    def _claimed(self, obs: Observation, xy: NDArray[np.float64]) -> bool:
+        """True when a neighbour works over the column at ``xy`` (2,) m: within one agent radius of
+        it and lower than this agent, or level with it and nearer (a tie goes to the lower id)."""
+        if len(obs.neighbour_ids) == 0:
+            return False
+        q = obs.neighbour_positions
+        p = obs.position
+        dn = np.hypot(*(q[:, :2] - xy).T)
+        dm = float(np.hypot(*(p[:2] - xy)))
+        lower = q[:, 2] < p[2] - 0.05
+        level = np.abs(q[:, 2] - p[2]) <= 0.05
+        nearer = (dn < dm - 1e-3) | ((np.abs(dn - dm) <= 1e-3) & (obs.neighbour_ids < self.id))
+        return bool(np.any((dn < self.info.agent_radius) & (lower | (level & nearer))))
+
+    def _gone(self, p: NDArray[np.float64], obj: NDArray[np.float64]) -> bool:
+        """True when an object the agent should see from here (well inside its view range) is not there."""
+        grasp = obj + [0.0, 0.0, self.info.grasp_height]
+        return bool(np.linalg.norm(grasp - p) <= 0.9 * self.geo.view_range)
+
+    # ------------------------------------------------------------- boxes and slots
+    def _fetch(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        p = obs.position
+        seen = np.flatnonzero(obs.box_ids == self.box_id)
+        if seen.size:
+            self.box_pos = obs.boxes[seen[0]].copy()
+        if (not seen.size and self._gone(p, self.box_pos)) or (
+                not self.descending and self._claimed(obs, self.box_pos[:2])):
+            self.phase = Phase.SEEK_BOX          # taken or claimed by another agent: keep looking
+            self.box_id = -1
+            return None
+        grasp = self.box_pos + [0.0, 0.0, self.info.grasp_height]
+        if not self.descending:
+            if self._over(obs, grasp[:2]):
+                self.descending = True
+            else:
+                return self._travel(p, grasp[:2])
+        if np.linalg.norm(p - grasp) <= GRASP_FRACTION * self.attach:
+            self.grasp_offset = self.box_pos - p
+            return Command.goto(grasp, Action.GRASP)
+        return Command.goto(grasp)
+
+    def _deliver(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        p = obs.position
+        seen = bool(np.any(obs.slot_ids == self.slot_id))
+        if (not seen and self._gone(p, self.slot_pos)) or (
+                not self.descending and self._claimed(obs, self.slot_pos[:2] - self.offset[:2])):
+            self.phase = Phase.SEEK_GOAL         # filled or claimed by another agent: keep looking
+            self.slot_id = -1
+            self.descending = False
+            return None
+        drop = self.slot_pos + [0.0, 0.0, self.params.release_clearance] - self.offset   # agent centre at release
+        if not self.descending:
+            if self._over(obs, drop[:2]):
+                self.descending = True
+            else:
+                return self._travel(p, drop[:2])
+        err = np.abs(p - drop)
+        if np.all(err <= self.params.release_tol) and np.linalg.norm(obs.velocity) < RELEASE_SPEED:
+            self.released = True
+            return Command.goto(drop, Action.RELEASE)
+        return Command.goto(drop)
+
+    def _over(self, obs: Observation, xy: NDArray[np.float64]) -> bool:
+        """True when the agent hovers over ``xy`` (2,) m at its flying altitude, ready to descend."""
+        p = obs.position
+        return bool(np.hypot(*(p[:2] - xy)) <= COLUMN_TOL and abs(p[2] - self.geo.altitude(xy)) <= ALTITUDE_TOL
+                    and np.linalg.norm(obs.velocity) < SETTLED_SPEED)
+
+    def _lift(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        return self._rise(obs, Phase.CHOOSE_GOAL)
+
+    def _climb(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        return self._rise(obs, Phase.CHOOSE_BOX)
+
+    def _rise(self, obs: Observation, then: Phase) -> Command | None:
+        """Climb straight up from the last grasp or release to the flying altitude there."""
+        h = self.geo.altitude(self.column)
+        if abs(obs.position[2] - h) <= ALTITUDE_TOL:
+            self.phase = then
+            return None
+        return Command.goto([self.column[0], self.column[1], h])
+
+    # ------------------------------------------------------------- flight
+    def _travel(self, p: NDArray[np.float64], dest: NDArray[np.float64]) -> Command:
+        """Fly towards the point ``dest`` (2,) m at the flying altitude of the way there, stopping short
+        of a higher zone to climb straight up before entering it."""
+        cmd, climbing = self._route(p, dest)
+        if not climbing:
+            self.climb_xy = None
+        return cmd
+
+    def _route(self, p: NDArray[np.float64], dest: NDArray[np.float64]) -> tuple[Command, bool]:
+        """The next command towards ``dest`` (2,) m, and whether it is a climb before a higher zone."""
+        g = self.geo
+        xy = p[:2]
+        hits = [(t, z) for z in g.zones if (t := z.entry(xy, dest)) is not None]
+        h_way = max([g.floor_altitude, *(z.altitude for _, z in hits)])    # m, altitude over the whole way
+        higher = [(t, z) for t, z in hits if z.altitude > p[2] + ALTITUDE_TOL]
+        if not higher:                  # high enough (or only the open floor to climb over): fly there
+            return Command.goto([dest[0], dest[1], h_way]), False
+        t, zone = min(higher, key=lambda tz: tz[0])
+        way = dest - xy
+        entry = xy + t * way
+        if self.climb_xy is None and t > 0.0 and np.hypot(*(entry - xy)) > g.standoff + COLUMN_TOL:
+            before = entry - g.standoff * way / np.linalg.norm(way)
+            if np.hypot(*(before - xy)) > COLUMN_TOL:
+                h_now = max([g.floor_altitude, *(z.altitude for _, z in hits if z.altitude <= p[2] + ALTITUDE_TOL)])
+                return Command.goto([before[0], before[1], h_now]), False
+        if self.climb_xy is None:         # latch where to climb: chasing the measured position would drift
+            self.climb_xy = xy.copy()
+        return Command.goto([self.climb_xy[0], self.climb_xy[1], zone.altitude]), True
+
+
+class LayeredStigmergy(Stigmergy):
+    """Layered stigmergy (thesis chapter 6): 3-D stigmergy plus a fading presence layer that agents avoid.
+
+    Args:
+        **params: fields of ``LayeredStigmergyParams``.
+    """
+
+    name: ClassVar[str] = "layered_stigmergy"
+    Params: ClassVar[type[StigmergyParams]] = LayeredStigmergyParams
+    params: LayeredStigmergyParams
+
+    @classmethod
+    def layer_specs(cls, p: StigmergyParams) -> list[LayerSpec]:
+        """The task layer and the presence layer."""
+        assert isinstance(p, LayeredStigmergyParams)
+        return [*super().layer_specs(p), LayerSpec(Layer.PRESENCE.value, fatigue=p.presence_fatigue)]
+
+    def plan(self, obs: Observation, medium: PheromoneGrid | None) -> Command:
+        """The 3-D stigmergy command, unless another agent's mark lies ahead; then mark own position."""
+        cmd = super().plan(obs, medium)
+        if medium is None:
+            return cmd
+        if self._moving() and self._blocked(obs, cmd, medium):
+            medium.tally("presence_replans")
+            self._replan()
+            # search elsewhere for as long as a mark lasts before going for a seen object again:
+            # two agents wanting to pass each other would otherwise block each other for ever
+            self.detour_until = obs.time_s + self.params.presence_pheromone / self.params.presence_fatigue
+            cmd = Command.hold()
+        p = obs.position
+        marks = [p, p + self.offset] if self.holding else [p]
+        for q in marks:
+            medium.deposit(Layer.PRESENCE.value, q, self.params.presence_pheromone, rule=DepositRule.SET,
+                           source=self.id)
+        return cmd
+
+    def _moving(self) -> bool:
+        """True while the agent travels (searching or heading for an object, not in a straight descent or climb)."""
+        return self.phase in (Phase.SEEK_BOX, Phase.SEEK_GOAL) or (
+            self.phase in (Phase.FETCH, Phase.DELIVER) and not self.descending)
+
+    def _blocked(self, obs: Observation, cmd: Command, medium: PheromoneGrid) -> bool:
+        """True when another agent's presence mark lies in the area the agent is about to move into:
+        its footprint (one agent radius around its centre, and around its box when it carries one)
+        swept along the way to the command's target for ``lookahead``, in cells ahead of it (within
+        ``AHEAD_DEG`` of the way; an agent may always move away from a neighbour beside or behind it)."""
+        if cmd.kind != CommandKind.POSITION:
+            return False
+        p = obs.position
+        way = cmd.vector - p
+        dist = float(np.linalg.norm(way))
+        if dist < 1e-3:
+            return False
+        u = way / dist
+        step = 0.5 * self.params.cell_size
+        s = np.arange(step, min(self.params.lookahead, dist) + step - 1e-9, step)   # (k,) m along the way
+        swept = (np.outer(s, u)[:, None, :] + self._footprint[None, :, :]).reshape(-1, 3)   # offsets from a centre
+        origins = [p, p + self.offset] if self.holding else [p]                   # the agent, and its box
+        for o in origins:
+            pts = o + swept
+            marked = pts[medium.values_at(Layer.PRESENCE.value, pts, exclude_source=self.id) > 0.0]
+            if len(marked) == 0:
+                continue
+            rel = medium.centre(medium.index(marked)) - o                          # (m, 3) m
+            if np.any(rel @ u > math.cos(math.radians(AHEAD_DEG)) * np.linalg.norm(rel, axis=1)):
+                return True
+        return False
+
+    def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
+        """Start a run as agent ``agent_id`` (see ``Stigmergy.reset``)."""
+        super().reset(agent_id, rng, info)
+        r = info.agent_radius
+        h = 0.5 * self.params.cell_size
+        grid = np.array(np.meshgrid([-r, 0.0, r], [-r, 0.0, r], [-h, 0.0, h], indexing="ij"))
+        self._footprint = grid.reshape(3, -1).T   # (27, 3) m, offsets covering the airframe and its neighbourhood
+
+
+from pybullet_swarm.planning.registry import register_planner  # noqa: E402
+
+register_planner("stigmergy", Stigmergy, "3-D stigmergy (thesis ch. 5): random / strongest-pheromone / local search, "
+                 "boxes +1, goals -1, trail 0.2 in a shared grid", ("construction",))
+register_planner("layered_stigmergy", LayeredStigmergy, "layered stigmergy (thesis ch. 6): 3-D stigmergy plus a "
+                 "fading presence layer; agents re-plan rather than enter another's marked cell", ("construction",))

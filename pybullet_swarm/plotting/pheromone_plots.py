@@ -1,0 +1,123 @@
+"""Figures of a pheromone medium (thesis Figs. 5.2, 6.1, 6.2), drawn from saved arrays only."""
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.colors import TwoSlopeNorm
+from matplotlib.figure import Figure
+from numpy.typing import ArrayLike
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    """Write the figure atomically (temporary name in the same directory, then rename)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    fig.savefig(tmp, dpi=110)
+    tmp.replace(path)
+    return path
+
+
+def plot_pheromone_map(values_xy: ArrayLike, cell: float, path: Path | str, *, title: str,
+                       extent: ArrayLike | None = None) -> Path:
+    """One pheromone layer seen from above: a cell map, positive red, negative blue (thesis Fig. 5.2).
+
+    Args:
+        values_xy: (nx, ny) pheromone values, the column value of largest magnitude.
+        cell: m, edge of a cell.
+        path: PNG file to write.
+        title: figure title.
+        extent: (2,) m, (Lx, Ly) of the arena (default: nx * cell, ny * cell).
+
+    Returns:
+        The file written.
+    """
+    v = np.asarray(values_xy, dtype=float)
+    if v.ndim != 2:
+        raise ValueError(f"values_xy: expected shape (nx, ny), got {v.shape}")
+    lx, ly = (v.shape[0] * cell, v.shape[1] * cell) if extent is None else np.asarray(extent, dtype=float).ravel()[:2]
+    span = float(np.max(np.abs(v))) if v.size else 0.0
+    span = span if span > 0 else 1.0
+    fig = Figure(figsize=(9, 0.9 + 7.5 * v.shape[1] / max(v.shape[0], 1)), layout="constrained")
+    ax = fig.subplots()
+    im = ax.imshow(v.T, origin="lower", extent=(0.0, v.shape[0] * cell, 0.0, v.shape[1] * cell), cmap="RdBu_r",
+                   norm=TwoSlopeNorm(vcenter=0.0, vmin=-span, vmax=span), interpolation="nearest")
+    ax.set_xlim(0.0, lx)
+    ax.set_ylim(0.0, ly)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(title)
+    fig.colorbar(im, ax=ax, shrink=0.9, label="pheromone")
+    return _save(fig, Path(path))
+
+
+def plot_pheromone_activity(t: ArrayLike, marked: Mapping[str, ArrayLike], path: Path | str) -> Path:
+    """Number of marked cells of each layer over time.
+
+    Args:
+        t: (k,) s, snapshot times.
+        marked: layer name -> (k,) cells holding a non-zero value.
+        path: PNG file to write.
+
+    Returns:
+        The file written.
+    """
+    tt = np.asarray(t, dtype=float)
+    fig = Figure(figsize=(9, 4), layout="constrained")
+    ax = fig.subplots()
+    for name, counts in marked.items():
+        c = np.asarray(counts, dtype=float)
+        if c.shape != tt.shape:
+            raise ValueError(f"marked[{name!r}]: expected shape {tt.shape}, got {c.shape}")
+        ax.plot(tt, c, lw=1.5, label=name)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("marked cells")
+    ax.set_title("pheromone activity")
+    ax.set_ylim(bottom=0.0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, Path(path))
+
+
+def plot_pheromones(arrays: Mapping[str, Any], out_dir: Path | str, *, persistent: Iterable[str] = ()) -> list[Path]:
+    """All figures of a saved pheromone medium (the contents of ``pheromones.npz``).
+
+    A persistent layer (no fading) is drawn as it ended; a fading layer, whose end state says
+    little, at its busiest snapshot (thesis Fig. 6.1, a snapshot of the agents' positions).
+
+    Args:
+        arrays: ``cell``, ``extent`` (3,), ``layers``, ``snapshot_t`` (k,), and per layer ``<layer>``
+            (nx, ny, nz), ``<layer>_history`` (k, nx, ny), ``<layer>_marked`` (k,).
+        out_dir: directory of the figures.
+        persistent: layers drawn in their final state.
+
+    Returns:
+        The files written: ``pheromone_<layer>.png`` per layer and ``pheromone_activity.png``.
+    """
+    out = Path(out_dir)
+    cell = float(arrays["cell"])
+    extent = np.asarray(arrays["extent"], dtype=float)
+    keep = set(persistent)
+    t = np.asarray(arrays["snapshot_t"], dtype=float)
+    written: list[Path] = []
+    marked: dict[str, Any] = {}
+    for name in [str(n) for n in np.asarray(arrays["layers"]).ravel()]:
+        hist = np.asarray(arrays[f"{name}_history"])
+        counts = np.asarray(arrays[f"{name}_marked"])
+        marked[name] = counts
+        if name in keep or hist.shape[0] == 0:
+            v = np.asarray(arrays[name], dtype=float)
+            k = np.argmax(np.abs(v), axis=2)
+            xy = np.take_along_axis(v, k[:, :, None], axis=2)[:, :, 0]
+            title = f"pheromone layer '{name}' at the end of the run"
+        else:
+            j = int(np.argmax(counts))
+            xy = hist[j]
+            title = f"pheromone layer '{name}' at t = {t[j]:.1f} s (most cells marked)"
+        written.append(plot_pheromone_map(xy, cell, out / f"pheromone_{name}.png", title=title, extent=extent[:2]))
+    if t.size:
+        written.append(plot_pheromone_activity(t, marked, out / "pheromone_activity.png"))
+    return written

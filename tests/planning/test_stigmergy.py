@@ -1,0 +1,384 @@
+"""The stigmergy planners: search cycle, pheromone rules, flight around the structure, claims,
+presence avoidance (on hand-made observations), and short construction runs."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import pybullet_swarm
+from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.planning.base import Action, CommandKind, Observation, TaskInfo
+from pybullet_swarm.planning.pheromone_grid import DepositRule, PheromoneGrid
+from pybullet_swarm.planning.registry import planners
+from pybullet_swarm.planning.stigmergy import (
+    FlightGeometry, Layer, LayeredStigmergy, LayeredStigmergyParams, Phase, Stigmergy, StigmergyParams, Strategy,
+    TieBreak)
+from pybullet_swarm.types import ExitStatus
+
+GH = 0.065            # m, grasp height of quad150 with 10 cm boxes
+R = 0.106             # m, quad150 radius
+DEPOT = np.array([[x, y, 0.05] for x in (0.4, 0.6, 0.8) for y in (0.3, 0.5, 0.7)])
+SLOTS = np.array([[2.7, 0.2, 0.05], [2.7, 0.4, 0.05], [2.7, 0.6, 0.05], [2.7, 0.8, 0.05], [2.7, 0.2, 0.15],
+                  [2.7, 0.4, 0.15], [2.7, 0.6, 0.15], [2.7, 0.2, 0.25], [2.7, 0.4, 0.25]])
+NO3 = np.zeros((0, 3))
+NOI = np.zeros(0, dtype=np.int64)
+
+
+def _info() -> TaskInfo:
+    """The construction task as its agents know it (scenarios/construction.yaml)."""
+    return TaskInfo(arena_size=np.array([3.0, 1.0]), n_agents=5, agent_radius=R, v_max=np.full(3, 0.15),
+                    depot=DEPOT.copy(), slots=SLOTS.copy(), box_size=0.1, grasp_height=GH,
+                    extra={"search_height": 0.45, "attach_threshold": 0.02, "view_radius": 2 * R})
+
+
+def _obs(p, *, v=(0.0, 0.0, 0.0), carrying=-1, boxes=NO3, box_ids=NOI, slots=NO3, slot_ids=NOI,
+         nb_ids=NOI, nb_pos=NO3, agent=0, t=0.0) -> Observation:
+    return Observation(agent, t, np.asarray(p, dtype=float), np.asarray(v, dtype=float), 0.0, carrying,
+                       np.asarray(nb_ids, dtype=np.int64), np.asarray(nb_pos, dtype=float).reshape(-1, 3),
+                       np.zeros((len(nb_ids), 3)), np.asarray(boxes, dtype=float).reshape(-1, 3),
+                       np.asarray(box_ids, dtype=np.int64), np.asarray(slots, dtype=float).reshape(-1, 3),
+                       np.asarray(slot_ids, dtype=np.int64))
+
+
+def _medium(layered: bool = False) -> PheromoneGrid:
+    cls = LayeredStigmergy if layered else Stigmergy
+    return PheromoneGrid([3.0, 1.0], cls.layer_specs(cls.Params()), cell=0.1, height=1.0)
+
+
+def _agent(cls=Stigmergy, agent=0, seed=0, **params) -> Stigmergy:
+    a = cls(**params)
+    a.reset(agent, np.random.default_rng(seed), _info())
+    return a
+
+
+def _visible(p, obj) -> bool:
+    """The task's visibility rule (ConstructionRuntime.visible): grasp point within view radius + grasp height."""
+    return bool(np.linalg.norm(np.asarray(obj) + [0, 0, GH] - p) <= 2 * R + GH)
+
+
+# ----------------------------------------------------------------------------- geometry
+def test_altitudes_let_agents_see_and_carry_boxes_clear_of_depot_and_structure():
+    g = FlightGeometry.from_task(_info(), StigmergyParams())
+    floor, look, cruise = g.floor_altitude, g.look_altitude, g.cruise_altitude
+    assert floor < look < cruise
+    assert _visible([0.6, 0.5, look], DEPOT[4])                        # over the depot: a box right below is in view
+    assert look - GH - 0.05 >= 0.10 + 0.03 - 1e-9                      # a carried box clears the depot boxes
+    assert floor - GH - 0.05 >= 0.03 - 1e-9                            # ... and the open floor
+    assert cruise == pytest.approx(0.45)                               # the task's search height
+    assert cruise - GH - 0.05 >= 0.30 + 0.03 - 1e-9                    # ... clears the finished wall
+    # the zones: every slot column in the structure's, every depot box in the depot's
+    assert all(g.inside(s[:2]) for s in SLOTS) and not any(g.inside(b[:2]) for b in DEPOT)
+    assert all(g.altitude(b[:2]) == look for b in DEPOT) and g.altitude(np.array([1.5, 0.5])) == floor
+    # from the edge of the structure's zone, over the open floor, an agent sees slots of every layer
+    # in front of it, and bottom slots up to 15 cm aside
+    edge = g.structure.lo[:, 0].min() - g.standoff
+    for s in SLOTS:
+        assert _visible([edge, s[1], floor], s)
+    for s in SLOTS[:4]:
+        assert _visible([edge, s[1] + 0.15, floor], s)
+    # a segment from the depot to the wall enters the zone at its edge
+    t = g.entry(np.array([0.6, 0.5]), np.array([2.7, 0.5]))
+    assert 0.6 + t * 2.1 == pytest.approx(g.structure.lo[:, 0].min())
+    assert g.entry(np.array([0.6, 0.5]), np.array([2.0, 0.9])) is None
+    assert g.entry(np.array([2.7, 0.5]), np.array([0.6, 0.5])) == 0.0
+    # a search point over the structure is looked at from the edge nearer the agent
+    assert np.allclose(g.outside(np.array([2.7, 0.3]), np.array([1.0, 0.5])), [edge, 0.3])
+    assert np.allclose(g.outside(np.array([1.7, 0.3]), np.array([1.0, 0.5])), [1.7, 0.3])
+
+
+# ----------------------------------------------------------------------------- search cycle
+def test_without_pheromone_the_search_is_random_and_never_over_the_structure():
+    a = _agent()
+    med = _medium()
+    targets = []
+    for _ in range(12):
+        a.phase = Phase.CHOOSE_BOX
+        cmd = a.plan(_obs([1.5, 0.5, a.geo.floor_altitude]), med)
+        targets.append(a.target.copy())
+        assert a.strategy == Strategy.RANDOM
+        assert not a.geo.inside(a.target)
+        assert cmd.kind == CommandKind.POSITION and cmd.action == Action.NONE
+        assert cmd.vector[2] in (a.geo.floor_altitude, a.geo.look_altitude)
+    t = np.array(targets)
+    assert np.all((t >= R - 1e-9) & (t <= np.array([3.0, 1.0]) - R + 1e-9))
+    assert len(np.unique(t, axis=0)) == 12
+
+
+def test_strategy_cycle_random_then_strongest_pheromone_then_local():
+    """Appendix A: with a pheromone present the modes go random -> pheromone -> local -> random -> ..."""
+    med = _medium()
+    med.deposit(Layer.TASK.value, [0.63, 0.52, 0.12], 1.0, rule=DepositRule.SET)
+    med.step(0.1)
+    a = _agent()
+    p = np.array([1.5, 0.5, a.geo.look_altitude])
+    seen = []
+    for _ in range(4):
+        a.phase = Phase.CHOOSE_BOX
+        a.plan(_obs(p), med)
+        seen.append((a.strategy, a.target.copy()))
+    assert [s for s, _ in seen] == [Strategy.PHEROMONE, Strategy.LOCAL, Strategy.RANDOM, Strategy.PHEROMONE]
+    assert np.allclose(seen[0][1], [0.65, 0.55])                        # the centre of the marked cell
+    assert np.all(np.abs(seen[1][1] - p[:2]) <= 0.2 + 1e-9)             # local: within 20 cm of the agent
+    assert med.tallies == {"target_pheromone": 2, "target_local": 1, "target_random": 1}
+
+
+def test_an_agent_looking_for_a_box_leaves_a_trail_only_in_empty_cells():
+    med = _medium()
+    a = _agent()
+    look = a.geo.look_altitude
+    med.deposit(Layer.TASK.value, [1.05, 0.55, look], 1.0, rule=DepositRule.SET)
+    med.step(0.1)
+    a.plan(_obs([1.55, 0.55, look]), med)
+    a.plan(_obs([1.05, 0.55, look]), med)
+    med.step(0.1)
+    assert med.sample(Layer.TASK.value, [1.55, 0.55, look]) == pytest.approx(0.2)
+    assert med.sample(Layer.TASK.value, [1.05, 0.55, look]) == 1.0      # a found box is not overwritten
+
+
+# ----------------------------------------------------------------------------- boxes
+def test_a_seen_box_is_fetched_grasped_and_marked_with_plus_one():
+    med = _medium()
+    a = _agent()
+    look = a.geo.look_altitude
+    box = DEPOT[4]
+    near = [box[0] + 0.1, box[1], look]
+    cmd = a.plan(_obs(near, boxes=[box], box_ids=[4]), med)
+    assert a.phase == Phase.FETCH
+    assert np.allclose(cmd.vector, [box[0], box[1], look])              # above it first
+    above = [box[0], box[1], look]
+    cmd = a.plan(_obs(above, boxes=[box], box_ids=[4]), med)
+    grasp = box + [0, 0, GH]
+    assert np.allclose(cmd.vector, grasp) and cmd.action == Action.NONE  # then straight down
+    cmd = a.plan(_obs(grasp + [0.003, 0.0, 0.004], boxes=[box], box_ids=[4]), med)
+    assert cmd.action == Action.GRASP
+    # the task attached it: +1 in the agent's cell, the box hangs where it was seen, climb back
+    held = grasp + [0.003, 0.0, 0.004]
+    cmd = a.plan(_obs(held, carrying=4), med)
+    med.step(0.1)
+    assert med.sample(Layer.TASK.value, held) == 1.0
+    assert np.allclose(a.offset, box - held)
+    assert a.phase == Phase.LIFT and np.allclose(cmd.vector, [held[0], held[1], look])
+    assert med.tallies["boxes_found"] == 1
+
+
+def test_a_box_a_neighbour_is_working_on_is_left_to_it():
+    a = _agent(agent=2)
+    look = a.geo.look_altitude
+    box = DEPOT[0]
+    below = [box[0] + 0.01, box[1], 0.15]                               # descending onto it
+    a.plan(_obs([box[0] + 0.15, box[1], look], boxes=[box], box_ids=[0], nb_ids=[1], nb_pos=[below]), _medium())
+    assert a.phase == Phase.SEEK_BOX
+    # level with it, the nearer agent has it; an equally near one with a lower id too
+    a.plan(_obs([box[0] + 0.05, box[1], look], boxes=[box], box_ids=[0], nb_ids=[4],
+                nb_pos=[[box[0] + 0.08, box[1], look]]), _medium())
+    assert a.phase == Phase.FETCH and a.box_id == 0
+
+
+def test_a_box_beside_the_structure_is_left_alone_but_one_on_top_of_a_stack_is_fetched():
+    a = _agent()
+    g = a.geo
+    beside, on_top = np.array([[2.81, 0.4]]), np.array([[2.7, 0.4]])
+    assert not g.clear_of_structure(beside)[0]
+    assert g.clear_of_structure(on_top)[0] and g.clear_of_structure(DEPOT[:, :2]).all()
+
+
+# ----------------------------------------------------------------------------- structure
+def test_a_carrying_agent_climbs_before_the_structure_and_crosses_it_at_cruise_altitude():
+    a = _agent()
+    g = a.geo
+    a.holding, a.phase, a.strategy = True, Phase.SEEK_GOAL, Strategy.RANDOM
+    a.target = np.array([2.7, 0.5])
+    med = _medium()
+    floor = g.floor_altitude
+    edge = g.structure.lo[:, 0].min()
+    cmd = a.plan(_obs([1.5, 0.5, floor], carrying=3), med)
+    assert cmd.vector[2] == pytest.approx(floor) and cmd.vector[0] == pytest.approx(edge - g.standoff)
+    stop = cmd.vector.copy()
+    cmd = a.plan(_obs(stop, carrying=3, v=(0.15, 0.0, 0.0)), med)          # at the stop: straight up, latched
+    assert np.allclose(cmd.vector, [stop[0], stop[1], g.cruise_altitude])
+    cmd = a.plan(_obs(stop + [0.01, 0.0, 0.1], carrying=3), med)
+    assert np.allclose(cmd.vector, [stop[0], stop[1], g.cruise_altitude])
+    cmd = a.plan(_obs([stop[0] + 0.01, 0.5, 0.44], carrying=3), med)        # up: now across
+    assert np.allclose(cmd.vector, [2.7, 0.5, g.cruise_altitude])
+
+
+def test_an_agent_climbs_to_the_depot_altitude_before_flying_over_the_depot():
+    a = _agent()
+    g = a.geo
+    a.phase, a.target = Phase.SEEK_BOX, np.array([0.6, 0.5])
+    cmd = a.plan(_obs([1.5, 0.5, g.floor_altitude]), _medium())
+    edge = g.depot.hi[:, 0].max() + g.standoff
+    assert np.allclose(cmd.vector, [edge, 0.5, g.floor_altitude])
+    cmd = a.plan(_obs(cmd.vector), _medium())
+    assert np.allclose(cmd.vector, [edge, 0.5, g.look_altitude])
+    cmd = a.plan(_obs([edge, 0.5, g.look_altitude]), _medium())
+    assert np.allclose(cmd.vector, [0.6, 0.5, g.look_altitude])
+
+
+def test_an_open_slot_is_served_from_above_and_marked_with_minus_one():
+    med = _medium()
+    a = _agent()
+    g = a.geo
+    a.holding, a.phase = True, Phase.SEEK_GOAL
+    a.offset = np.array([0.004, -0.002, -0.066])                      # measured when it grasped
+    a.target = np.array([2.6, 0.5])
+    slot = SLOTS[1]
+    p = np.array([g.structure.lo[:, 0].min() - g.standoff, 0.45, g.floor_altitude])
+    assert _visible(p, slot)
+    a.plan(_obs(p, carrying=3, slots=[slot], slot_ids=[1]), med)
+    assert a.phase == Phase.DELIVER and a.slot_id == 1
+    drop = slot + [0, 0, 0.004] - a.offset
+    above = [drop[0], drop[1], g.cruise_altitude]
+    cmd = a.plan(_obs(above, carrying=3), med)                          # out of view from up there: keeps it
+    assert a.phase == Phase.DELIVER and np.allclose(cmd.vector, drop) and cmd.action == Action.NONE
+    cmd = a.plan(_obs(drop + [0.002, 0.0, 0.003], carrying=3, slots=[slot], slot_ids=[1]), med)
+    assert cmd.action == Action.RELEASE
+    cmd = a.plan(_obs(drop + [0.002, 0.0, 0.003]), med)                 # the task let go of it
+    med.step(0.1)
+    assert med.sample(Layer.TASK.value, drop) == -1.0
+    assert a.phase == Phase.CLIMB and cmd.vector[2] == pytest.approx(g.cruise_altitude)
+    assert np.allclose(med.strongest(Layer.TASK.value, -1), med.centre(med.index(drop)))   # where it let go
+
+
+def test_a_slot_filled_meanwhile_is_given_up():
+    a = _agent()
+    a.holding, a.phase, a.slot_id, a.slot_pos = True, Phase.DELIVER, 1, SLOTS[1].copy()
+    a.target = np.array([2.0, 0.5])
+    a.plan(_obs(SLOTS[1] + [0.0, 0.0, GH + 0.05], carrying=3), _medium())   # right there, not open any more
+    assert a.phase == Phase.SEEK_GOAL and a.slot_id == -1
+
+
+# ----------------------------------------------------------------------------- layered
+def test_layered_agent_replans_before_entering_another_agents_cell_but_not_its_own_or_behind():
+    med = _medium(layered=True)
+    a = _agent(LayeredStigmergy, agent=0)
+    look = a.geo.look_altitude
+    a.phase, a.target = Phase.SEEK_BOX, np.array([2.0, 0.55])
+    p = np.array([1.05, 0.55, look])
+    med.deposit(Layer.PRESENCE.value, p, 2.0, rule=DepositRule.SET, source=0)              # its own mark
+    med.deposit(Layer.PRESENCE.value, p - [0.15, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=3)   # behind it
+    med.step(0.1)
+    cmd = a.plan(_obs(p), med)
+    assert cmd.kind == CommandKind.POSITION and a.phase == Phase.SEEK_BOX
+    med.deposit(Layer.PRESENCE.value, p + [0.15, 0.05, 0.0], 2.0, rule=DepositRule.SET, source=3)  # ahead
+    med.step(0.1)
+    cmd = a.plan(_obs(p), med)
+    assert cmd.kind == CommandKind.HOLD
+    assert a.phase == Phase.CHOOSE_BOX and med.tallies["presence_replans"] == 1
+    med.step(0.1)
+    assert med.sources[Layer.PRESENCE.value][tuple(med.index(p))] == 0                      # marks its own cell
+
+
+def test_layered_agent_passes_a_neighbour_beside_it_and_after_a_replan_detours_before_fetching():
+    med = _medium(layered=True)
+    a = _agent(LayeredStigmergy, agent=0)
+    look = a.geo.look_altitude
+    box = DEPOT[4]
+    p = np.array([box[0] - 0.25, box[1] - 0.01, look])
+    med.deposit(Layer.PRESENCE.value, p + [0.0, 0.15, 0.0], 2.0, rule=DepositRule.SET, source=2)    # beside
+    med.step(0.1)
+    cmd = a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.0), med)
+    assert cmd.kind == CommandKind.POSITION and a.phase == Phase.FETCH
+    med.deposit(Layer.PRESENCE.value, p + [0.12, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=2)    # now ahead
+    med.step(0.1)
+    assert a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.1), med).kind == CommandKind.HOLD
+    # for as long as a mark lasts (2 / (2/s) = 1 s) it searches elsewhere instead of trying again
+    a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.2), med)
+    assert a.phase == Phase.SEEK_BOX and a.box_id == -1
+    for _ in range(10):                                # the neighbour has gone: its marks fade
+        med.step(0.1)
+    a.plan(_obs(p, boxes=[box], box_ids=[4], t=2.2), med)
+    assert a.phase == Phase.FETCH and a.box_id == 4
+
+
+def test_presence_marks_fade_in_a_second_and_a_carrying_agent_also_marks_its_box():
+    med = _medium(layered=True)
+    a = _agent(LayeredStigmergy, agent=1)
+    a.holding, a.phase, a.target = True, Phase.SEEK_GOAL, np.array([1.0, 0.5])
+    a.offset = np.array([0.0, 0.0, -0.115])
+    p = np.array([1.55, 0.55, 0.255])
+    a.plan(_obs(p, carrying=2, agent=1), med)
+    med.step(0.1)
+    assert med.sample(Layer.PRESENCE.value, p) == 2.0 and med.sample(Layer.PRESENCE.value, p + a.offset) == 2.0
+    for _ in range(10):
+        med.step(0.1)
+    assert med.sample(Layer.PRESENCE.value, p) == 0.0
+
+
+# ----------------------------------------------------------------------------- configuration
+def test_registered_for_the_construction_task_with_thesis_defaults():
+    reg = planners()
+    assert reg["stigmergy"][0] is Stigmergy and reg["layered_stigmergy"][0] is LayeredStigmergy
+    assert reg["stigmergy"][2] == ("construction",)
+    p = LayeredStigmergyParams()
+    assert (p.cell_size, p.box_pheromone, p.goal_pheromone, p.trail_pheromone, p.fatigue) == (0.1, 1.0, -1.0, 0.2, 0.0)
+    assert (p.presence_pheromone, p.presence_fatigue, p.local_radius) == (2.0, 2.0, 0.2)
+
+
+def test_bad_parameters_are_refused_naming_the_field():
+    with pytest.raises(ConfigError, match=r"planner\.params\.goal_pheromone: must be < 0"):
+        Stigmergy(goal_pheromone=1.0)
+    with pytest.raises(ConfigError, match=r"planner\.params\.lookahead"):
+        LayeredStigmergy(lookahead=0.0)
+    with pytest.raises(TypeError):
+        Stigmergy(lookahead=0.2)                       # a layered parameter: not for plain stigmergy
+    with pytest.raises(ConfigError, match=r"planner\.params\.ties: must be one of \['random', 'nearest'\]"):
+        Stigmergy(ties="first")
+    assert Stigmergy(ties="nearest").params.ties is TieBreak.NEAREST
+    with pytest.raises(ConfigError, match=r"construction\.yaml: planner\.params\.cell_size: must be a number > 0"):
+        pybullet_swarm.run("construction", planner="stigmergy", overrides={"planner.params.cell_size": -0.1})
+    with pytest.raises(ConfigError, match=r"planner\.params.*unexpected keyword"):
+        pybullet_swarm.run("construction", planner="stigmergy", overrides={"planner.params.speed": 2})
+
+
+# ----------------------------------------------------------------------------- runs
+def _small(**extra):
+    """Two agents, two boxes, the two middle bottom slots (a quick construction task)."""
+    over = {"agents.count": 2, "agents.start": [[0.12, 0.4, 0.011], [0.12, 0.6, 0.011]],
+            "task.boxes": [[0.6, 0.3, 0.05], [0.6, 0.7, 0.05]],
+            "task.structure": [[2.7, 0.4, 0.05], [2.7, 0.6, 0.05]], "task.time_limit_s": 200.0}
+    over.update(extra)
+    return pybullet_swarm.load_scenario("construction", over)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("planner", ["stigmergy", "layered_stigmergy"])
+def test_small_construction_completes_and_writes_the_pheromone_grid(planner, tmp_path):
+    res = pybullet_swarm.run(_small(), planner=planner, seed=1, out=tmp_path / planner, plots=False)
+    m = json.loads((tmp_path / planner / "metrics.json").read_text())
+    assert res.exit_status is ExitStatus.COMPLETED, m
+    assert m["boxes_placed"] == 2 and m["collisions"]["agent_structure"] == 0
+    tallies = m["pheromone"]["tallies"]
+    assert tallies["boxes_found"] == 2 and tallies["goals_found"] == 2
+    assert m["pheromone"]["task"]["max"] == 1.0 and m["pheromone"]["task"]["min"] == -1.0
+    assert ("presence" in m["pheromone"]) == (planner == "layered_stigmergy")
+    with np.load(tmp_path / planner / "pheromones.npz") as z:
+        assert z["task"].shape == (30, 10, 10)
+        assert np.count_nonzero(z["task"] == 1.0) >= 1 and np.count_nonzero(z["task"] == -1.0) >= 1
+
+
+@pytest.mark.slow
+def test_same_seed_same_run_and_each_agent_draws_its_own_random_numbers():
+    sc = _small(**{"task.time_limit_s": 30.0})
+    a = pybullet_swarm.run(sc, planner="layered_stigmergy", seed=7)
+    b = pybullet_swarm.run(sc, planner="layered_stigmergy", seed=7)
+    c = pybullet_swarm.run(sc, planner="layered_stigmergy", seed=8)
+    assert np.array_equal(a.timeseries.positions, b.timeseries.positions)
+    assert a.metrics["pheromone"] == b.metrics["pheromone"]
+    assert not np.array_equal(a.timeseries.positions, c.timeseries.positions)
+
+
+@pytest.mark.slow
+def test_thesis_task_both_planners_complete_and_the_presence_layer_cuts_time_in_collision():
+    """Thesis chapters 5 and 6 on the full task (5 agents, 9 boxes, ghost collisions): both finish;
+    the layered variant spends far less time with agents overlapping."""
+    m = {p: pybullet_swarm.run("construction", planner=p, seed=1).metrics for p in ("stigmergy", "layered_stigmergy")}
+    for metrics in m.values():
+        assert metrics["exit_status"] == "completed", metrics
+        assert metrics["boxes_placed"] == 9 and metrics["pheromone"]["tallies"]["goals_found"] == 9
+        assert metrics["collisions"]["agent_structure"] == 0 and metrics["collisions"]["agent_box"] == 0
+    plain, layered = (m[p]["collision_time_s"]["agent_agent"] for p in ("stigmergy", "layered_stigmergy"))
+    assert layered < 0.5 * plain
+    assert m["layered_stigmergy"]["pheromone"]["tallies"]["presence_replans"] > 0
