@@ -113,6 +113,7 @@ class PheromoneGrid:
         self._next_snapshot = 0.0
         self.snapshot_t: list[float] = []
         self.snapshots: dict[str, list[NDArray[np.float32]]] = {name: [] for name in names}
+        self.mass: dict[str, list[float]] = {name: [] for name in names}   # sum of |values| per snapshot
         self.marked: dict[str, list[int]] = {name: [] for name in names}
 
     # ------------------------------------------------------------- geometry
@@ -285,6 +286,7 @@ class PheromoneGrid:
         for name in self.specs:
             self.snapshots[name].append(self.projection(name).astype(np.float32))
             self.marked[name].append(int(np.count_nonzero(self.values[name])))
+            self.mass[name].append(float(np.abs(self.values[name]).sum()))
 
     # ------------------------------------------------------------- results
     def metrics(self) -> dict[str, Any]:
@@ -308,6 +310,7 @@ class PheromoneGrid:
             hist = self.snapshots[name]
             out[f"{name}_history"] = (np.stack(hist) if hist else np.zeros((0, *self.shape[:2]), dtype=np.float32))
             out[f"{name}_marked"] = np.array(self.marked[name], dtype=np.int64)
+            out[f"{name}_mass"] = np.array(self.mass[name], dtype=float)
         return out
 
     def write(self, out_dir: Path, plots: bool) -> list[Path]:

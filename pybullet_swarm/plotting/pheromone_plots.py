@@ -82,6 +82,64 @@ def plot_pheromone_activity(t: ArrayLike, marked: Mapping[str, ArrayLike], path:
     return _save(fig, Path(path))
 
 
+def plot_pheromone_mass(t: ArrayLike, mass: Mapping[str, ArrayLike], path: Path | str) -> Path:
+    """Pheromone mass (sum of |value| over all cells) of each layer over time.
+
+    Args:
+        t: (k,) s, snapshot times.
+        mass: layer name -> (k,) total |value|.
+        path: PNG file to write.
+    """
+    tt = np.asarray(t, dtype=float)
+    fig = Figure(figsize=(9, 4), layout="constrained")
+    ax = fig.subplots()
+    for name, m in mass.items():
+        ax.plot(tt, np.asarray(m, dtype=float), lw=1.5, label=name)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("pheromone mass [sum of |value|]")
+    ax.set_title("pheromone mass over time")
+    ax.set_ylim(bottom=0.0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, Path(path))
+
+
+def plot_pheromone_series(t: ArrayLike, history: ArrayLike, cell: float, extent: ArrayLike, path: Path | str, *,
+                          title: str, count: int = 8) -> Path:
+    """A series of top views of one layer at ``count`` evenly spaced snapshots (thesis Fig. 6.2).
+
+    Args:
+        t: (k,) s, snapshot times.
+        history: (k, nx, ny) horizontal views of the layer.
+        cell: m, cell size.
+        extent: (2,) m, arena size.
+        path: PNG file to write.
+        title: figure title.
+        count: number of panels.
+    """
+    tt = np.asarray(t, dtype=float)
+    hist = np.asarray(history, dtype=float)
+    picks = np.unique(np.linspace(0, len(tt) - 1, min(count, len(tt))).round().astype(int))
+    cols = 2
+    rows = int(np.ceil(len(picks) / cols))
+    fig = Figure(figsize=(11, 1.6 * rows + 0.8), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols)).ravel()
+    vmax = max(float(np.abs(hist).max()), 1e-9)
+    ext = np.asarray(extent, dtype=float)
+    im = None
+    for ax, j in zip(axes, picks):
+        im = ax.imshow(hist[j].T, origin="lower", extent=(0, ext[0], 0, ext[1]), vmin=0.0, vmax=vmax,
+                       cmap="viridis", aspect="equal", interpolation="nearest")
+        ax.set_title(f"t = {tt[j]:.1f} s", fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in axes[len(picks):]:
+        ax.set_visible(False)
+    if im is not None:
+        fig.colorbar(im, ax=axes.tolist(), shrink=0.8)
+    fig.suptitle(title)
+    return _save(fig, Path(path))
+
+
 def plot_pheromones(arrays: Mapping[str, Any], out_dir: Path | str, *, persistent: Iterable[str] = ()) -> list[Path]:
     """All figures of a saved pheromone medium (the contents of ``pheromones.npz``).
 
@@ -120,4 +178,12 @@ def plot_pheromones(arrays: Mapping[str, Any], out_dir: Path | str, *, persisten
         written.append(plot_pheromone_map(xy, cell, out / f"pheromone_{name}.png", title=title, extent=extent[:2]))
     if t.size:
         written.append(plot_pheromone_activity(t, marked, out / "pheromone_activity.png"))
+        masses = {name: arrays[f"{name}_mass"] for name in marked if f"{name}_mass" in arrays}
+        if masses:
+            written.append(plot_pheromone_mass(t, masses, out / "pheromone_mass.png"))
+        for name in marked:
+            hist = np.asarray(arrays[f"{name}_history"])
+            if name not in keep and hist.shape[0] > 1:
+                written.append(plot_pheromone_series(t, hist, cell, extent[:2], out / f"pheromone_{name}_series.png",
+                                                     title=f"pheromone layer '{name}' over the run"))
     return written

@@ -94,6 +94,21 @@ def plot_run(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any] | None = Non
     return files
 
 
+def plot_saved_artifacts(run_dir: Path, out_dir: Path) -> list[Path]:
+    """Redraw the figures of a run's extra state files (``pheromones.npz``, ``tour.json``)."""
+    files: list[Path] = []
+    pher = Path(run_dir) / "pheromones.npz"
+    if pher.is_file():
+        from pybullet_swarm.plotting.pheromone_plots import plot_pheromones
+
+        with np.load(pher) as z:
+            arrays = {k: z[k] for k in z.files}
+        names = [str(n) for n in np.asarray(arrays["layers"]).ravel()]
+        lasting = [n for n in names if n == "task"]
+        files += plot_pheromones(arrays, out_dir, persistent=lasting)
+    return files
+
+
 def _swarm_figures(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any], scenario: dict[str, Any],
                    events: list[Any]) -> list[Path]:
     from pybullet_swarm.metrics.construction import (acceleration_series, box_to_goal_distance,

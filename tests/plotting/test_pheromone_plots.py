@@ -35,9 +35,10 @@ def test_a_medium_draws_its_layers_into_the_run_directory(tmp_path):
         g.step(0.1)
     files = g.write(tmp_path, plots=True)
     names = sorted(f.name for f in files)
-    assert names == ["pheromone_activity.png", "pheromone_presence.png", "pheromone_task.png", "pheromones.npz"]
+    assert names == ["pheromone_activity.png", "pheromone_mass.png", "pheromone_presence.png",
+                     "pheromone_presence_series.png", "pheromone_task.png", "pheromones.npz"]
     assert all(_is_png(f) for f in files if f.suffix == ".png")
     assert all(f.parent == tmp_path / "plots" for f in files if f.suffix == ".png")
     with np.load(tmp_path / "pheromones.npz") as z:             # the figures can be redrawn from the file alone
         again = plot_pheromones(dict(z), tmp_path / "again", persistent=["task"])
-    assert len(again) == 3
+    assert len(again) == 5
