@@ -382,3 +382,13 @@ def test_thesis_task_both_planners_complete_and_the_presence_layer_cuts_time_in_
     plain, layered = (m[p]["collision_time_s"]["agent_agent"] for p in ("stigmergy", "layered_stigmergy"))
     assert layered < 0.5 * plain
     assert m["layered_stigmergy"]["pheromone"]["tallies"]["presence_replans"] > 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("planner", ["stigmergy", "layered_stigmergy"])
+@pytest.mark.parametrize("seed", [0, 2])
+def test_both_planners_finish_the_thesis_task_within_its_time_limit(planner, seed):
+    m = pybullet_swarm.run("construction", planner=planner, seed=seed).metrics
+    assert m["exit_status"] == "completed", (planner, seed, m["exit_status"])
+    assert m["completion_time_s"] < 500.0
+    assert m["boxes_placed"] == 9
