@@ -185,7 +185,13 @@ class Simulation:
         self.medium = make_medium(self) if callable(make_medium) else None
         av_factory = avoidance_layers()[self.avoidance_name][0]
         av_params = dict(self.scenario.data.get("avoidance_params", {}) or {})
-        self.avoidance_layer = av_factory(self, **av_params) if av_factory is not None else None
+        try:
+            self.avoidance_layer = av_factory(self, **av_params) if av_factory is not None else None
+        except ConfigError as exc:
+            raise (exc.with_source(self.scenario.source) if exc.source is None else exc) from None
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"bad parameters for avoidance {self.avoidance_name!r}: {exc}",
+                              source=self.scenario.source, field="avoidance_params") from None
         params = dict(self.scenario.planner.params) if self.scenario.planner.name in (None, self.planner_name) else {}
         try:
             if getattr(factory, "centralized", False):
