@@ -20,9 +20,11 @@ __all__ = [
     "Scenario",
     "Simulation",
     "SwarmState",
+    "Sweep",
     "load_scenario",
     "load_vehicle",
     "run",
+    "run_sweep",
 ]
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -43,6 +45,8 @@ _LAZY = {
     "ExitStatus": "pybullet_swarm.types",
     "SwarmState": "pybullet_swarm.types",
     "load_vehicle": "pybullet_swarm.vehicle",
+    "Sweep": "pybullet_swarm.experiment.sweep",
+    "run_sweep": "pybullet_swarm.experiment.sweep",
 }
 
 

@@ -1,4 +1,4 @@
-"""``pybullet-swarm``: run, check, design, plot, list (and the subcommands later layers add).
+"""``pybullet-swarm``: run, check, design, plot, sweep, compare, list (and the subcommands later layers add).
 
 Exit codes: 0 when the command did its work (a simulation's outcome is in ``exit_status``),
 2 for bad input (one line on stderr naming the file, the field and the expectation), 1 for an
@@ -80,7 +80,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     seed = scenario.seed if args.seed is None else args.seed
     if seed < 0:
         raise ConfigError(f"must be >= 0, got {seed}", source="--seed")
-    planner = args.planner or scenario.planner.name or "waypoints"
+    from pybullet_swarm.planning.registry import default_planner
+
+    planner = args.planner or scenario.planner.name or default_planner(scenario.task.kind) or "planner"
     out = args.out or default_run_dir(scenario.name, planner, seed)
     result = run(scenario, planner=args.planner, avoidance=args.avoidance, seed=seed, out=out, gui=args.gui,
                  plots=not args.no_plots, video=args.video, quiet=args.quiet)
@@ -153,23 +155,178 @@ def _cmd_design(args: argparse.Namespace) -> int:
 
 # --------------------------------------------------------------------- plot
 def _add_plot(sub: Any) -> None:
-    p = sub.add_parser("plot", help="redraw the figures of a finished run from its saved files")
-    p.add_argument("run_dir", type=Path)
-    p.add_argument("--out", type=Path, default=None, help="figure directory (default: RUN_DIR/plots)")
+    p = sub.add_parser("plot", help="redraw the figures of a finished run, or the comparison figures of a sweep")
+    p.add_argument("run_dir", type=Path, metavar="RUN_DIR|SWEEP_DIR")
+    p.add_argument("--out", type=Path, default=None,
+                   help="figure directory (default: RUN_DIR/plots or SWEEP_DIR/plots)")
+    p.add_argument("--ci", choices=("t", "bootstrap"), default="t",
+                   help="95%% interval of the mean in the sweep table: t-interval or BCa bootstrap (default t)")
+    p.add_argument("--metrics", type=_names, default=None, metavar="A,B,...",
+                   help="sweep: metrics of the table and box plots (default: headline metrics, every box plot)")
     p.set_defaults(func=_cmd_plot)
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
+    from pybullet_swarm.experiment.results import is_sweep_dir
+
+    if is_sweep_dir(args.run_dir):
+        return _plot_sweep(args)
     from pybullet_swarm.experiment.recorder import TimeSeries
-    from pybullet_swarm.plotting.run_plots import plot_run
+    from pybullet_swarm.experiment.results import read_events, read_scenario_data
+    from pybullet_swarm.plotting.run_plots import plot_run, plot_saved_artifacts
 
     npz = args.run_dir / "timeseries.npz"
     if not npz.is_file():
-        raise ConfigError("not a run directory (no timeseries.npz)", source=str(args.run_dir))
+        raise ConfigError("not a run directory (no timeseries.npz) nor a sweep directory (no runs.csv)",
+                          source=str(args.run_dir))
     metrics_path = args.run_dir / "metrics.json"
     metrics = json.loads(metrics_path.read_text()) if metrics_path.is_file() else {}
-    files = plot_run(TimeSeries.load(npz), args.out or args.run_dir / "plots", metrics)
+    files = plot_run(TimeSeries.load(npz), args.out or args.run_dir / "plots", metrics,
+                     scenario=read_scenario_data(args.run_dir), events=read_events(args.run_dir / "events.csv"))
+    files += plot_saved_artifacts(args.run_dir, args.out or args.run_dir / "plots")
     for f in files:
+        print(f)
+    return 0
+
+
+def _plot_sweep(args: argparse.Namespace) -> int:
+    from pybullet_swarm.experiment.summary import format_table, summarize
+    from pybullet_swarm.experiment.sweep import draw_comparison, load_sweep
+
+    rows, group_by = load_sweep(args.run_dir)
+    if not rows:
+        raise ConfigError("no finished run yet (runs.csv is empty)", source=str(args.run_dir))
+    print(format_table(summarize(rows, group_by, ci=args.ci), args.metrics))
+    for f in draw_comparison(rows, group_by, args.out or args.run_dir / "plots", args.metrics):
+        print(f)
+    return 0
+
+
+# -------------------------------------------------------------------- sweep
+def _names(text: str) -> tuple[str, ...]:
+    """``a,b,c`` -> ('a', 'b', 'c'); empty names refused."""
+    names = tuple(n.strip() for n in text.split(","))
+    if not names or any(not n for n in names):
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
+    return names
+
+
+def _grid(text: str) -> tuple[str, list[Any]]:
+    """``key.path=v1,v2,...`` -> (key, [v1, v2, ...]); the values are read as one YAML flow list."""
+    from pybullet_swarm.experiment.scenario import parse_override
+    from pybullet_swarm.validation import parse_yaml
+
+    key, _ = parse_override(text.partition("=")[0] + "=", source="--grid")
+    raw = text.partition("=")[2]
+    try:
+        values = parse_yaml(f"[{raw}]", source="--grid") if raw.strip() else None
+    except ConfigError:
+        values = None
+    if not isinstance(values, list) or not values:
+        raise ConfigError(f"expected key.path=v1,v2,..., got {text!r}", source="--grid", field=key)
+    return key, values
+
+
+def _add_sweep(sub: Any) -> None:
+    p = sub.add_parser("sweep", help="run planners x avoidance x grid values x seeds in parallel, resumable")
+    p.add_argument("scenario", help="scenario YAML file or bundled name (see `list`)")
+    p.add_argument("--planners", type=_names, default=(None,), metavar="A,B,...",
+                   help="planners to compare (default: the scenario's)")
+    p.add_argument("--avoidance", type=_names, default=(None,), metavar="A,B,...",
+                   help="avoidance layers to compare, e.g. none,orca (default: the scenario's)")
+    p.add_argument("--seeds", type=int, required=True, metavar="N", help="runs per configuration: N seeds")
+    p.add_argument("--seed-start", type=int, default=0, metavar="S", help="first seed (default 0): seeds S .. S+N-1")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
+                   help="override a scenario field in every run (repeatable)")
+    p.add_argument("--grid", action="append", default=[], metavar="KEY.PATH=V1,V2,...",
+                   help="sweep a scenario field over values (repeatable: every combination runs)")
+    p.add_argument("--executor", choices=("local", "ray"), default="local",
+                   help="local: a process pool on this machine (default); ray: Ray tasks")
+    p.add_argument("--workers", type=int, default=None, metavar="K",
+                   help="parallel runs (default: the number of cores; with --address: the cluster's CPUs)")
+    p.add_argument("--address", default=None, metavar="ADDR",
+                   help="Ray cluster to use (auto or host:port); without it --executor ray starts a local Ray")
+    p.add_argument("--out", type=Path, default=None,
+                   help="sweep directory (default: runs/sweep-<scenario>-<hash of scenario and --set>)")
+    p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as errors")
+    p.add_argument("--run-plots", action="store_true",
+                   help="draw each run's own figures too (later: pybullet-swarm plot RUN_DIR)")
+    p.add_argument("--no-plots", action="store_true", help="skip the comparison figures")
+    p.add_argument("--ci", choices=("t", "bootstrap"), default="t",
+                   help="95%% interval of the mean in summary.csv: t-interval or BCa bootstrap (default t)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no table (for scripts)")
+    p.set_defaults(func=_cmd_sweep)
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from pybullet_swarm.experiment.sweep import Sweep, run_sweep
+
+    if args.seeds < 1:
+        raise ConfigError(f"must be >= 1, got {args.seeds}", source="--seeds")
+    if args.seed_start < 0:
+        raise ConfigError(f"must be >= 0, got {args.seed_start}", source="--seed-start")
+    if args.workers is not None and args.workers < 1:
+        raise ConfigError(f"must be >= 1, got {args.workers}", source="--workers")
+    if args.address is not None and args.executor != "ray":
+        raise ConfigError("needs --executor ray", source="--address")
+    grid = [_grid(g) for g in args.grid]
+    sweep = Sweep(args.scenario, planners=args.planners, avoidance=args.avoidance, grid=grid,
+                  seeds=range(args.seed_start, args.seed_start + args.seeds), overrides=args.overrides)
+    result = run_sweep(sweep, args.out, executor=args.executor, workers=args.workers, address=args.address,
+                       plots=args.run_plots, figures=not args.no_plots, retry_failed=args.retry_failed,
+                       ci=args.ci, quiet=args.quiet)
+    if result.interrupted:
+        return _fail(f"interrupted; {len(result.rows)} runs recorded in {result.out}; "
+                     "run the same command again to resume", 130)
+    if not args.quiet:
+        print(result.table())
+        print(f"sweep directory: {result.out} ({result.n_planned} runs: {result.n_run} run now, "
+              f"{result.n_skipped} skipped, {result.n_failed} failed; {result.wall_time_s:.1f} s)")
+    if result.n_failed:
+        return _fail(f"{result.n_failed} of {result.n_planned} runs failed (exit_status=error in "
+                     f"{result.out / 'runs.csv'}; --retry-failed runs them again)", 1)
+    return 0
+
+
+# ------------------------------------------------------------------ compare
+def _add_compare(sub: Any) -> None:
+    p = sub.add_parser("compare", help="compare finished runs (or sweeps): table and comparison figures")
+    p.add_argument("dirs", type=Path, nargs="+", metavar="RUN_DIR", help="run directories or sweep directories")
+    p.add_argument("--out", type=Path, default=None, help="figure directory (default: runs/compare-<time>)")
+    p.add_argument("--ci", choices=("t", "bootstrap"), default="t",
+                   help="95%% interval of the mean: t-interval or BCa bootstrap (default t)")
+    p.add_argument("--metrics", type=_names, default=None, metavar="A,B,...",
+                   help="metrics of the table and box plots (default: headline metrics, every box plot)")
+    p.set_defaults(func=_cmd_compare)
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    import time
+
+    from pybullet_swarm.experiment.results import is_run_dir, is_sweep_dir, run_dir_row
+    from pybullet_swarm.experiment.summary import format_table, summarize, write_summary
+    from pybullet_swarm.experiment.sweep import draw_comparison, load_sweep
+
+    rows: list[dict[str, Any]] = []
+    grid: list[str] = []
+    for d in args.dirs:
+        if is_sweep_dir(d):
+            sweep_rows, group_by = load_sweep(d)
+            rows += [{**r, "sweep": d.name} for r in sweep_rows]
+            grid += [g for g in group_by[2:] if g not in grid]
+        elif is_run_dir(d):
+            rows.append(run_dir_row(d))
+        else:
+            raise ConfigError("not a finished run directory (no metrics.json) nor a sweep directory (no runs.csv)",
+                              source=str(d))
+    if not rows:
+        raise ConfigError("no finished run to compare", source="compare")
+    by = [c for c in ("sweep", "scenario", "planner", "avoidance", "config", *grid) if any(c in r for r in rows)]
+    out = args.out or Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
+    summary = summarize(rows, by, ci=args.ci)
+    print(format_table(summary, args.metrics))
+    write_summary(out / "summary.csv", summary)
+    for f in [out / "summary.csv", *draw_comparison(rows, by, out, args.metrics)]:
         print(f)
     return 0
 
@@ -214,7 +371,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``pybullet-swarm``."""
     parser = _Parser(prog=PROG, description="A testbed for quadrotor swarms in PyBullet.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
-    for add in (_add_run, _add_check, _add_design, _add_plot, _add_list):
+    for add in (_add_run, _add_check, _add_design, _add_plot, _add_sweep, _add_compare, _add_list):
         add(sub)
     try:
         from pybullet_swarm.cli import tsp
