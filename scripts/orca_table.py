@@ -6,17 +6,16 @@ Usage::
     python scripts/orca_table.py --seeds 50 --planners shortest_path --avoidance orca
     python scripts/orca_table.py --set collisions=physical --json out.json
 
-Each run is ``pybullet_swarm.run(scenario, planner=..., avoidance=..., seed=...)`` in a process
-pool (``--workers``); only a few numbers per run travel back. The sweep machinery of the
-project will replace the pool.
+The runs go through the sweep machinery (``pybullet_swarm.experiment.sweep``): a process pool
+of ``--workers``, rows appended to ``OUT/runs.csv`` as runs finish, and running the same command
+again resumes an interrupted table instead of starting over.
 """
 from __future__ import annotations
 
 import argparse
-import concurrent.futures as cf
 import json
 import math
-import sys
+from pathlib import Path
 from collections import Counter
 from typing import Any
 
@@ -36,24 +35,29 @@ METRICS: tuple[tuple[str, str], ...] = (
 )
 
 
-def run_one(scenario: str, planner: str, avoidance: str, seed: int, overrides: list[str]) -> dict[str, Any]:
-    """Run one simulation and keep the numbers of the table."""
-    import pybullet_swarm as ps
+def table_row(row: dict[str, Any]) -> dict[str, Any]:
+    """The numbers of the table from a sweep row (flattened metrics)."""
+    def num(key: str) -> float | None:
+        v = row.get(key)
+        try:
+            return None if v in (None, "") else float(v)
+        except (TypeError, ValueError):
+            return None
 
-    m = ps.run(scenario, planner=planner, avoidance=avoidance, seed=seed, overrides=overrides).metrics
-    coll = m.get("collisions", {})
-    return {
-        "planner": planner, "avoidance": avoidance, "seed": seed,
-        "exit_status": m["exit_status"],
-        "agent_agent": coll.get("agent_agent", 0),
-        "other_collisions": sum(v for k, v in coll.items() if k != "agent_agent"),
-        "proximity_violations": m.get("proximity_violations"),
-        "completion_time_s": m.get("completion_time_s"),
-        "utility_of_space": m.get("utility_of_space"),
-        "min_separation_m": m.get("min_separation_m"),
-        "boxes_placed": m.get("boxes_placed"),
-        **{k: v for k, v in m.items() if k.startswith("orca_")},
+    aa = num("collisions.agent_agent") or 0.0
+    total = num("collisions.total") or 0.0
+    out = {
+        "planner": row.get("planner"), "avoidance": row.get("avoidance"), "seed": int(row.get("seed", -1)),
+        "exit_status": row.get("exit_status"),
+        "agent_agent": int(aa), "other_collisions": int(total - aa),
+        "proximity_violations": num("proximity_violations"),
+        "completion_time_s": num("completion_time_s"),
+        "utility_of_space": num("utility_of_space"),
+        "min_separation_m": num("min_separation_m"),
+        "boxes_placed": num("boxes_placed"),
     }
+    out.update({k: row[k] for k in row if str(k).startswith("orca_")})
+    return out
 
 
 def mean_ci(values: list[float], level: float = 0.95) -> tuple[float, float, int]:
@@ -97,6 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--avoidance", nargs="*", default=["none", "orca"])
     ap.add_argument("--set", dest="overrides", action="append", default=[], help="key.path=value override")
     ap.add_argument("--json", default=None, help="also write every run's numbers to this file")
+    ap.add_argument("--out", type=Path, default=None, help="sweep directory (default: runs/sweep-<scenario>-<hash>)")
     args = ap.parse_args(argv)
     if args.seeds < 1 or args.workers < 1:
         ap.error("--seeds and --workers must be >= 1")
@@ -108,15 +113,13 @@ def main(argv: list[str] | None = None) -> int:
     missing = [p for p in wanted if p not in known]
     if missing:
         ap.error(f"planners not registered: {', '.join(missing)}")
-    jobs = [(args.scenario, p, a, s, args.overrides) for p in wanted for a in args.avoidance
-            for s in range(args.seed_start, args.seed_start + args.seeds)]
-    rows: list[dict[str, Any]] = []
-    with cf.ProcessPoolExecutor(max_workers=args.workers) as pool:
-        futures = {pool.submit(run_one, *job): job for job in jobs}
-        for k, fut in enumerate(cf.as_completed(futures), 1):
-            rows.append(fut.result())
-            print(f"\r{k}/{len(jobs)} runs", end="", file=sys.stderr, flush=True)
-    print(file=sys.stderr)
+    from pybullet_swarm.experiment.sweep import Sweep, run_sweep
+
+    sweep = Sweep(args.scenario, planners=tuple(wanted), avoidance=tuple(args.avoidance),
+                  seeds=tuple(range(args.seed_start, args.seed_start + args.seeds)), overrides=args.overrides)
+    result = run_sweep(sweep, args.out, workers=args.workers, quiet=False, figures=False)
+    rows = [table_row(dict(r)) for r in result.rows
+            if r.get("planner") in wanted and r.get("avoidance") in args.avoidance]
     order = {(p, a): i for i, (p, a) in enumerate((p, a) for p in wanted for a in args.avoidance)}
     rows.sort(key=lambda r: (order[(r["planner"], r["avoidance"])], r["seed"]))
     print(table(rows))
