@@ -8,6 +8,8 @@ from typing import Any
 import numpy as np
 from matplotlib.collections import PatchCollection
 from matplotlib.figure import Figure
+
+from pybullet_swarm.plotting.common import save_figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Rectangle
 from numpy.typing import ArrayLike
@@ -18,14 +20,7 @@ MAX_AGENTS_DRAWN = 10
 """Above this many agents the nearest-neighbour figure shows the min/median/max over agents."""
 
 
-def _save(fig: Figure, path: Path | str) -> Path:
-    """Write the figure atomically (temporary name in the same directory, then rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.savefig(tmp, dpi=110)
-    tmp.replace(path)
-    return path
+_save = save_figure
 
 
 def plot_nn_distance(t: ArrayLike, nn: ArrayLike, threshold: float, path: Path | str) -> Path:

@@ -8,16 +8,12 @@ from typing import Any
 import numpy as np
 from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
+
+from pybullet_swarm.plotting.common import save_figure
 from numpy.typing import ArrayLike
 
 
-def _save(fig: Figure, path: Path) -> Path:
-    """Write the figure atomically (temporary name in the same directory, then rename)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.savefig(tmp, dpi=110)
-    tmp.replace(path)
-    return path
+_save = save_figure
 
 
 def plot_pheromone_map(values_xy: ArrayLike, cell: float, path: Path | str, *, title: str,

@@ -7,6 +7,8 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from pybullet_swarm.plotting.common import save_figure
+
 from pybullet_swarm.experiment.recorder import TimeSeries
 
 MAX_AGENTS_DRAWN = 10
@@ -16,12 +18,7 @@ def _agents(ts: TimeSeries) -> range:
     return range(min(ts.positions.shape[1], MAX_AGENTS_DRAWN))
 
 
-def _save(fig: Figure, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.savefig(tmp, dpi=110)
-    tmp.replace(path)
-    return path
+_save = save_figure
 
 
 def plot_positions(ts: TimeSeries, path: Path) -> Path:

@@ -13,6 +13,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
+
+from pybullet_swarm.plotting.common import save_figure
 from matplotlib.ticker import MaxNLocator
 from numpy.typing import NDArray
 
@@ -23,13 +25,7 @@ PREFERRED = ("completed", "completion_time_s", "sim_time_s", "collisions.total",
              "path_length_m.total", "energy_j")
 
 
-def _save(fig: Figure, path: Path) -> Path:
-    """Write the figure atomically (temporary name in the same directory, then rename)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.savefig(tmp, dpi=110)
-    tmp.replace(path)
-    return path
+_save = save_figure
 
 
 def _values(rows: Sequence[Mapping[str, Any]], metric: str) -> NDArray[np.float64]:

@@ -7,6 +7,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
+from pybullet_swarm.plotting.common import save_figure
+
 PANELS = (("proximity_violations", "collisions (centre distance < diameter)"),
           ("completion_time_s", "completion time [s]"),
           ("utility_of_space", "utility of space"))
@@ -40,9 +42,4 @@ def thesis_comparison_figure(table: Sequence[Mapping[str, Any]], planners: Seque
         ax.set_title(label, fontsize=10)
         ax.grid(alpha=0.3, axis="y")
     axes[0].legend(fontsize=7)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.savefig(tmp, dpi=110)
-    tmp.replace(path)
-    return path
+    return save_figure(fig, path)
