@@ -100,7 +100,6 @@ class CascadeController:
         c[K.K_INERTIA:K.K_INERTIA + 3] = self.inertia
         c[K.K_MIXER:K.K_MIXER + 16] = self.mixer.ravel()
         c[K.K_MIXINV:K.K_MIXINV + 16] = self.mixer_inv.ravel()
-        c[K.K_MASS] = self.params.mass
         c[K.K_WMAX] = self.params.max_rotor_speed
         c[K.K_ALPHA] = self.motor_alpha
         c[K.K_DT] = self.physics_dt

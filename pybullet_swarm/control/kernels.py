@@ -14,6 +14,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from pybullet_swarm.vehicle.dynamics import motor_update_row
 
 STATUS_OK = 0
 STATUS_FLIPPED = 1
@@ -131,14 +132,13 @@ K_INTMAX = 9        # 3: bound on |ki * integral| per axis, rad/s^2
 K_INERTIA = 12      # 3: kg m^2
 K_MIXER = 15        # 16: (4, 4) w^2 -> [T, tau]
 K_MIXINV = 31       # 16: (4, 4) [T, tau] -> w^2
-K_MASS = 47         # kg, airframe mass (unused by the kernel: each agent's mass is ctrl[:, C_MASS])
-K_WMAX = 48         # rad/s
-K_ALPHA = 49        # 1 - exp(-dt / tau_motor)
-K_DT = 50           # s, physics period
-K_DRAG = 51         # N/(m/s), linear drag (0: none)
-K_GROUND_R = 52     # m, rotor radius for ground effect (0: none)
-K_CLOSED = 53       # 1: run the attitude loop, 0: hold the rotor commands (open loop)
-CONST_LEN = 54
+K_WMAX = 47         # rad/s
+K_ALPHA = 48        # 1 - exp(-dt / tau_motor)
+K_DT = 49           # s, physics period
+K_DRAG = 50         # N/(m/s), linear drag (0: none)
+K_GROUND_R = 51     # m, rotor radius for ground effect (0: none)
+K_CLOSED = 52       # 1: run the attitude loop, 0: hold the rotor commands (open loop)
+CONST_LEN = 53      # (each agent's mass, airframe + payload, is ctrl[:, C_MASS])
 
 
 @numba.njit(cache=True)
@@ -166,6 +166,8 @@ def physics_tick(
     closed_loop = const[K_CLOSED] > 0.5
     wmax2 = w_max * w_max
     jx, jy, jz = const[K_INERTIA], const[K_INERTIA + 1], const[K_INERTIA + 2]
+    w = ctrl[:, C_W:C_W + 4]           # rad/s, motor state
+    w_cmd = ctrl[:, C_WCMD:C_WCMD + 4]  # rad/s, motor commands
     worst = 0
     R = np.empty((3, 3))
     for i in range(state.shape[0]):
@@ -185,16 +187,7 @@ def physics_tick(
                 force[i, k] = 0.0
                 torque[i, k] = 0.0
             continue
-        x, y, z, qw = state[i, 3], state[i, 4], state[i, 5], state[i, 6]
-        R[0, 0] = 1 - 2 * (y * y + z * z)
-        R[0, 1] = 2 * (x * y - z * qw)
-        R[0, 2] = 2 * (x * z + y * qw)
-        R[1, 0] = 2 * (x * y + z * qw)
-        R[1, 1] = 1 - 2 * (x * x + z * z)
-        R[1, 2] = 2 * (y * z - x * qw)
-        R[2, 0] = 2 * (x * z - y * qw)
-        R[2, 1] = 2 * (y * z + x * qw)
-        R[2, 2] = 1 - 2 * (x * x + y * y)
+        _quat_to_R(state, i, R)
         if R[2, 2] < 0.0:
             status[i] = STATUS_FLIPPED
             if worst < STATUS_FLIPPED:
@@ -252,13 +245,7 @@ def physics_tick(
                 elif v > wmax2:
                     v = wmax2
                 ctrl[i, C_WCMD + k] = math.sqrt(v)
-        for k in range(4):
-            c = ctrl[i, C_WCMD + k]
-            if c < 0.0:
-                c = 0.0
-            elif c > w_max:
-                c = w_max
-            ctrl[i, C_W + k] += (c - ctrl[i, C_W + k]) * alpha
+        motor_update_row(w, i, w_cmd[i], alpha, w_max)
         thrust = 0.0
         tx = 0.0
         ty = 0.0

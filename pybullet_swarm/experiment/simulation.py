@@ -510,9 +510,10 @@ class Simulation:
         return self.result()
 
     # ---------------------------------------------------------------- results
-    def metrics(self) -> dict[str, Any]:
-        """Metrics of the run so far (plain JSON data)."""
-        ts = self.recorder.series() if self.recorder is not None else None
+    def metrics(self, ts: TimeSeries | None = None) -> dict[str, Any]:
+        """Metrics of the run so far (plain JSON data), from ``ts`` when given (else the recorder's series)."""
+        if ts is None and self.recorder is not None:
+            ts = self.recorder.series()
         sim_t = self.time
         m: dict[str, Any] = {
             "exit_status": self.exit_status.value,
@@ -568,7 +569,7 @@ class Simulation:
         """The run's result now."""
         empty = Recorder(self.n, 1).series()
         ts = self.recorder.series() if self.recorder is not None else empty
-        return RunResult(self.exit_status, self.metrics(), self.all_events(), ts, self.scenario,
+        return RunResult(self.exit_status, self.metrics(ts), self.all_events(), ts, self.scenario,
                          artifacts=self.artifacts())
 
     def artifacts(self) -> dict[str, Any]:
