@@ -94,6 +94,16 @@ class WaypointsTask(_Strict):
 TASK_MODELS: dict[str, type[_Strict]] = {"waypoints": WaypointsTask}
 
 
+class SensingSection(_Strict):
+    """What the agents sense: own-state source, onboard sensors and their noise.
+
+    Sub-sections are added by the sensing layer (range sensors; IMU, positioning, estimator).
+    """
+
+    # --- own state (estimation) ---
+    # --- range sensors ---
+
+
 class PlannerSection(_Strict):
     """Which planner issues the agents' commands, and its parameters."""
 
@@ -114,6 +124,7 @@ class _ScenarioFile(_Strict):
     avoidance: str = "none"
     avoidance_params: dict[str, Any] = Field(default_factory=dict)
     collisions: Literal["physical", "ghost"] = "physical"
+    sensing: SensingSection = SensingSection()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -138,6 +149,7 @@ class Scenario:
     avoidance: str
     collisions: str
     data: Mapping[str, Any]
+    sensing: SensingSection = SensingSection()
 
     def start_positions(self, rest_height: float) -> NDArray[np.float64]:
         """Start positions (n, 3) m; layouts rest on the ground at ``rest_height`` m."""
@@ -291,7 +303,7 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
     resolved["task"] = task.model_dump(mode="json")
     s = Scenario(source=source, name=f.name, description=f.description, seed=f.seed, sim=f.sim, arena=f.arena,
                  agents=f.agents, limits=f.limits, task=task, planner=f.planner, avoidance=f.avoidance,
-                 collisions=f.collisions, data=resolved)
+                 collisions=f.collisions, data=resolved, sensing=f.sensing)
     _check_agents(s, source)
     if isinstance(task, WaypointsTask):
         _check_waypoints(task, source)
