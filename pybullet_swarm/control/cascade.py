@@ -34,6 +34,13 @@ class CascadeController:
         drag: linear drag coefficient of the airframe model, N/(m/s) (0: none).
         ground_effect: model the thrust gain near the ground.
         design: a precomputed design (default: designed now for these rates).
+        prefilter: follow shaped references as the inner loops can (two-degree-of-freedom): the
+            position and velocity references are passed through the design's model of the
+            acceleration path (``ControllerDesign.acceleration_path``) while the acceleration
+            reference is fed forward unfiltered, so a feasible trajectory is tracked without the
+            position loop fighting the attitude loop's lag (without it, a 0.15 m/s velocity step
+            overshoots by about 60 %; with it by the acceleration path's own 25 %). Off for raw
+            steps, whose response is the designed closed loop.
     """
 
     #: bound on |ki * integral| of the position loop, m/s^2 (x, y, z): room for a 20 % payload.
@@ -54,6 +61,7 @@ class CascadeController:
         drag: float = 0.0,
         ground_effect: bool = False,
         design: ControllerDesign | None = None,
+        prefilter: bool = False,
     ) -> None:
         self.params = params
         self.design = design or design_controller(params, physics_hz=physics_hz, position_hz=control_hz)
@@ -70,6 +78,7 @@ class CascadeController:
         self.mixer = np.ascontiguousarray(params.mixer)
         self.mixer_inv = np.ascontiguousarray(params.mixer_inverse)
         self.motor_alpha = motor_alpha(self.physics_dt, params.motor_time_constant)
+        self.prefilter = _ReferencePrefilter(self.design, self.control_dt) if prefilter else None
         self.reset(n)
 
     def reset(self, n: int, rotor_speed: float = 0.0) -> None:
@@ -110,6 +119,8 @@ class CascadeController:
         self.pos_scal = np.array([self.control_dt, self.gravity, self.max_tilt_tan, self.max_acc])
         self._pos_key: tuple[int, int] | None = None
         self._pos_args: tuple = ()
+        if self.prefilter is not None:
+            self.prefilter.reset(n)
 
     @property
     def wrench(self) -> NDArray[np.float64]:
@@ -123,15 +134,21 @@ class CascadeController:
     def set_closed_loop(self, closed: bool) -> None:
         """Run the attitude loop (True) or hold ``rotor_commands`` as set from outside (False)."""
         self.const[kernels.K_CLOSED] = 1.0 if closed else 0.0
+        if closed and self.prefilter is not None:
+            self.prefilter.primed = False     # start again from the references of the next update
 
     def position_update(self, state: NDArray[np.float64], ref: Reference) -> None:
         """Run the position loop once: state (n, 13) and references -> desired attitude and thrust."""
         key = (id(state), id(ref))
+        pf = self.prefilter
         if key != self._pos_key:   # bind the argument tuple once per (state, reference) pair
             self._pos_key = key
-            self._pos_args = (state, ref.positions, ref.velocities, ref.accelerations, ref.yaw, ref.yaw_rate,
+            p_ref, v_ref = (ref.positions, ref.velocities) if pf is None else (pf.p, pf.v)
+            self._pos_args = (state, p_ref, v_ref, ref.accelerations, ref.yaw, ref.yaw_rate,
                               self.pos_gains, self.pos_integral, self.POSITION_INTEGRAL_LIMIT, self.pos_scal,
                               self.ctrl)
+        if pf is not None:
+            pf.update(ref.positions, ref.velocities)
         kernels.position_tick(*self._pos_args)
 
     def physics_args(self, state: NDArray[np.float64]) -> tuple:
@@ -160,3 +177,45 @@ class CascadeController:
         self.position_update(packed, ref)
         self.physics_update(packed)
         return self.rotor_commands.copy()
+
+
+class _ReferencePrefilter:
+    """The acceleration path of each position loop, discretised (zero-order hold at the control
+    period), run on the position and velocity references of all agents at once.
+
+    Starts (and restarts after ``primed = False``) in steady state at the references it is given.
+    """
+
+    def __init__(self, design: ControllerDesign, dt: float) -> None:
+        import control
+
+        self.axes = []
+        for loop in ("x", "y", "z"):
+            sys = control.c2d(control.ss(design.acceleration_path(loop)), dt, "zoh")
+            A, B = np.asarray(sys.A, dtype=float), np.asarray(sys.B, dtype=float)[:, 0]
+            C, D = np.asarray(sys.C, dtype=float)[0], float(np.asarray(sys.D)[0, 0])
+            x_unit = np.linalg.solve(np.eye(A.shape[0]) - A, B)        # steady state for a unit input
+            self.axes.append((A.T.copy(), B, C, D, x_unit))
+        self.primed = False
+
+    def reset(self, n: int) -> None:
+        """Size for ``n`` agents; the next update primes the filter."""
+        self.n = n
+        self.p = np.zeros((n, 3))    # m, filtered position references
+        self.v = np.zeros((n, 3))    # m/s, filtered velocity references
+        self.x = [np.zeros((2 * n, a[0].shape[0])) for a in self.axes]   # filter states, positions then velocities
+        self.primed = False
+
+    def update(self, p_ref: NDArray[np.float64], v_ref: NDArray[np.float64]) -> None:
+        """Filter this tick's references (n, 3) m and m/s into ``p`` and ``v``."""
+        n = self.n
+        for k, (At, B, C, D, x_unit) in enumerate(self.axes):
+            u = np.concatenate([p_ref[:, k], v_ref[:, k]])
+            x = self.x[k]
+            if not self.primed:
+                x[:] = u[:, None] * x_unit
+            y = x @ C + D * u
+            self.p[:, k] = y[:n]
+            self.v[:, k] = y[n:]
+            x[:] = x @ At + u[:, None] * B
+        self.primed = True

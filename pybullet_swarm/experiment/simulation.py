@@ -123,7 +123,8 @@ class Simulation:
         self.agent_index = {b: i for i, b in enumerate(self.world.agent_bodies)}
         self.controller = CascadeController(p, n, physics_hz=s.physics_hz, control_hz=s.control_hz, gravity=s.gravity,
                                             max_tilt_deg=s.max_tilt_deg, drag=s.drag_coefficient,
-                                            ground_effect=s.ground_effect)
+                                            ground_effect=s.ground_effect,
+                                            prefilter=sc.velocity_limits() is not None)
         self.shaper = ReferenceShaper(n, sc.velocity_limits(), sc.acceleration_limits(), 1.0 / s.control_hz)
         self.state_array = np.zeros((n, 13))   # position, quaternion, velocity, angular velocity (world)
         self.world.read_agent_states(self.state_array)

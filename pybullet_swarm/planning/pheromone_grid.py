@@ -173,7 +173,7 @@ class PheromoneGrid:
 
     def strongest(self, layer: str, sign: int = +1, *, near: ArrayLike | None = None,
                   distance_scale: float | None = None,
-                  rng: np.random.Generator | None = None) -> NDArray[np.float64] | None:
+                  rng: np.random.Generator | None = None, by_column: bool = False) -> NDArray[np.float64] | None:
         """Centre (3,) m of the cell with the strongest value of the given sign, or None when no cell has one.
 
         Args:
@@ -184,6 +184,9 @@ class PheromoneGrid:
                 maximising ``sign * value / (1 + distance / distance_scale)`` wins.
             rng: when given, equally strong cells are drawn from at random (before ``near`` is
                 considered); otherwise, without ``near``, the first in index order wins.
+            by_column: equally strong cells stacked in one vertical column count once (the lowest
+                stands for them) in the random draw, so that a column marked at several
+                altitudes is not drawn more often than one marked once.
         """
         self._check(layer)
         if sign not in (-1, 1):
@@ -202,7 +205,12 @@ class PheromoneGrid:
             cand = cand[score >= score.max() - 1e-12]
         else:
             cand = np.flatnonzero(v >= top - 1e-12)
-        centres = self.centre(np.stack(np.unravel_index(cand, self.shape), axis=1))
+        idx = np.stack(np.unravel_index(cand, self.shape), axis=1)
+        if by_column and rng is not None:
+            _, first = np.unique(idx[:, :2], axis=0, return_index=True)
+            idx = idx[np.sort(first)]
+            cand = cand[np.sort(first)]
+        centres = self.centre(idx)
         if rng is not None:
             return centres[int(rng.integers(len(cand)))]
         if near is None:

@@ -7,7 +7,8 @@ boxes and open slots within its view radius, and the shared pheromone grid; noth
 looking for a box and looking for a goal. Each time it needs somewhere to look it takes the next
 strategy of a cycle (appendix A): a uniformly random point of the arena; then the cell with the
 strongest pheromone of the wanted sign (+ for boxes, - for goals; among equally strong cells one
-drawn at random, ``ties``); then a random point within ``local_radius`` of itself; then random
+drawn at random, ``ties``, a vertical column counting once: the thesis's layer is the 2-D slice at
+the search height, where the boxes placed on top of each other mark one cell); then a random point within ``local_radius`` of itself; then random
 again, and so on. Without any pheromone of that sign it searches at random. It flies to that
 point watching for a free box (or, carrying one, for an open slot); when one comes into view it
 goes for it. Pheromone rules (thesis Table 5.2), all in one layer that never fades (fatigue 0):
@@ -490,7 +491,7 @@ class Stigmergy:
         best = None
         if medium is not None:
             best = medium.strongest(Layer.TASK.value, sign, near=p, distance_scale=self.params.distance_scale,
-                                    rng=self.rng if self.params.ties is TieBreak.RANDOM else None)
+                                    rng=self.rng if self.params.ties is TieBreak.RANDOM else None, by_column=True)
         g = self.geo
         if best is None or self.strategy == Strategy.LOCAL:
             self.strategy = Strategy.RANDOM

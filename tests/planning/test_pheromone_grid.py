@@ -113,6 +113,20 @@ def test_strongest_cell_by_sign_with_ties_to_the_nearest_and_optional_distance_e
     assert picks == {(0.45, 0.35, 0.15), (0.85, 0.55, 0.15)}
 
 
+def test_a_column_marked_at_several_altitudes_is_drawn_as_often_as_one_marked_once():
+    g = _grid()
+    for z in (0.05, 0.15, 0.25):           # three boxes placed on top of each other
+        g.deposit("task", [2.75, 0.25, z], -1.0, rule=DepositRule.SET)
+    g.deposit("task", [2.75, 0.65, 0.05], -1.0, rule=DepositRule.SET)
+    g.step(0.1)
+    rng = np.random.default_rng(1)
+    stacked = sum(g.strongest("task", -1, rng=rng, by_column=True)[1] < 0.5 for _ in range(2000))
+    assert 0.45 < stacked / 2000 < 0.55
+    rng = np.random.default_rng(1)
+    stacked = sum(g.strongest("task", -1, rng=rng)[1] < 0.5 for _ in range(2000))
+    assert 0.7 < stacked / 2000 < 0.8     # cell by cell the stacked column wins 3 draws in 4
+
+
 def test_an_agent_can_ignore_its_own_marks():
     g = _grid()
     p, q = [1.0, 0.5, 0.25], [1.1, 0.5, 0.25]
