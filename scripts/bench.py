@@ -8,7 +8,14 @@ Bullet bodies with only the state reads, the two wrench calls per drone and the 
     python scripts/bench.py --agents 1,5,50,100,200 --sim-seconds 10 --json bench.json
 
 Full stack and floor are measured alternately (``--repeats``) on the same bodies and the best
-of each is kept. Prints one row per N and writes a JSON list of objects with at least ``agents`` and
+of each is kept.
+
+``--env`` measures the learning interface instead: environment steps per second of
+``SwarmParallelEnv`` (velocity actions, one step per ``--env-period``) against the plain
+``Simulation`` stepped by the same period, for 1, 5 and 50 agents by default (needs the ``rl`` extra):
+
+    python scripts/bench.py --env --sim-seconds 10 --json bench_env.json
+ Prints one row per N and writes a JSON list of objects with at least ``agents`` and
 ``real_time_factor``. Figures depend on the machine; nothing here is asserted.
 """
 from __future__ import annotations
@@ -87,6 +94,69 @@ def bench_floor(sim: Simulation, sim_seconds: float) -> float:
     return time.perf_counter() - t0
 
 
+def bench_env(counts: list[int], sim_seconds: float, repeats: int, period: str) -> list[dict]:
+    """Environment steps per second of ``SwarmParallelEnv`` against the plain simulation, per agent count.
+
+    Both hover the same agents with the full stack and recording on; the environment adds its
+    action mapping, observations of every agent, rewards and infos at each step.
+    """
+    from pybullet_swarm.envs import SwarmParallelEnv
+
+    rows = []
+    print(f"{'N':>5} {'period s':>9} {'env steps/s':>12} {'plain steps/s':>14} {'env/plain':>10} {'env RTF':>8}")
+    for n in counts:
+        scenario = hover_scenario(n)
+        env = SwarmParallelEnv(scenario, action_type="velocity", period=period)
+        env.reset(seed=scenario.seed)
+        start_hovering(env.sim)
+        actions = {a: np.zeros(3, dtype=np.float32) for a in env.agents}
+        plain = Simulation(scenario)
+        start_hovering(plain)
+        chunk = int(round(env.dt * plain.physics_hz))   # physics steps per environment step
+        steps = max(1, int(round(sim_seconds / max(repeats, 1) / env.dt)))
+
+        def run_env() -> float:
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                env.step(actions)
+            return time.perf_counter() - t0
+
+        def run_plain() -> float:
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                plain.step(chunk)
+            return time.perf_counter() - t0
+
+        warm = max(1, int(round(0.5 / env.dt)))          # warm-up: compiled kernels loaded, caches hot
+        for _ in range(warm):
+            env.step(actions)
+            plain.step(chunk)
+        env_walls, plain_walls = [], []
+        for _ in range(max(repeats, 1)):                 # alternate, so both see the same machine state
+            env_walls.append(run_env())
+            plain_walls.append(run_plain())
+        if env.sim.exit_status.value != "running" or plain.exit_status.value != "running":
+            raise RuntimeError("benchmark run ended early")
+        env_rate, plain_rate = steps / min(env_walls), steps / min(plain_walls)
+        row = {
+            "mode": "env",
+            "agents": n,
+            "period": period,
+            "period_s": env.dt,
+            "env_steps_per_s": env_rate,
+            "plain_steps_per_s": plain_rate,
+            "ratio_to_plain": env_rate / plain_rate,
+            "env_real_time_factor": env_rate * env.dt,
+            "real_time_factor": plain_rate * env.dt,
+        }
+        env.close()
+        plain.close()
+        rows.append(row)
+        print(f"{n:>5} {env.dt:>9.4f} {env_rate:>12.1f} {plain_rate:>14.1f} {row['ratio_to_plain']:>10.2f} "
+              f"{row['env_real_time_factor']:>8.1f}", flush=True)
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--agents", default="1,5,50,100,200", help="comma-separated agent counts")
@@ -94,8 +164,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=3,
                     help="alternate full and floor measurements this many times; the best of each is kept")
     ap.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the results as JSON")
+    ap.add_argument("--env", action="store_true",
+                    help="environment steps per second of SwarmParallelEnv vs the plain simulation (default agents 1,5,50)")
+    ap.add_argument("--env-period", default="planner", choices=("planner", "control", "physics"),
+                    help="simulated time of one environment step in --env mode")
     args = ap.parse_args(argv)
+    if args.env and args.agents == ap.get_default("agents"):
+        args.agents = "1,5,50"
     counts = [int(x) for x in args.agents.split(",") if x.strip()]
+    if args.env:
+        rows = bench_env(counts, args.sim_seconds, args.repeats, args.env_period)
+        if args.json is not None:
+            meta = {"python": sys.version.split()[0], "machine": platform.machine(), "numpy": np.__version__}
+            args.json.write_text(json.dumps([{**r, **meta} for r in rows], indent=2) + "\n")
+        return 0
     rows = []
     print(f"{'N':>5} {'full RTF':>10} {'us/drone-step':>14} {'floor RTF':>10} {'floor us/d-s':>13} {'full/floor':>10}")
     for n in counts:

@@ -40,6 +40,8 @@ def _add_run(sub: Any) -> None:
     p.add_argument("--out", type=Path, default=None, help="run directory (default: runs/<name>-<planner>-s<seed>-<time>)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
                    help="override a scenario field (repeatable), e.g. --set agents.count=20")
+    p.add_argument("-c", "--config", type=Path, default=None, metavar="FILE",
+                   help="override file of key.path: value lines (e.g. best.yaml of `tune`), applied before --set")
     p.add_argument("--gui", action="store_true", help="watch in the Bullet GUI")
     p.add_argument("--video", action="store_true",
                    help="render RUN_DIR/video.mp4 (GIF without an MP4 encoder), 4x faster than real time")
@@ -74,9 +76,14 @@ def _fmt(v: Any) -> str:
 def _cmd_run(args: argparse.Namespace) -> int:
     from pybullet_swarm.experiment.rundir import default_run_dir
     from pybullet_swarm.experiment.runner import run
-    from pybullet_swarm.experiment.scenario import load_scenario
+    from pybullet_swarm.experiment.scenario import load_scenario, parse_override
 
-    scenario = load_scenario(args.scenario, args.overrides)
+    overrides: Any = args.overrides
+    if args.config is not None:
+        from pybullet_swarm.tuning.outputs import read_overrides_file
+
+        overrides = dict(read_overrides_file(args.config)) | dict(parse_override(o) for o in args.overrides)
+    scenario = load_scenario(args.scenario, overrides)
     seed = scenario.seed if args.seed is None else args.seed
     if seed < 0:
         raise ConfigError(f"must be >= 0, got {seed}", source="--seed")
@@ -379,6 +386,12 @@ def build_parser() -> argparse.ArgumentParser:
         pass
     else:
         tsp.register(sub)
+    try:
+        from pybullet_swarm.cli import tune
+    except ImportError:
+        pass
+    else:
+        tune.register(sub)
     return parser
 
 

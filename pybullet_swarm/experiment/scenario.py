@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import enum
 import math
 from pathlib import Path
 from typing import Annotated, Any, Literal, Mapping, Sequence, Union
@@ -43,6 +44,47 @@ class SimSection(_Strict):
     crash_speed: float = Field(2.0, gt=0.0, le=100.0)      # m/s, ground impact counted as a crash
 
 
+class ObstacleShape(str, enum.Enum):
+    """Shape of a static obstacle."""
+
+    CYLINDER = "cylinder"   # vertical pillar: size [radius, height] m
+    BOX = "box"             # size [x, y, z] m, turned by yaw_deg about the vertical
+
+
+class Obstacle(_Strict):
+    """A static obstacle standing in the arena (its collisions count as ``agent_obstacle``).
+
+    ``position`` is [x, y] (standing on the ground) or [x, y, z] (centre) in m.
+    """
+
+    shape: Literal["cylinder", "box"]   # an ObstacleShape value
+    size: Annotated[list[Annotated[float, Field(gt=0, le=1e4)]], Field(min_length=2, max_length=3)]
+    position: Annotated[list[float], Field(min_length=2, max_length=3)]
+    yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)
+
+    def center(self) -> NDArray[np.float64]:
+        """Centre (3,) m (a 2-D position stands the obstacle on the ground)."""
+        h = self.size[1] if self.shape == ObstacleShape.CYLINDER else self.size[2]
+        z = self.position[2] if len(self.position) == 3 else 0.5 * h
+        return np.array([self.position[0], self.position[1], z], dtype=float)
+
+    def half_extents_xy(self) -> tuple[float, float]:
+        """Half extents m of the world-axis box around the horizontal footprint."""
+        if self.shape == ObstacleShape.CYLINDER:
+            return float(self.size[0]), float(self.size[0])
+        c, s = abs(math.cos(math.radians(self.yaw_deg))), abs(math.sin(math.radians(self.yaw_deg)))
+        return 0.5 * (c * self.size[0] + s * self.size[1]), 0.5 * (s * self.size[0] + c * self.size[1])
+
+    def horizontal_distance(self, xy: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Horizontal distance (k,) m from points xy (k, 2) m to the footprint (0 inside)."""
+        d = np.asarray(xy, dtype=float).reshape(-1, 2) - self.center()[:2]
+        if self.shape == ObstacleShape.CYLINDER:
+            return np.maximum(np.linalg.norm(d, axis=1) - self.size[0], 0.0)
+        c, s = math.cos(math.radians(self.yaw_deg)), math.sin(math.radians(self.yaw_deg))
+        local = np.abs(np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]]))
+        return np.linalg.norm(np.maximum(local - 0.5 * np.asarray(self.size[:2]), 0.0), axis=1)
+
+
 class ArenaSection(_Strict):
     """The flight area: x in [0, Lx], y in [0, Ly], ground at z = 0."""
 
@@ -50,6 +92,7 @@ class ArenaSection(_Strict):
     height: PosFloat | None = None   # m, ceiling (None: open height)
     walls: bool = False              # add four walls of `wall_height` around the arena
     wall_height: PosFloat = 2.0
+    obstacles: list[Obstacle] = Field(default_factory=list)   # static pillars and boxes
 
 
 class AgentsSection(_Strict):
@@ -94,6 +137,64 @@ class WaypointsTask(_Strict):
 TASK_MODELS: dict[str, type[_Strict]] = {"waypoints": WaypointsTask}
 
 
+class RangeSensing(_Strict):
+    """A fan of horizontal range rays per agent (proximity sensors), cast once per planner tick.
+
+    Rays start at the airframe's enclosing radius and are levelled (they turn with the agent's
+    yaw only); a reading is the free distance m along a ray, ``range_m`` when nothing is hit.
+    """
+
+    enabled: bool = False                                # cast and observe (braitenberg turns it on)
+    rays: int = Field(8, ge=1, le=360)                   # rays per agent
+    range_m: float = Field(0.5, gt=0.0, le=100.0)        # m, longest reading
+    noise_std_m: float = Field(0.005, ge=0.0, le=10.0)   # m, Gaussian noise on a hit
+    fov_deg: float = Field(360.0, gt=0.0, le=360.0)      # deg, spread of the fan, centred on body x
+
+
+class OwnState(str, enum.Enum):
+    """Where the position loop and the planners take an agent's own state from."""
+
+    TRUE = "true"             # the simulator's true state
+    ESTIMATED = "estimated"   # the onboard estimate (IMU + positioning, Kalman fusion)
+
+
+class ImuSensing(_Strict):
+    """Accelerometer and gyroscope noise, sampled at sim.control_hz (defaults: Crazyflie 2.x class,
+    Bosch BMI088 data sheet typical figures; see ``pybullet_swarm/sensing/imu.py``)."""
+
+    accel_noise_density: float = Field(1.716e-3, ge=0.0, le=100.0)   # m/s^2/sqrt(Hz) (175 ug/sqrt(Hz))
+    gyro_noise_density: float = Field(2.443e-4, ge=0.0, le=100.0)    # rad/s/sqrt(Hz) (0.014 deg/s/sqrt(Hz))
+    accel_bias_std: float = Field(0.196, ge=0.0, le=100.0)           # m/s^2 per axis, drawn per agent (20 mg)
+    gyro_bias_std: float = Field(0.01745, ge=0.0, le=100.0)          # rad/s per axis, drawn per agent (1 deg/s)
+    accel_bias: Vec3 | None = None   # m/s^2, one constant bias for every agent instead of drawn ones
+    gyro_bias: Vec3 | None = None    # rad/s, likewise
+
+
+class PositioningSensing(_Strict):
+    """Absolute positioning fixes (GPS, motion capture): rate, noise, dropouts (defaults: indoor
+    positioning, 1 cm per axis at 10 Hz; see ``pybullet_swarm/sensing/positioning.py``)."""
+
+    rate_hz: int = Field(10, ge=1, le=10_000)                  # Hz; divides sim.physics_hz, at most sim.control_hz
+    noise_std: float = Field(0.01, ge=0.0, le=100.0)           # m per axis
+    heading_noise_std: float | None = Field(0.01, ge=0.0, le=10.0)  # rad; null: fixes carry no heading
+    dropout_probability: float = Field(0.0, ge=0.0, lt=1.0)    # chance that an agent's fix is lost
+    outages: list[Annotated[list[Annotated[float, Field(ge=0.0, le=1e6)]], Field(min_length=2, max_length=2)]] = \
+        Field(default_factory=list)                            # [start_s, end_s] intervals without fixes
+
+
+class EstimatorSensing(_Strict):
+    """Calibration and filter settings of the onboard estimator (``pybullet_swarm/sensing/estimator.py``)."""
+
+    calibration_s: float = Field(2.0, ge=0.0, le=600.0)        # s at rest before take-off (bias calibration)
+    tilt_gain: float = Field(0.5, ge=0.0, le=100.0)            # 1/s, accelerometer correction of roll and pitch
+    heading_gain: float = Field(0.3, ge=0.0, le=1.0)           # fraction of the heading error removed per fix
+    accel_process_std: float = Field(0.03, gt=0.0, le=100.0)   # m/s^2, acceleration input error per IMU sample
+    estimate_bias: bool = True                                 # world-frame acceleration bias in the Kalman state
+    bias_walk: float = Field(0.003, ge=0.0, le=100.0)          # m/s^2/sqrt(s), random walk of that bias
+    initial_bias_std: float = Field(0.05, gt=0.0, le=100.0)    # m/s^2
+    initial_velocity_std: float = Field(0.01, gt=0.0, le=100.0)  # m/s
+
+
 class SensingSection(_Strict):
     """What the agents sense: own-state source, onboard sensors and their noise.
 
@@ -101,7 +202,29 @@ class SensingSection(_Strict):
     """
 
     # --- own state (estimation) ---
+    state: OwnState = OwnState.TRUE        # true | estimated: what the position loop and the planners use
+    run_estimator: bool = False            # run sensors and estimator (and report them) on true state too
+    imu: ImuSensing = ImuSensing()
+    positioning: PositioningSensing = PositioningSensing()
+    estimator: EstimatorSensing = EstimatorSensing()
+
+    @pydantic.field_validator("state", mode="before")
+    @classmethod
+    def _own_state(cls, value: Any) -> OwnState:
+        # YAML reads a bare `true` as a boolean, `--set sensing.state=estimated` gives a string
+        if value is True or value == "true" or value is OwnState.TRUE:
+            return OwnState.TRUE
+        if value == "estimated" or value is OwnState.ESTIMATED:
+            return OwnState.ESTIMATED
+        raise ValueError("must be true or estimated")
+
+    @property
+    def estimating(self) -> bool:
+        """True when the sensors and the estimator run (flying on the estimate, or evaluating it)."""
+        return self.state is OwnState.ESTIMATED or self.run_estimator
+
     # --- range sensors ---
+    range: RangeSensing = RangeSensing()   # fan of horizontal range rays per agent
 
 
 class PlannerSection(_Strict):
@@ -236,6 +359,19 @@ def _check_rates(sim: SimSection, source: str) -> None:
                               source=source, field=f"sim.{name}")
 
 
+def _check_sensing(sim: SimSection, sensing: SensingSection, source: str) -> None:
+    """Positioning fixes at an integer division of the physics rate, at most one per control period."""
+    rate = sensing.positioning.rate_hz
+    if sim.physics_hz % rate != 0 or rate > sim.control_hz:
+        raise ConfigError(f"must divide sim.physics_hz ({sim.physics_hz}) into an integer ratio and be at most "
+                          f"sim.control_hz ({sim.control_hz}), got {rate}", source=source,
+                          field="sensing.positioning.rate_hz")
+    for i, (start, end) in enumerate(sensing.positioning.outages):
+        if end <= start:
+            raise ConfigError(f"must be [start_s, end_s] with end_s > start_s, got [{start:g}, {end:g}]",
+                              source=source, field=f"sensing.positioning.outages[{i}]")
+
+
 def _check_agents(s: Scenario, source: str) -> None:
     from pybullet_swarm.vehicle import load_vehicle
 
@@ -271,6 +407,38 @@ def _check_agents(s: Scenario, source: str) -> None:
                               source=source, field=field)
 
 
+def _check_obstacles(s: Scenario, source: str) -> None:
+    """Obstacles: sizes that fit their shape, footprints inside the arena, no agent starting inside one."""
+    lx, ly = s.arena.size
+    starts = None
+    for i, ob in enumerate(s.arena.obstacles):
+        field = f"arena.obstacles[{i}]"
+        want = 2 if ob.shape == ObstacleShape.CYLINDER else 3
+        if len(ob.size) != want:
+            what = "[radius, height]" if want == 2 else "[x, y, z]"
+            raise ConfigError(f"a {ob.shape} needs size {what} m, got {len(ob.size)} numbers",
+                              source=source, field=f"{field}.size")
+        c, (hx, hy) = ob.center(), ob.half_extents_xy()
+        if not (hx - 1e-9 <= c[0] <= lx - hx + 1e-9 and hy - 1e-9 <= c[1] <= ly - hy + 1e-9):
+            raise ConfigError(f"obstacle at ({c[0]:g}, {c[1]:g}) reaching {hx:.3g} m x {hy:.3g} m from its centre is "
+                              f"not inside the arena [0, {lx:g}] x [0, {ly:g}] m", source=source,
+                              field=f"{field}.position")
+        h = ob.size[1] if ob.shape == ObstacleShape.CYLINDER else ob.size[2]
+        if c[2] - 0.5 * h < -1e-9:
+            raise ConfigError(f"obstacle reaches below the ground (centre z {c[2]:g} m, height {h:g} m)",
+                              source=source, field=f"{field}.position")
+        if starts is None:
+            from pybullet_swarm.vehicle import load_vehicle
+
+            vehicle = load_vehicle(s.agents.vehicle)
+            starts = s.start_positions(0.5 * vehicle.collision_size[2] + 1e-3)
+            clearance = float(vehicle.radius)
+        inside = np.flatnonzero(ob.horizontal_distance(starts[:, :2]) < clearance)
+        if inside.size and c[2] - 0.5 * h < 0.5:   # an obstacle standing where an agent starts
+            raise ConfigError(f"agent {int(inside[0])} starts within {clearance:.3g} m of this obstacle",
+                              source=source, field=field)
+
+
 def _check_waypoints(task: WaypointsTask, source: str) -> None:
     times = [w.t_s for w in task.waypoints]
     for i in range(1, len(times)):
@@ -299,12 +467,14 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
                           field="task.kind")
     task = validate(models[kind], f.task, source=source, prefix="task")
     _check_rates(f.sim, source)
+    _check_sensing(f.sim, f.sensing, source)
     resolved = f.model_dump(mode="json")
     resolved["task"] = task.model_dump(mode="json")
     s = Scenario(source=source, name=f.name, description=f.description, seed=f.seed, sim=f.sim, arena=f.arena,
                  agents=f.agents, limits=f.limits, task=task, planner=f.planner, avoidance=f.avoidance,
                  collisions=f.collisions, data=resolved, sensing=f.sensing)
     _check_agents(s, source)
+    _check_obstacles(s, source)
     if isinstance(task, WaypointsTask):
         _check_waypoints(task, source)
     check = getattr(task, "check", None)

@@ -112,6 +112,11 @@ class Simulation:
         self.world.add_ground()
         if sc.arena.walls:
             self.world.add_walls(sc.arena.size, sc.arena.wall_height)
+        for k, ob in enumerate(sc.arena.obstacles):   # static pillars and boxes: contacts are agent_obstacle
+            if ob.shape == "cylinder":
+                self.world.add_cylinder(ob.center(), ob.size[0], ob.size[1], name=f"obstacle{k}")
+            else:
+                self.world.add_box(ob.center(), ob.size, yaw=math.radians(ob.yaw_deg), name=f"obstacle{k}")
         self.rest_height = 0.5 * p.collision_size[2] + 1e-3
         self.starts = sc.start_positions(self.rest_height)
         jitter = sc.agents.start_jitter
@@ -155,8 +160,65 @@ class Simulation:
         self.open_loop = False
         self._external = False
         self._wall_time = 0.0
+        self.range_sensor: Any = None
+        self.ranges = np.zeros((n, 0))   # (n, r) m, range readings of the last planner tick
+        if sc.sensing.range.enabled:
+            self.enable_range_sensors()
         self.info = self._task_info()
         self._make_planner()
+        self.estimation: Any = None   # OnboardEstimation when sensing.state is estimated (or run_estimator)
+        self.flying_on_estimate = False
+        if sc.sensing.estimating:
+            self._make_estimation()
+
+    def enable_range_sensors(self) -> None:
+        """Give every agent the fan of range rays of ``sensing.range`` (idempotent; avoidance layers
+        that need readings call it); they are cast once per planner tick from then on."""
+        if self.range_sensor is not None:
+            return
+        from pybullet_swarm.sensing.range import RangeFan, RangeSensor, fan_angles
+
+        cfg = self.scenario.sensing.range
+        fan = RangeFan(fan_angles(cfg.rays, cfg.fov_deg), float(cfg.range_m), float(self.params.radius) + 1e-3)
+        self.range_sensor = RangeSensor(fan, cfg.noise_std_m, self.rng.spawn(1)[0])
+        self.ranges = np.full((self.n, fan.rays), fan.range_m)
+
+    def _cast_ranges(self) -> None:
+        """Cast every agent's fan from its true pose (one batched call)."""
+        s = self.state_array
+        self.ranges = self.range_sensor.read(self.world, s[:, :3], quat_to_euler(s[:, 3:7])[:, 2])
+
+    def _make_estimation(self) -> None:
+        """IMU, positioning and the estimator, calibrated at rest; their generator is spawned after the
+        planners' so that runs without estimation draw exactly as before."""
+        from pybullet_swarm.metrics.estimation import EstimationErrors
+        from pybullet_swarm.sensing.estimator import EstimatorParams, OnboardEstimation
+        from pybullet_swarm.sensing.imu import ImuNoise
+        from pybullet_swarm.sensing.positioning import PositioningParams
+
+        cfg, s = self.scenario.sensing, self.scenario.sim
+        self.estimation = OnboardEstimation(
+            self.n, ImuNoise(**cfg.imu.model_dump()), PositioningParams(**cfg.positioning.model_dump()),
+            EstimatorParams(**cfg.estimator.model_dump()), control_hz=s.control_hz, gravity=s.gravity,
+            rng=self.rng.spawn(1)[0])
+        self.estimation.start(self.state_array, self.time)
+        self.estimation_errors = EstimationErrors()
+        self.fix_every = s.physics_hz // cfg.positioning.rate_hz
+        self.flying_on_estimate = cfg.state.value == "estimated"
+
+    @property
+    def sensed_state_array(self) -> NDArray[np.float64]:
+        """(n, 13) what the agents know of themselves: the estimate when flying on it, else the true state."""
+        return self.estimation.state_array if self.flying_on_estimate else self.state_array
+
+    def _sense(self, k: int) -> None:
+        """Sensors and estimator at physics step ``k``: a positioning fix when due, IMU and filters at control ticks."""
+        est, s, t = self.estimation, self.state_array, self.time
+        if k % self.fix_every == 0:
+            est.score_fix(self.estimation_errors, est.take_fix(t, s), s)
+        if k % self.control_every == 0:
+            est.control_tick(t, s)
+            est.score_tick(self.estimation_errors, s)
 
     def _task_info(self) -> TaskInfo:
         sc, p = self.scenario, self.params
@@ -324,6 +386,8 @@ class Simulation:
         if done:
             self._finish(ExitStatus.COMPLETED)
             return
+        if self.range_sensor is not None:
+            self._cast_ranges()
         if not self._external:
             if self.planner is not None:
                 commands = self.planner.plan_all(self.world_view())
@@ -364,8 +428,8 @@ class Simulation:
                         self.controller.set_payload(i, 0.0)
 
     def world_view(self) -> WorldView:
-        """Everything now (for centralised planners)."""
-        s = self.state_array
+        """Everything now (for centralised planners; agents as they know themselves)."""
+        s = self.sensed_state_array
         c = self.construction
         if c is None:
             empty3 = np.zeros((0, 3))
@@ -378,11 +442,13 @@ class Simulation:
         """Each agent's local observation: own state, neighbours in the sensing radius, visible objects."""
         from scipy.spatial import cKDTree
 
-        s = self.state_array
+        s = self.sensed_state_array
         pos, vel = s[:, :3], s[:, 7:10]
         yaw = quat_to_euler(s[:, 3:7])[:, 2]
         r = self.scenario.agents.sensing_radius
-        near = cKDTree(pos).query_ball_point(pos, r) if self.n > 1 else [[0]]
+        true_pos = self.state_array[:, :3]
+        near = cKDTree(true_pos).query_ball_point(true_pos, r) if self.n > 1 else [[0]]
+        noisy = self.flying_on_estimate and self.n > 1   # neighbours: true positions plus positioning noise
         carrying = self.construction.carrying(self.n) if self.construction is not None else np.full(self.n, -1)
         out = []
         t = self.time
@@ -390,13 +456,15 @@ class Simulation:
         noi = np.zeros(0, dtype=np.int64)
         for i in range(self.n):
             nb = np.array([j for j in near[i] if j != i], dtype=np.int64)
+            nb_pos = (true_pos[nb] + self.estimation.neighbour_noise(nb.size)) if noisy else pos[nb].copy()
             if self.construction is not None:
                 boxes, slots = self.construction.visible(pos[i])
                 bpos, spos = self.construction.positions[boxes], self.construction.slots[slots]
             else:
                 boxes, slots, bpos, spos = noi, noi, no3, no3
             out.append(Observation(i, t, pos[i].copy(), vel[i].copy(), float(yaw[i]), int(carrying[i]), nb,
-                                   pos[nb].copy(), vel[nb].copy(), bpos, boxes, spos, slots))
+                                   nb_pos, vel[nb].copy(), bpos, boxes, spos, slots,
+                                   ranges=self.ranges[i].copy()))
         return out
 
     def _finish(self, status: ExitStatus, agent: int | None = None, detail: str = "") -> None:
@@ -440,18 +508,23 @@ class Simulation:
         apply, advance, read, contact_pairs = (world.apply_agent_wrenches, world.step, world.read_agent_states,
                                                world.contact_pairs)
         ce, pe, re = self.control_every, self.planner_every, self.record_every
+        est = self.estimation
+        fe = self.fix_every if est is not None else 0
+        sensed = self.sensed_state_array
         running = ExitStatus.RUNNING
         closed = not self.open_loop
         ghost = self.ghost and self.n > 1
         k = self.step_count
         end = k + steps
         while k < end and self.exit_status is running:
+            if est is not None and (k % ce == 0 or k % fe == 0):
+                self._sense(k)
             if k % pe == 0:
                 self._planner_tick()
                 if self.exit_status is not running:
                     break
             if closed and k % ce == 0:
-                ctrl.position_update(state, shaper.step())
+                ctrl.position_update(sensed, shaper.step())
             worst = tick(*args)
             apply(forces, torques)
             advance()
@@ -502,6 +575,9 @@ class Simulation:
             if self.construction is not None:
                 self.construction.read()
                 self.recorder.record_extra("box_positions", self.construction.positions)
+            if self.estimation is not None:
+                for name, value in self.estimation.channels().items():
+                    self.recorder.record_extra(name, value)
 
     def run(self) -> RunResult:
         """Run until the task completes, the time limit passes, or an agent crashes."""
@@ -544,6 +620,9 @@ class Simulation:
             m.update(self.medium.metrics())
         if self.avoidance_layer is not None and hasattr(self.avoidance_layer, "metrics"):
             m.update(self.avoidance_layer.metrics())
+        if self.estimation is not None:
+            m["estimation"] = self.estimation_errors.metrics(
+                {"state": self.scenario.sensing.state.value, **self.estimation.summary()})
         return m
 
     def _swarm_metrics(self, ts: TimeSeries) -> dict[str, Any]:

@@ -1141,7 +1141,7 @@ class OrcaLayer:
         t0 = time.perf_counter()
         p = self.params
         n = self.n
-        state = sim.state_array                                # sensed state, as Simulation.observations uses
+        state = getattr(sim, "sensed_state_array", sim.state_array)   # sensed (estimated) state, as observations
         pos = np.ascontiguousarray(state[:, :3])
         vel = np.ascontiguousarray(state[:, 7:10])
         c = sim.construction

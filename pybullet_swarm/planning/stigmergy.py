@@ -33,7 +33,9 @@ What this platform needs beyond the thesis, whose agents moved boxes by being ne
   structure at the task's ``search_height``, clear of the finished structure. An agent climbs
   before it enters a higher zone and descends after leaving it. A search point over the
   structure is moved to the edge of its zone (on the agent's side), where the agent sees its
-  slots. The layout is used for nothing else: boxes and slots are still found by seeing them,
+  slots; a local search point of an agent beside the structure is spread along that edge
+  (the thesis's local square, turned to the wall), not back over the open floor, where no slot
+  is in view. The layout is used for nothing else: boxes and slots are still found by seeing them,
   guided by the pheromones.
 * Grasping and placing. An agent goes above the object, descends straight down, grasps within
   60 % of the attach threshold, and places its box from ``release_clearance`` above the slot,
@@ -354,6 +356,19 @@ class FlightGeometry:
         cost = np.linalg.norm(pts - xy, axis=1) + np.linalg.norm(pts - start, axis=1)
         return pts[int(np.argmin(cost))]
 
+    def face_normal(self, xy: NDArray[np.float64], reach: float) -> NDArray[np.float64] | None:
+        """Vector (2,) m from the point ``xy`` (2,) m to the nearest point of the keep-out zone when the
+        point lies outside it but within ``reach`` m of it (an agent beside the structure), else None."""
+        k = self.structure
+        if len(k.lo) == 0:
+            return None
+        nearest = np.clip(xy, k.lo, k.hi)                   # (z, 2) nearest point of each column's square
+        d = np.hypot(*(nearest - xy).T)
+        j = int(np.argmin(d))
+        if not 0.0 < d[j] <= reach:
+            return None
+        return nearest[j] - xy
+
     def clear_of_structure(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
         """(k,) True for points (k, 2) m straight over a structure column (on top of a stack) or far
         enough from every column for an agent to descend there without touching it."""
@@ -503,6 +518,10 @@ class Stigmergy:
             self.strategy = Strategy.LOCAL
             r = self.params.local_radius
             xy = p[:2] + self.rng.uniform(-r, r, size=2)
+            face = g.face_normal(p[:2], reach=g.standoff + self.params.arrive_tol + COLUMN_TOL)
+            if face is not None:   # beside the structure: look along its face, where slots are in view
+                tangent = np.array([-face[1], face[0]]) / np.hypot(*face)
+                xy = p[:2] + self.rng.uniform(-r, r) * tangent + face * (1.0 + 1e-6) + 1e-3 * face / np.hypot(*face)
         # a point over the structure is searched from the edge of the keep-out zone, low, where the
         # agent sees slots of every layer (over the structure it flies too high to see the bottom one)
         self.target = g.outside(np.clip(xy, g.arena_lo, g.arena_hi), p[:2])

@@ -88,6 +88,11 @@ def plot_run(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any] | None = Non
     ]
     if scenario is not None:
         files += _swarm_figures(ts, out_dir, metrics or {}, scenario, events or [])
+    if "est_kalman_position" in ts.extra:   # the run's onboard estimation (sensing.state estimated)
+        from pybullet_swarm.plotting.estimation_plots import plot_estimation
+
+        files += plot_estimation(ts.t, ts.positions, ts.euler[..., 2], ts.extra, out_dir,
+                                 (metrics or {}).get("estimation"))
     return files
 
 
@@ -125,6 +130,10 @@ def _swarm_figures(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any], scena
     files.append(cp.plot_collision_timeline(events, float(ts.t[-1]), out_dir / "collision_timeline.png"))
     files.append(cp.plot_acceleration(ts.t, acceleration_series(ts.t, ts.velocities.astype(float)),
                                       out_dir / "acceleration.png", agent=0))
+    if task.get("kind") == "route":
+        from pybullet_swarm.plotting.flocking_plots import plot_route_run
+
+        files += plot_route_run(ts, out_dir, metrics, scenario, events)
     if task.get("kind") == "construction":
         boxes = np.asarray(task["boxes"], dtype=float)
         slots = np.asarray(task["structure"], dtype=float)

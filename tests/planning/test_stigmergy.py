@@ -124,6 +124,35 @@ def test_strategy_cycle_random_then_strongest_pheromone_then_local():
     assert med.tallies == {"target_pheromone": 2, "target_local": 1, "target_random": 1}
 
 
+def test_beside_the_structure_the_local_search_runs_along_its_face():
+    """A local search point next to the wall is looked at from the wall's face (where slots are
+    in view), spread along it, never from farther back on the open floor."""
+    med = _medium()
+    med.deposit(Layer.TASK.value, [2.75, 0.45, 0.2], -1.0, rule=DepositRule.SET)
+    med.step(0.1)
+    a = _agent(seed=3)
+    g = a.geo
+    edge = g.structure.lo[:, 0].min() - g.standoff
+    p = np.array([edge, 0.45, g.floor_altitude])
+    ys = []
+    for _ in range(60):
+        a.strategy = Strategy.PHEROMONE            # the next choice is the local one
+        a._choose(_obs(p, carrying=2), med, -1)
+        assert a.strategy == Strategy.LOCAL
+        assert a.target[0] == pytest.approx(edge)   # on the face
+        ys.append(a.target[1])
+    ys = np.array(ys)
+    assert np.all(np.abs(ys - 0.45) <= 0.2 + 1e-9) and ys.min() < 0.3 and ys.max() > 0.6
+    # in the open the local point is anywhere in the square around the agent
+    q = np.array([1.5, 0.5, g.floor_altitude])
+    xs = []
+    for _ in range(20):
+        a.strategy = Strategy.PHEROMONE
+        a._choose(_obs(q, carrying=2), med, -1)
+        xs.append(a.target[0])
+    assert np.ptp(xs) > 0.2
+
+
 def test_an_agent_looking_for_a_box_leaves_a_trail_only_in_empty_cells():
     med = _medium()
     a = _agent()

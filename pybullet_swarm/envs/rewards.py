@@ -1,0 +1,165 @@
+"""Rewards of an environment step: task progress, completion, collision and crash penalties.
+
+Per agent i and step (weights from ``RewardWeights``)::
+
+    r_i = box_placed * (boxes placed now - before)            # shared, construction
+        + box_to_goal * (D before - D now)                     # shared, D: total box-to-goal distance, m
+        + point_visited * (points visited now - before)        # shared, tour
+        + goal_progress * (d_i before - d_i now)               # own, waypoints: distance to the set-point
+                                                               #   active when the step began, m
+        + completion * [the task was completed in this step]   # shared
+        - collision_penalty * (contact events of agent i)      # own, every collision class
+        - crash_penalty * [agent i crashed or diverged]        # own
+        - time_penalty * (simulated seconds of the step)       # shared
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pybullet_swarm.envs.config import RewardWeights
+from pybullet_swarm.metrics.collisions import COLLISION_CLASSES
+from pybullet_swarm.metrics.construction import box_to_goal_distance
+from pybullet_swarm.tasks.tour import TourRuntime
+from pybullet_swarm.types import Event, ExitStatus
+
+_COLLISION_KINDS = frozenset(COLLISION_CLASSES)
+_FAILURE_KINDS = frozenset({ExitStatus.CRASHED.value, ExitStatus.DIVERGED.value})
+
+
+def _same(a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:
+    """Whether ``a`` and ``b`` are the same window of one array (the set-point did not switch)."""
+    return a is b or (a.base is not None and a.base is b.base and a.ctypes.data == b.ctypes.data
+                      and a.strides == b.strides)
+
+
+def _distances(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Row-wise Euclidean distances (n,) of two (n, 3) arrays."""
+    d = a - b
+    return np.sqrt(np.einsum("ij,ij->i", d, d))
+
+
+@dataclasses.dataclass
+class StepOutcome:
+    """What one step did, per agent.
+
+    Attributes:
+        rewards: (n,) reward of each agent.
+        collisions: per agent, the contact events (as plain dicts) it was part of.
+        goal_distance: (n,) m, distance to the active set-point now (waypoint tasks), else None.
+    """
+
+    rewards: NDArray[np.float64]
+    collisions: list[list[dict[str, Any]]]
+    goal_distance: NDArray[np.float64] | None
+
+
+def event_dict(e: Event) -> dict[str, Any]:
+    """An event as plain data."""
+    return {"time_s": e.time_s, "kind": e.kind, "a": e.a, "b": e.b, "detail": e.detail}
+
+
+class RewardTracker:
+    """Keeps the task's progress between steps and turns it into rewards.
+
+    Args:
+        sim: the simulation of the episode (fresh, not stepped).
+        weights: reward weights.
+    """
+
+    def __init__(self, sim: Any, weights: RewardWeights) -> None:
+        self.w = weights
+        self.n = sim.n
+        self.agent_of = {f"agent{i}": i for i in range(sim.n)}   # World body names of the agents
+        self.tour = sim.task if isinstance(sim.task, TourRuntime) else None
+        self.construction = sim.construction
+        self.placed = self.construction.boxes_placed if self.construction is not None else 0
+        self.box_distance = self._box_distance()
+        self.visited = self.tour.points_visited if self.tour is not None else 0
+        self.events_seen = len(sim.events)
+        self._goal: NDArray[np.float64] | None = None
+        self._d0: NDArray[np.float64] | None = None
+
+    def _box_distance(self) -> float:
+        c = self.construction
+        if c is None or c.B == 0 or c.S == 0:
+            return 0.0
+        return float(box_to_goal_distance(c.positions[None, :, :], c.slots)[0])
+
+    def start(self, targets: NDArray[np.float64] | None, positions: NDArray[np.float64]) -> None:
+        """Remember the active set-points (n, 3) m and the agents' distances to them at the episode start."""
+        if targets is not None:
+            self._goal = targets
+            self._d0 = _distances(targets, positions)
+
+    def end(self, sim: Any, dt: float, completed: bool, targets: NDArray[np.float64] | None = None) -> StepOutcome:
+        """Rewards of the step that just ended after ``dt`` simulated seconds.
+
+        Args:
+            sim: the simulation.
+            dt: simulated seconds of the step.
+            completed: the task was completed in this step.
+            targets: (n, 3) m, the set-points active now (waypoint tasks).
+        """
+        w = self.w
+        shared = -w.time_penalty * dt
+        c = self.construction
+        if c is not None:
+            placed = c.boxes_placed
+            shared += w.box_placed * (placed - self.placed)
+            self.placed = placed
+            if w.box_to_goal:
+                d = self._box_distance()
+                shared += w.box_to_goal * (self.box_distance - d)
+                self.box_distance = d
+        if self.tour is not None:
+            visited = self.tour.points_visited
+            shared += w.point_visited * (visited - self.visited)
+            self.visited = visited
+        if completed:
+            shared += w.completion
+        goal_distance = None
+        if targets is not None and self._goal is not None and self._d0 is not None:
+            pos = sim.state_array[:, :3]
+            d1 = _distances(self._goal, pos)
+            r = shared + w.goal_progress * (self._d0 - d1)
+            goal_distance = d1 if _same(targets, self._goal) else _distances(targets, pos)
+            self._goal, self._d0 = targets, goal_distance
+        else:
+            r = np.full(self.n, shared)
+        collisions: list[list[dict[str, Any]]] = [[] for _ in range(self.n)]
+        if len(sim.events) > self.events_seen:
+            new = sim.events[self.events_seen:]
+            self.events_seen = len(sim.events)
+            self._charge(new, r, collisions)
+        return StepOutcome(r, collisions, goal_distance)
+
+    def _charge(self, events: list[Event], r: NDArray[np.float64], collisions: list[list[dict[str, Any]]]) -> None:
+        """Subtract the collision and crash penalties of ``events`` from the rewards ``r`` (n,)."""
+        w = self.w
+        for e in events:
+            if e.kind in _COLLISION_KINDS:
+                d = event_dict(e)
+                for name in (e.a, e.b):
+                    i = self.agent_of.get(name)
+                    if i is not None:
+                        r[i] -= w.collision_penalty
+                        collisions[i].append(d)
+            elif e.kind in _FAILURE_KINDS:
+                i = self.agent_of.get(e.a)
+                if i is None:
+                    r -= w.crash_penalty
+                else:
+                    r[i] -= w.crash_penalty
+
+    def progress(self) -> dict[str, Any]:
+        """Task progress as plain data (part of the running metrics)."""
+        out: dict[str, Any] = {}
+        if self.construction is not None:
+            out.update(boxes_placed=self.placed, boxes_total=self.construction.S, box_to_goal_m=self.box_distance)
+        if self.tour is not None:
+            out.update(points_visited=self.visited, points_total=self.tour.W)
+        return out
