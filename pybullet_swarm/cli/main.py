@@ -52,17 +52,19 @@ def _add_run(sub: Any) -> None:
 
 def _format_metrics(m: dict[str, Any]) -> str:
     rows: list[tuple[str, str]] = []
-    for key, value in m.items():
+
+    def add(prefix: str, value: Any) -> None:
         if isinstance(value, dict):
-            if key == "path_length_m":
-                rows.append((key, f"{value['total']:.3f}"))
-                continue
+            if prefix == "path_length_m":
+                rows.append((prefix, f"{value['total']:.3f}"))
+                return
             for k2, v2 in value.items():
-                rows.append((f"{key}.{k2}", _fmt(v2)))
-        elif isinstance(value, list):
-            continue
-        else:
-            rows.append((key, _fmt(value)))
+                add(f"{prefix}.{k2}", v2)
+        elif not isinstance(value, list):   # per-agent lists are in metrics.json
+            rows.append((prefix, _fmt(value)))
+
+    for key, value in m.items():
+        add(key, value)
     width = max(len(k) for k, _ in rows)
     return "\n".join(f"  {k.ljust(width)}  {v}" for k, v in rows)
 
