@@ -232,6 +232,13 @@ class Simulation:
             kw = dict(depot=c.start.copy(), slots=c.slots.copy(), box_size=c.size, grasp_height=c.grasp_height)
             extra.update(search_height=c.spec.search_height, attach_threshold=c.spec.attach_threshold,
                          view_radius=c.view_radius)
+            if sc.sensing.state.value == "estimated":   # what an agent can expect of its own position estimate
+                from pybullet_swarm.sensing.estimator import EstimatorParams, expected_position_std
+                from pybullet_swarm.sensing.positioning import PositioningParams
+
+                extra["position_std"] = expected_position_std(
+                    PositioningParams(**sc.sensing.positioning.model_dump()),
+                    EstimatorParams(**sc.sensing.estimator.model_dump()), control_hz=sc.sim.control_hz)
         elif self.task is not None and hasattr(self.task, "task_info"):
             kw = dict(self.task.task_info())
             extra.update(kw.pop("extra", {}))
@@ -457,7 +464,13 @@ class Simulation:
         for i in range(self.n):
             nb = np.array([j for j in near[i] if j != i], dtype=np.int64)
             nb_pos = (true_pos[nb] + self.estimation.neighbour_noise(nb.size)) if noisy else pos[nb].copy()
-            if self.construction is not None:
+            if self.construction is not None and self.flying_on_estimate:
+                # boxes are seen from the airframe (where it truly is), relative to it: in the agent's
+                # own estimated frame; slots are planned coordinates, compared with the estimate as they are
+                boxes, slots = self.construction.visible(true_pos[i])
+                bpos = self.construction.positions[boxes] + (pos[i] - true_pos[i])
+                spos = self.construction.slots[slots]
+            elif self.construction is not None:
                 boxes, slots = self.construction.visible(pos[i])
                 bpos, spos = self.construction.positions[boxes], self.construction.slots[slots]
             else:

@@ -43,6 +43,14 @@ What this platform needs beyond the thesis, whose agents moved boxes by being ne
   Boxes lying beside the structure, whose descent would scrape it, are left alone.
 * Claims. An agent leaves a box or slot to a neighbour already working over it (lower, or at
   the same height and nearer), so two agents never descend onto one object.
+* Flying on an estimate (``TaskInfo.extra["position_std"]``, the per-axis standard deviation the
+  agent's filter settles to). The box is let go ``CLEARANCE_SIGMAS`` standard deviations above
+  its slot at least (a box pressed onto what is under it sticks there and drags the agent), and
+  only once the estimate has stayed within ``release_tol`` of the drop point for
+  ``release_dwell_s``. A box that did not come to rest in its slot is still a free box: the agent
+  that let it go sees it, takes it again and serves the slot once more; no agent descends with a
+  box onto a slot with a loose box in it, and a descent that does not end in a release within
+  ``DESCENT_TIMEOUT_S`` is broken off.
 """
 from __future__ import annotations
 
@@ -108,6 +116,12 @@ GRASP_FRACTION = 0.6
 """An agent asks to grasp within this fraction of the attach threshold (margin for tracking error)."""
 AHEAD_DEG = 70.0
 """deg: a presence mark blocks the way when its cell lies within this angle of the direction of travel."""
+CLEARANCE_SIGMAS = 3.0
+"""Least release clearance, in standard deviations of the agent's own position estimate."""
+SETTLE_S = 0.3
+"""s: after a release, how long the box is given to come to rest before the agent judges where it lies."""
+DESCENT_TIMEOUT_S = 20.0
+"""s: a descent with a box that has not ended in a release by then is broken off (climb, look again)."""
 
 
 def _field_error(name: str, message: str) -> ConfigError:
@@ -139,6 +153,8 @@ class StigmergyParams:
         structure_margin: m, keep-out zone around the structure beyond one agent radius.
         release_clearance: m, height of the box above its slot when it is let go.
         release_tol: m, per-axis position error within which the box is let go.
+        release_dwell_s: s, how long the position must have stayed within ``release_tol`` before the box
+            is let go (default: 0 on the true state, 0.5 s when the agent flies on an estimate).
         snapshot_s: s, period of the pheromone snapshots kept for the figures.
     """
 
@@ -158,6 +174,7 @@ class StigmergyParams:
     structure_margin: float = 0.02
     release_clearance: float = 0.004
     release_tol: float = 0.005
+    release_dwell_s: float | None = None
     snapshot_s: float = 1.0
 
     def __post_init__(self) -> None:
@@ -179,10 +196,12 @@ class StigmergyParams:
             object.__setattr__(self, "ties", TieBreak(self.ties))
         except ValueError:
             raise _field_error("ties", f"must be one of {[t.value for t in TieBreak]}, got {self.ties!r}") from None
-        for name in ("distance_scale", "floor_altitude", "look_altitude", "cruise_altitude"):
+        for name in ("distance_scale", "floor_altitude", "look_altitude", "cruise_altitude", "release_dwell_s"):
             v = getattr(self, name)
-            if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise _field_error(name, f"must be null or a number > 0, got {v!r}")
+            least = 0.0 if name == "release_dwell_s" else None
+            ok = isinstance(v, (int, float)) and math.isfinite(v) and (v >= 0 if least is not None else v > 0)
+            if v is not None and not ok:
+                raise _field_error(name, f"must be null or a number {'>=' if least is not None else '>'} 0, got {v!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -439,6 +458,15 @@ class Stigmergy:
         self.grasp_offset: NDArray[np.float64] | None = None
         self.offset = np.array([0.0, 0.0, -info.grasp_height])   # m, held box centre relative to the agent
         self.detour_until = -math.inf        # s, until then the agent keeps to its search point (layered variant)
+        sigma = float(info.extra.get("position_std", 0.0))   # m, per-axis std of the agent's own position estimate
+        self.clearance = max(self.params.release_clearance, CLEARANCE_SIGMAS * sigma)   # m
+        dwell = self.params.release_dwell_s
+        self.dwell = (0.5 if sigma > 0.0 else 0.0) if dwell is None else float(dwell)   # s
+        self.within_since: float | None = None   # s, since when the estimate is within release_tol of the drop
+        self.descent_start = math.inf            # s, when the current descent with a box started
+        self.held_id = -1                        # box held
+        self.let_go: tuple[int, int, NDArray[np.float64], float] | None = None   # box, slot, slot centre, time
+        self.again: tuple[int, NDArray[np.float64]] | None = None   # slot to serve again with the box taken back
 
     def plan(self, obs: Observation, medium: PheromoneGrid | None) -> Command:
         """The agent's command for the next planner period."""
@@ -451,23 +479,36 @@ class Stigmergy:
         p = obs.position
         if obs.carrying >= 0 and not self.holding:
             self.holding = True
+            self.held_id = int(obs.carrying)
             if self.grasp_offset is not None:
                 self.offset = self.grasp_offset
-            self._mark(medium, p, self.params.box_pheromone, "boxes_found")
             self.column = p[:2].copy()
-            self.phase = Phase.LIFT
             self.box_id = -1
+            if self.again is not None and self.let_go is not None and self.let_go[0] == self.held_id:
+                # the box taken back from beside its slot: serve that slot again (from above, as always)
+                self.slot_id, self.slot_pos = self.again[0], self.again[1].copy()
+                self.phase = Phase.DELIVER
+                self.descending = False
+                self.descent_start = math.inf
+            else:
+                self._mark(medium, p, self.params.box_pheromone, "boxes_found")
+                self.phase = Phase.LIFT
+            self.again = None
+            self.let_go = None
         elif obs.carrying < 0 and self.holding:
             self.holding = False
             if self.released:
                 self._mark(medium, p, self.params.goal_pheromone, "goals_found")
                 self.column = p[:2].copy()
                 self.phase = Phase.CLIMB
+                self.let_go = (self.held_id, self.slot_id, self.slot_pos.copy(), obs.time_s)
             else:                        # the box slipped out of the grip: look for one again
                 self.phase = Phase.CHOOSE_BOX
             self.released = False
+            self.held_id = -1
             self.slot_id = -1
             self.descending = False
+            self.within_since = None
         self.grasp_offset = None
 
     def _mark(self, medium: PheromoneGrid | None, p: NDArray[np.float64], value: float, tally: str) -> None:
@@ -551,7 +592,8 @@ class Stigmergy:
 
     def _seek_goal(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
         p = obs.position
-        s = self._pick(obs, obs.slot_ids, obs.slots, self.offset)
+        s = self._pick(obs, obs.slot_ids, obs.slots, self.offset,
+                       skip=np.array([self._occupied(obs, q) for q in obs.slots], dtype=bool))
         if s >= 0:
             self.slot_id = int(obs.slot_ids[s])
             self.slot_pos = obs.slots[s].copy()
@@ -564,14 +606,17 @@ class Stigmergy:
         return self._travel(p, self.target)
 
     def _pick(self, obs: Observation, ids: NDArray[np.int64], where: NDArray[np.float64],
-              shift: NDArray[np.float64], *, boxes: bool = False) -> int:
+              shift: NDArray[np.float64], *, boxes: bool = False, skip: NDArray[np.bool_] | None = None) -> int:
         """Index (into ``ids``) of the nearest visible object nobody else is working on, or -1.
         ``shift`` (3,) m moves an object's centre to where the agent's column over it is; with
-        ``boxes``, boxes beside the structure (whose descent would scrape it) are left alone."""
+        ``boxes``, boxes beside the structure (whose descent would scrape it) are left alone;
+        objects marked in ``skip`` (k,) are left alone too."""
         if len(ids) == 0 or obs.time_s < self.detour_until:
             return -1
         cols = where[:, :2] - shift[:2]
         free = np.array([not self._claimed(obs, c) for c in cols])
+        if skip is not None:
+            free &= ~skip
         if boxes:
             free &= self.geo.clear_of_structure(cols)
         if not free.any():
@@ -630,17 +675,36 @@ class Stigmergy:
             self.slot_id = -1
             self.descending = False
             return None
-        drop = self.slot_pos + [0.0, 0.0, self.params.release_clearance] - self.offset   # agent centre at release
+        if self._occupied(obs, self.slot_pos) or (self.descending and obs.time_s - self.descent_start > DESCENT_TIMEOUT_S):
+            self.phase = Phase.SEEK_GOAL         # a loose box lies in the slot, or the box cannot be set down
+            self.slot_id = -1
+            self.descending = False
+            self.within_since = None
+            return None
+        drop = self.slot_pos + [0.0, 0.0, self.clearance] - self.offset   # agent centre at release
         if not self.descending:
             if self._over(obs, drop[:2]):
                 self.descending = True
+                self.descent_start = obs.time_s
             else:
                 return self._travel(p, drop[:2])
         err = np.abs(p - drop)
         if np.all(err <= self.params.release_tol) and np.linalg.norm(obs.velocity) < RELEASE_SPEED:
-            self.released = True
-            return Command.goto(drop, Action.RELEASE)
+            if self.within_since is None:
+                self.within_since = obs.time_s
+            if obs.time_s - self.within_since >= self.dwell - 1e-9:
+                self.released = True
+                return Command.goto(drop, Action.RELEASE)
+        else:
+            self.within_since = None
         return Command.goto(drop)
+
+    def _occupied(self, obs: Observation, slot: NDArray[np.float64]) -> bool:
+        """True when a loose box (seen, free) lies in the space of the slot centred at ``slot`` (3,) m."""
+        if len(obs.box_ids) == 0:
+            return False
+        d = np.abs(obs.boxes - slot)
+        return bool(np.any(np.all(d[:, :2] < self.info.box_size, axis=1) & (d[:, 2] < self.info.box_size)))
 
     def _over(self, obs: Observation, xy: NDArray[np.float64]) -> bool:
         """True when the agent hovers over ``xy`` (2,) m at its flying altitude, ready to descend."""
@@ -652,6 +716,17 @@ class Stigmergy:
         return self._rise(obs, Phase.CHOOSE_GOAL)
 
     def _climb(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        if self.let_go is not None and obs.time_s - self.let_go[3] >= SETTLE_S - 1e-9:
+            box, slot, centre, _ = self.let_go
+            seen = np.flatnonzero(obs.box_ids == box)
+            if seen.size and slot >= 0:         # the box lies loose beside its slot: take it back
+                self.box_id = box
+                self.box_pos = obs.boxes[seen[0]].copy()
+                self.again = (slot, centre)
+                self.phase = Phase.FETCH
+                self.descending = True          # straight down: the agent is over it
+                return None
+            self.let_go = None
         return self._rise(obs, Phase.CHOOSE_BOX)
 
     def _rise(self, obs: Observation, then: Phase) -> Command | None:

@@ -304,3 +304,16 @@ class OnboardEstimation:
     def neighbour_noise(self, count: int) -> NDArray[np.float64]:
         """Noise (count, 3) m to add to ``count`` sensed neighbour positions (the positioning noise)."""
         return self.positioning.neighbour_noise(self.neighbour_rng, count)
+
+
+def expected_position_std(positioning: PositioningParams, params: EstimatorParams, *, control_hz: float) -> float:
+    """Per-axis standard deviation, m, of a hovering agent's Kalman position estimate once the filter
+    has settled (the largest over a fix cycle): what an agent can expect of its own position, e.g.
+    to size its clearances. 0 for exact fixes."""
+    from pybullet_swarm.sensing.kalman import steady_position_std
+
+    if positioning.noise_std <= 0.0:
+        return 0.0
+    return steady_position_std(1.0 / float(control_hz), params.accel_process_std,
+                               max(1, round(float(control_hz) / positioning.rate_hz)), positioning.noise_std,
+                               bias_walk=params.bias_walk, bias=params.estimate_bias)

@@ -89,3 +89,33 @@ class AxisKalman:
     def variances(self) -> NDArray[np.float64]:
         """Diagonal of the covariances (m, d)."""
         return np.diagonal(self.P, axis1=1, axis2=2).copy()
+
+
+def steady_position_std(dt: float, accel_std: float, fix_every: int, fix_std: float, *, bias_walk: float = 0.0,
+                        bias: bool = True, initial: NDArray[np.float64] | None = None, cycles: int = 400) -> float:
+    """Per-axis position standard deviation, m, that the filter settles to with a fix every ``fix_every``
+    predictions: the largest over a fix cycle (just before a fix), after ``cycles`` cycles of the
+    covariance recursion (no data needed: the covariance of a linear filter does not depend on it).
+
+    Args:
+        dt: s, prediction period.
+        accel_std: m/s^2, acceleration input error per prediction.
+        fix_every: predictions per fix (>= 1).
+        fix_std: m, per-axis standard deviation of a fix.
+        bias_walk: m/s^2/sqrt(s), random-walk density of the bias (with ``bias``).
+        bias: whether the state has the acceleration bias.
+        initial: (d, d) initial covariance (default: 1 m^2, 1 (m/s)^2, 1 (m/s^2)^2).
+        cycles: fix cycles to iterate.
+    """
+    d = 3 if bias else 2
+    P0 = np.eye(d) if initial is None else np.asarray(initial, dtype=float)
+    kf = AxisKalman(np.zeros((1, d)), P0, dt, accel_std, bias_walk)
+    rows = np.zeros(1, dtype=np.int64)
+    worst = 0.0
+    for c in range(cycles):
+        for _ in range(max(int(fix_every), 1)):
+            kf.predict(np.zeros(1))
+        if c == cycles - 1:
+            worst = float(kf.P[0, 0, 0])
+        kf.update(rows, np.zeros(1), fix_std**2)
+    return float(np.sqrt(worst))
