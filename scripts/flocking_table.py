@@ -37,7 +37,7 @@ def main() -> None:
     row("flocking 5, none", "flocking", "none", a.seeds, ["agents.count=5"])
     row("formation 5, braitenberg", "formation", "braitenberg", a.seeds, [])
     row("formation 5, none", "formation", "none", a.seeds, [])
-    for r in (0.3, 0.6, 1.0, 10.0):
+    for r in (0.3, 0.6, 1.0, 3.0, 10.0):   # the seed's range of neighbourhood radii
         row(f"flocking 10, braitenberg, radius {r:g} m", "flocking", "braitenberg", a.radius_seeds,
             [f"planner.params.radius={r}"])
 
