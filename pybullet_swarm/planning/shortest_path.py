@@ -9,6 +9,14 @@ time (this baseline collides, as in the thesis). Agent i cruises at
 survives the crossings; ``altitude_step: 0`` gives the thesis's single search height (run it
 with ``collisions: ghost``, as the thesis detected collisions without simulating them).
 Centralised: it reads the whole ``WorldView``.
+
+Flying on estimates (``TaskInfo.extra["position_std"]``: the per-axis standard deviation of the
+agents' own position estimates) the agents know where they are only to that accuracy, while the
+baseline sees the boxes. So a held box is servoed onto its drop point by what the baseline sees
+of it (the target moves by the box's remaining error), it is let go ``CLEARANCE_SIGMAS``
+standard deviations above its slot at least and only after it has stayed within ``release_tol``
+for ``RELEASE_DWELL_S``. A slot whose box came to rest off it is served again, with the box
+lying in it if there is one.
 """
 from __future__ import annotations
 
@@ -18,6 +26,15 @@ from typing import ClassVar
 import numpy as np
 
 from pybullet_swarm.planning.base import Action, Command, TaskInfo, WorldView
+
+CLEARANCE_SIGMAS = 3.0
+"""Least release clearance, in standard deviations of an agent's own position estimate."""
+RELEASE_DWELL_S = 0.5
+"""s: on estimated state, how long a box must have stayed within ``release_tol`` of its drop point."""
+SERVO_GAIN = 0.3
+"""Fraction of a held box's remaining error added to its carrier's target per planner tick."""
+SERVO_LIMIT = 0.03
+"""m: largest correction of a carrier's target by the servo, per axis."""
 
 
 class Phase(enum.IntEnum):
@@ -69,24 +86,58 @@ class ShortestPath:
         self.home: np.ndarray | None = None   # m, start positions (parking spots)
         self.offset = np.tile([0.0, 0.0, -info.grasp_height], (n, 1))   # m, held box relative to agent
         self.attach = float(info.extra.get("attach_threshold", 0.02))
+        sigma = float(info.extra.get("position_std", 0.0))   # m, per-axis std of the agents' own estimates
+        self.estimated = sigma > 0.0
+        self.clearance = max(self.release_clearance, CLEARANCE_SIGMAS * sigma)   # m
+        self.correction = np.zeros((n, 3))    # m, servo correction of each carrier's target
+        self.within_since = np.full(n, np.nan)   # s, since when each held box is within release_tol
+        self.last_box = np.full((n, 3), np.nan)  # m, held box position at the previous tick
 
     def _assign(self, i: int, view: WorldView) -> None:
         taken_boxes = set(self.box[self.box >= 0].tolist())
         while self.next_slot < len(self.order) and view.slot_filled[self.order[self.next_slot]] >= 0:
             self.next_slot += 1
-        if self.next_slot >= len(self.order):
+        k = self._retry_slot(view)     # a slot passed over earlier that is empty again (its box came to rest off it)
+        if k < 0 and self.next_slot >= len(self.order):
             self.phase[i] = Phase.DONE
             return
         free = [b for b in range(len(view.box_state)) if view.box_state[b] == 0 and b not in taken_boxes]
         if not free:
             self.phase[i] = Phase.DONE
             return
-        p = view.positions[i]
-        d = [np.linalg.norm(view.box_positions[b, :2] - p[:2]) for b in free]
-        self.box[i] = free[int(np.argmin(d))]
-        self.slot[i] = self.order[self.next_slot]
-        self.next_slot += 1
+        s = self.order[k if k >= 0 else self.next_slot]
+        loose = [b for b in free if self._in_slot(view.box_positions[b], s)]
+        if loose:              # the box lying in the slot goes first: nothing is set down onto it
+            self.box[i] = loose[0]
+        else:
+            p = view.positions[i]
+            d = [np.linalg.norm(view.box_positions[b, :2] - p[:2]) for b in free]
+            self.box[i] = free[int(np.argmin(d))]
+        self.slot[i] = s
+        if k < 0:
+            self.next_slot += 1
         self.phase[i] = Phase.TO_BOX
+
+    def _retry_slot(self, view: WorldView) -> int:
+        """Position in ``order`` of the first empty slot before ``next_slot`` that no agent is serving, or -1."""
+        busy = set(self.slot[(self.phase >= Phase.TO_BOX) & (self.phase <= Phase.CLIMB)].tolist())
+        for k in range(min(self.next_slot, len(self.order))):
+            s = self.order[k]
+            if view.slot_filled[s] < 0 and s not in busy:
+                return k
+        return -1
+
+    def _in_slot(self, box: np.ndarray, s: int) -> bool:
+        """True when a box centred at ``box`` (3,) m lies (partly) in the space of slot ``s``."""
+        d = np.abs(box - self.info.slots[s])
+        return bool(np.all(d < self.info.box_size))
+
+    def _beside(self, above: np.ndarray) -> np.ndarray:
+        """A waiting point (3,) m three agent radii from ``above`` (3,) m towards the arena's centre."""
+        away = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
+        norm = float(np.linalg.norm(away))
+        step = away / norm if norm > 1e-9 else np.array([1.0, 0.0])
+        return np.array([*(above[:2] + 3.0 * self.info.agent_radius * step), above[2]])
 
     def _near_xy(self, p: np.ndarray, q: np.ndarray) -> bool:
         return bool(np.linalg.norm(p[:2] - q[:2]) <= self.arrive_tol)
@@ -136,12 +187,19 @@ class ShortestPath:
                 self.offset[i] = view.box_positions[b] - p
             return Command.goto([p[0], p[1], self.h])
         # where the agent must be for the box it holds (at its actual offset) to hang just above the slot
-        drop = self.info.slots[s] + [0.0, 0.0, self.release_clearance]
+        drop = self.info.slots[s] + [0.0, 0.0, self.clearance]
         slot_top = drop - self.offset[i]
         if ph == Phase.TO_SLOT:
             above = np.array([slot_top[0], slot_top[1], self.h])
+            if self.estimated and not view.slot_open[s]:
+                # wait beside the column, not over it: an agent serving a slot under this one descends
+                # there, and the avoidance layer on jittering estimates would hold it up for ever
+                return self._cruise(i, p, self._beside(above))
             if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_SLOT
+                self.correction[i] = 0.0
+                self.within_since[i] = np.nan
+                self.last_box[i] = np.nan
                 self._targets = getattr(self, "_targets", {})
                 self._targets[(i, s)] = slot_top
             return self._cruise(i, p, above)
@@ -156,12 +214,36 @@ class ShortestPath:
                 self._targets = {}
             # the drop point is fixed once the descent starts, so box swing does not move the target
             target = self._targets.setdefault((i, s), slot_top)
+            if self.estimated:
+                target, ok = self._servo(i, view, target, err, ok)
             return Command.goto(target, Action.RELEASE if ok else Action.NONE)
         # CLIMB
         if abs(p[2] - self.h) < 0.05:
             self.phase[i] = Phase.IDLE
             self.box[i] = -1
         return Command.goto([p[0], p[1], self.h])
+
+    def _servo(self, i: int, view: WorldView, target: np.ndarray, err: np.ndarray, ok: bool) -> tuple[np.ndarray, bool]:
+        """On estimated state: the target (3,) m of carrier ``i`` corrected by what is seen of its box
+        (error ``err`` (3,) m from the drop point), and whether to let go (``ok``, held for the dwell
+        while the box is still)."""
+        b = self.box[i]
+        p = view.positions[i]
+        box = view.box_positions[b]
+        still = bool(np.all(np.isfinite(self.last_box[i]))) and np.linalg.norm(box - self.last_box[i]) < 0.002
+        self.last_box[i] = box
+        if np.linalg.norm(p - (target + self.correction[i])) < 0.02 and still:   # arrived: servo the box
+            self.correction[i] = np.clip(self.correction[i] - SERVO_GAIN * err, -SERVO_LIMIT, SERVO_LIMIT)
+        if not (ok and still):
+            self.within_since[i] = np.nan
+        elif np.isnan(self.within_since[i]):
+            self.within_since[i] = view.time_s
+        ready = bool(ok and still and view.time_s - self.within_since[i] >= RELEASE_DWELL_S - 1e-9)
+        if ready:
+            self.correction[i] = 0.0
+            self.within_since[i] = np.nan
+            self.last_box[i] = np.nan
+        return target + self.correction[i], ready
 
     def plan_all(self, view: WorldView) -> list[Command]:
         """One command per agent."""

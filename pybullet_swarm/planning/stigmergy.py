@@ -661,7 +661,8 @@ class Stigmergy:
                 self.descending = True
             else:
                 return self._travel(p, grasp[:2])
-        if np.linalg.norm(p - grasp) <= GRASP_FRACTION * self.attach:
+        steady = self.dwell == 0.0 or np.linalg.norm(obs.velocity) < SETTLED_SPEED   # a tilted grasp skews the offset
+        if np.linalg.norm(p - grasp) <= GRASP_FRACTION * self.attach and steady:
             self.grasp_offset = self.box_pos - p
             return Command.goto(grasp, Action.GRASP)
         return Command.goto(grasp)
@@ -688,16 +689,29 @@ class Stigmergy:
                 self.descent_start = obs.time_s
             else:
                 return self._travel(p, drop[:2])
-        err = np.abs(p - drop)
-        if np.all(err <= self.params.release_tol) and np.linalg.norm(obs.velocity) < RELEASE_SPEED:
-            if self.within_since is None:
-                self.within_since = obs.time_s
-            if obs.time_s - self.within_since >= self.dwell - 1e-9:
-                self.released = True
-                return Command.goto(drop, Action.RELEASE)
-        else:
-            self.within_since = None
+        if self._settled_at(obs, drop):
+            self.released = True
+            return Command.goto(drop, Action.RELEASE)
         return Command.goto(drop)
+
+    def _settled_at(self, obs: Observation, drop: NDArray[np.float64]) -> bool:
+        """True when the agent may let go at ``drop`` (3,) m: slower than ``RELEASE_SPEED`` and, averaged
+        over the last ``dwell`` s (an estimate's jitter averages out, a drift does not), within
+        ``release_tol`` per axis of it, while never more than twice that off during the dwell."""
+        tol = self.params.release_tol
+        err = np.abs(obs.position - drop)
+        if np.linalg.norm(obs.velocity) >= RELEASE_SPEED or np.any(err > (2.0 * tol if self.dwell > 0 else tol)):
+            self.within_since = None
+            return False
+        if self.within_since is None:
+            self.within_since = obs.time_s
+            self.window: list[tuple[float, NDArray[np.float64]]] = []
+        self.window.append((obs.time_s, obs.position.copy()))
+        if obs.time_s - self.within_since < self.dwell - 1e-9:
+            return False
+        self.window = [(t, q) for t, q in self.window if t >= obs.time_s - self.dwell - 1e-9]
+        mean = np.mean([q for _, q in self.window], axis=0)
+        return bool(np.all(np.abs(mean - drop) <= tol))
 
     def _occupied(self, obs: Observation, slot: NDArray[np.float64]) -> bool:
         """True when a loose box (seen, free) lies in the space of the slot centred at ``slot`` (3,) m."""

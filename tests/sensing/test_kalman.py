@@ -102,3 +102,29 @@ def test_prediction_follows_closed_form_and_covariance_grows():
     np.testing.assert_allclose(kf.P[0], 0.04 * np.outer(G, G))
     with pytest.raises(ValueError):
         AxisKalman(np.zeros((1, 4)), np.eye(4), 0.1, 0.1)
+
+
+def test_steady_position_std_matches_the_error_the_filter_settles_to():
+    from pybullet_swarm.sensing.kalman import steady_position_std
+
+    sigma_a, sigma_p, runs = 0.03, 0.01, 2000
+    expected = steady_position_std(T, sigma_a, FIX_EVERY, sigma_p, bias=False)
+    rng = np.random.default_rng(11)
+    truth = np.zeros((runs, 2))
+    kf = AxisKalman(np.zeros((runs, 2)), np.diag([0.02**2, 0.05**2]), T, sigma_a, 0.0)
+    rows = np.arange(runs)
+    before = []
+    for k in range(400):
+        w = sigma_a * rng.normal(size=runs)                 # the input error the filter is told about
+        truth[:, 0] += T * truth[:, 1] + 0.5 * T * T * w
+        truth[:, 1] += T * w
+        kf.predict(np.zeros(runs))
+        if (k + 1) % FIX_EVERY == 0:
+            if k > 200:
+                before.append(kf.x[:, 0] - truth[:, 0])      # just before a fix: the largest of the cycle
+            kf.update(rows, truth[:, 0] + sigma_p * rng.normal(size=runs), sigma_p**2)
+    rms = float(np.sqrt(np.mean(np.square(before))))
+    assert rms == pytest.approx(expected, rel=0.08)
+    assert 0.2 * sigma_p < expected < sigma_p                # the filter averages fixes, it does not invent accuracy
+    # more accurate fixes, more accurate estimate
+    assert steady_position_std(T, sigma_a, FIX_EVERY, 0.003, bias=False) < 0.5 * expected
