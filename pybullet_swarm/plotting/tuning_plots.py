@@ -126,6 +126,16 @@ def plot_pareto(records: Sequence[Mapping[str, Any]], columns: Sequence[str], la
     if base:
         ax.plot([float(r[cx]) for r in base], [float(r[cy]) for r in base], "s", ms=8, mfc="none",
                 color="tab:green", label="baseline (defaults)")
+    whole = [r for r in done if r.get("completed") == 1 or r.get("pareto")]
+    off = len(done) - len(whole)
+    if whole and off:   # penalised trials (runs that did not complete) would squash the front: zoom in
+        xs = [float(r[cx]) for r in whole]
+        ys = [float(r[cy]) for r in whole]
+        pad_x, pad_y = 0.08 * (max(xs) - min(xs) or 1.0), 0.08 * (max(ys) - min(ys) or 1.0)
+        ax.set_xlim(min(xs) - pad_x, max(xs) + pad_x)
+        ax.set_ylim(min(ys) - pad_y, max(ys) + pad_y)
+        ax.text(0.99, 0.01, f"{off} trial(s) with incomplete runs (penalised) beyond the axes",
+                transform=ax.transAxes, ha="right", va="bottom", fontsize=7, color="0.4")
     arrow = {True: "lower is better", False: "higher is better"}
     ax.set_xlabel(f"{labels[0]} ({arrow[bool(minimise[0])]})", fontsize=8)
     ax.set_ylabel(f"{labels[1]} ({arrow[bool(minimise[1])]})", fontsize=8)
