@@ -44,7 +44,8 @@ Design decisions (numbers are ``OrcaParams`` defaults):
   pitch keep 2 cm of slack), and a pair's Minkowski box by ``lag_margin_s`` times their closing
   speed on each axis: the cascade takes about 0.3 s to follow a new velocity and overshoots it by
   up to 100 % (measured: a 0.15 m/s step peaks at 0.24 m/s, a reversal at 0.32 m/s), which the
-  one-step kinematic model of ORCA does not know about.
+  one-step kinematic model of ORCA does not know about. Flying on estimates, shapes also grow
+  by ``uncertainty_sigmas`` standard deviations of a pair's relative position error.
 * Reference velocity (``v_opt``): the sensed velocity of every agent, clipped to the limits
   (the overshoots above are not motion to answer). Each pair's (n, u) is computed once in index
   order and negated for the other agent, so both halves match to the last bit, from sensed state
@@ -60,7 +61,9 @@ Design decisions (numbers are ``OrcaParams`` defaults):
   the agent sweeps on its way there stays ``clearance_margin`` clear of every neighbour's box
   swept along that neighbour's velocity for ``clearance_lookahead``.
 * Overlap. Shapes that already overlap (margins included: a dense start grid, lag) open the gap
-  along the axis of least overlap over ``recovery_time``, so the demand stays within the limits.
+  along the axis of least overlap over ``recovery_time``, so the demand stays within the limits
+  (unweighted: an agent just above a climbing neighbour is lifted, not sent sideways while it
+  sinks into it).
 * Choice of the way out. Thin airframes would otherwise always dodge up or down, into each
   other's downwash and the ground: vertical changes count ``vertical_cost`` times horizontal ones
   when the nearest way out of a box VO is chosen (any choice is safe; this one is symmetric).
@@ -242,12 +245,15 @@ def _box_u(c: tuple[float, float, float], H: tuple[float, float, float], v: tupl
     for k in range(3):
         g = abs(c[k]) - H[k]
         pen = max(pen, g)
-        ck = -g * (wz if k == 2 else 1.0)     # separation still needed along k, weighted
+        # separation still needed along k; not weighted: when two shapes overlap only a little
+        # vertically (one just above the other) a sideways way out leaves them free to close
+        # vertically, so the least overlap wins whatever its axis
+        ck = -g
         if ck < cost:
             cost = ck
             k_pen = k
     if pen <= 0.0:
-        # overlapping now: open the gap along the axis of least (weighted) overlap over the recovery time
+        # overlapping now: open the gap along the axis of least overlap over the recovery time
         s = _axis(k_pen, 1.0 if c[k_pen] >= 0.0 else -1.0)
         gap = abs(c[k_pen]) - H[k_pen]
         return _scale(s, -1.0), _scale(s, gap * inv_rec - _dot(v, s))
@@ -1009,6 +1015,10 @@ class OrcaParams:
             fraction of the preferred speed counts as stalled.
         max_speed: m/s, radius of the speed sphere (default: the corner of the velocity-limit
             box, or 1 m/s without limits).
+        uncertainty_sigmas: when the agents fly on estimates (``TaskInfo.extra["position_std"]``,
+            the per-axis standard deviation of an agent's position estimate), each shape also
+            grows by this many standard deviations of a pair's relative position error, shared
+            between the two: ``uncertainty_sigmas * sqrt(2) * std / 2``.
     """
 
     shape: Shape = Shape.BOX
@@ -1028,6 +1038,7 @@ class OrcaParams:
     right_bias: float = 0.5
     stuck_fraction: float = 0.25
     max_speed: float | None = None
+    uncertainty_sigmas: float = 2.0
 
     def __post_init__(self) -> None:
         if isinstance(self.shape, str):
@@ -1056,6 +1067,7 @@ class OrcaParams:
         if self.responsibility > 1.0:
             raise ValueError(f"avoidance_params.responsibility must be in (0, 1], got {self.responsibility!r}")
         _check_number("stuck_fraction", self.stuck_fraction, strict=False)
+        _check_number("uncertainty_sigmas", self.uncertainty_sigmas, strict=False)
         if self.stuck_fraction >= 1.0:
             raise ValueError(f"avoidance_params.stuck_fraction must be in [0, 1), got {self.stuck_fraction!r}")
 
@@ -1113,6 +1125,10 @@ class OrcaLayer:
 
     def __init__(self, sim: Simulation, **params: Any) -> None:
         self.params = OrcaParams.from_mapping(params)
+        std = float(sim.info.extra.get("position_std", 0.0))      # m, per-axis, flying on estimates
+        if std > 0.0:
+            grow = self.params.uncertainty_sigmas * math.sqrt(2.0) * std / 2.0
+            self.params = dataclasses.replace(self.params, safety_margin=self.params.margin + grow)
         self.n = sim.n
         self.v_max = sim.scenario.velocity_limits()            # (3,) m/s or None
         self.a_max = sim.scenario.acceleration_limits()        # (3,) m/s^2
