@@ -11,7 +11,6 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
-from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.aco import ACOParams, LocalSearch, Schedule, solve_tsp
 from pybullet_swarm.planning.tsplib import TSPInstance, load_tsplib
 

@@ -1,6 +1,7 @@
 """Run directories: resolved scenario, metrics, time series, events and plots, written atomically."""
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -8,11 +9,32 @@ import os
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import yaml
 
+from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.types import Event
+
+
+@contextlib.contextmanager
+def exclusive_directory(out: Path, holder: str) -> Iterator[None]:
+    """Hold ``out/.lock`` so that two ``holder``s (a sweep, a tuner) never write one directory at once."""
+    try:
+        import fcntl
+    except ImportError:    # not POSIX: no lock
+        yield
+        return
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / ".lock", "a+") as fh:
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise ConfigError(f"another {holder} is writing this directory", source=str(out)) from None
+        try:
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
 
 
 def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = False) -> None:

@@ -9,7 +9,7 @@ import dataclasses
 import enum
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal, Mapping, Sequence, Union
+from typing import Annotated, Any, Literal, Mapping, Sequence
 
 import numpy as np
 import pydantic

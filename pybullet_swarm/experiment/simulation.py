@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from pybullet_swarm.control.cascade import CascadeController
 from pybullet_swarm.control.kernels import STATUS_FLIPPED, STATUS_NONFINITE, physics_tick
 from pybullet_swarm.control.reference import ReferenceShaper
-from pybullet_swarm.control.rotations import quat_to_euler, quat_to_matrix
+from pybullet_swarm.control.rotations import quat_to_euler
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.recorder import Recorder, TimeSeries
 from pybullet_swarm.experiment.scenario import Scenario, WaypointsTask

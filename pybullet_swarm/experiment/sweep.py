@@ -354,26 +354,6 @@ def _merge_manifest(plan: Plan, old: dict[str, Any] | None) -> dict[str, Any]:
             "grid_keys": grid_keys, "created": (old or {}).get("created", now), "updated": now, "runs": runs}
 
 
-@contextlib.contextmanager
-def _exclusive(out: Path) -> Iterator[None]:
-    """Hold ``DIR/.lock`` so that two sweeps never write the same directory at once."""
-    try:
-        import fcntl
-    except ImportError:    # not POSIX: no lock
-        yield
-        return
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / ".lock", "a+") as fh:
-        try:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise ConfigError("another sweep is writing this directory", source=str(out)) from None
-        try:
-            yield
-        finally:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
-
-
 # ---------------------------------------------------------------- the sweep
 @dataclasses.dataclass(frozen=True)
 class SweepResult:
@@ -451,8 +431,9 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, executor: str = "l
     if old is None and out.is_dir() and any(p.name != ".lock" for p in out.iterdir()):
         raise ConfigError("exists and is not a sweep directory (no sweep.json); use another --out", source=str(out))
     say = (lambda msg: None) if quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
-    with _exclusive(out):
-        from pybullet_swarm.experiment.rundir import write_json
+    from pybullet_swarm.experiment.rundir import exclusive_directory, write_json
+
+    with exclusive_directory(out, "sweep"):
 
         manifest = _merge_manifest(plan, old)
         write_json(out / MANIFEST, manifest)

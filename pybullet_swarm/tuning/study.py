@@ -33,9 +33,10 @@ import threading
 import time
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.experiment.rundir import exclusive_directory
 from pybullet_swarm.experiment.results import RUNS_CSV, Row, RunsTable, RunStatus, config_hash, read_metrics
 from pybullet_swarm.tuning.objective import (DEFAULT_OBJECTIVE, DEFAULT_PENALTY, MissingMetric, Objective,
                                              check_names, is_completed, parse_objectives, score_run,
@@ -383,26 +384,6 @@ def _n_done(study: Any) -> int:
     return sum(1 for t in trials if t.state is TrialState.COMPLETE or "error" in t.user_attrs)
 
 
-@contextlib.contextmanager
-def _exclusive(out: Path) -> Iterator[None]:
-    """Hold ``DIR/.lock``: one tuner at a time on a directory (and on its SQLite study)."""
-    try:
-        import fcntl
-    except ImportError:   # not POSIX: no lock
-        yield
-        return
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / ".lock", "a+") as fh:
-        try:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise ConfigError("another tuner is writing this directory", source=str(out)) from None
-        try:
-            yield
-        finally:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
-
-
 class _Heartbeat:
     """A daemon thread recording a heartbeat for each running trial of this tuner."""
 
@@ -528,7 +509,7 @@ def run_tuning(spec: TuneSpec, out: str | Path, *, storage: str | None = None, e
     say = (lambda msg: None) if quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
     interrupted = False
     n_run = 0
-    with _exclusive(out) if exclusive else contextlib.nullcontext():
+    with exclusive_directory(out, "tuner") if exclusive else contextlib.nullcontext():
         store = open_storage(url)
         name = _study_name(ctx)
         study = _open_study(ctx, store, name)
