@@ -181,7 +181,7 @@ class CascadeController:
 
 class _ReferencePrefilter:
     """The acceleration path of each position loop, discretised (zero-order hold at the control
-    period), run on the position and velocity references of all agents at once.
+    period), run on the position and velocity references of all agents at once (one compiled call).
 
     Starts (and restarts after ``primed = False``) in steady state at the references it is given.
     """
@@ -189,13 +189,18 @@ class _ReferencePrefilter:
     def __init__(self, design: ControllerDesign, dt: float) -> None:
         import control
 
-        self.axes = []
-        for loop in ("x", "y", "z"):
-            sys = control.c2d(control.ss(design.acceleration_path(loop)), dt, "zoh")
+        systems = [control.c2d(control.ss(design.acceleration_path(loop)), dt, "zoh") for loop in ("x", "y", "z")]
+        m = max(sys.nstates for sys in systems)        # axes with fewer states are padded with zeros
+        self.At, self.B = np.zeros((3, m, m)), np.zeros((3, m))
+        self.C, self.D, self.x_unit = np.zeros((3, m)), np.zeros(3), np.zeros((3, m))
+        for k, sys in enumerate(systems):
             A, B = np.asarray(sys.A, dtype=float), np.asarray(sys.B, dtype=float)[:, 0]
-            C, D = np.asarray(sys.C, dtype=float)[0], float(np.asarray(sys.D)[0, 0])
-            x_unit = np.linalg.solve(np.eye(A.shape[0]) - A, B)        # steady state for a unit input
-            self.axes.append((A.T.copy(), B, C, D, x_unit))
+            r = A.shape[0]
+            self.At[k, :r, :r] = A.T
+            self.B[k, :r] = B
+            self.C[k, :r] = np.asarray(sys.C, dtype=float)[0]
+            self.D[k] = float(np.asarray(sys.D)[0, 0])
+            self.x_unit[k, :r] = np.linalg.solve(np.eye(r) - A, B)   # steady state for a unit input
         self.primed = False
 
     def reset(self, n: int) -> None:
@@ -203,19 +208,11 @@ class _ReferencePrefilter:
         self.n = n
         self.p = np.zeros((n, 3))    # m, filtered position references
         self.v = np.zeros((n, 3))    # m/s, filtered velocity references
-        self.x = [np.zeros((2 * n, a[0].shape[0])) for a in self.axes]   # filter states, positions then velocities
+        self.x = np.zeros((2, n, 3, self.B.shape[1]))   # filter states: positions, velocities
         self.primed = False
 
     def update(self, p_ref: NDArray[np.float64], v_ref: NDArray[np.float64]) -> None:
         """Filter this tick's references (n, 3) m and m/s into ``p`` and ``v``."""
-        n = self.n
-        for k, (At, B, C, D, x_unit) in enumerate(self.axes):
-            u = np.concatenate([p_ref[:, k], v_ref[:, k]])
-            x = self.x[k]
-            if not self.primed:
-                x[:] = u[:, None] * x_unit
-            y = x @ C + D * u
-            self.p[:, k] = y[:n]
-            self.v[:, k] = y[n:]
-            x[:] = x @ At + u[:, None] * B
+        kernels.prefilter_references(p_ref, v_ref, self.At, self.B, self.C, self.D, self.x_unit, self.x,
+                                     self.primed, self.p, self.v)
         self.primed = True

@@ -318,3 +318,43 @@ def shape_references(
             v_ref[i, k] = v_new
             a_ref[i, k] = dv / dt
             p_ref[i, k] += 0.5 * (v_old + v_new) * dt
+
+
+@numba.njit(cache=True)
+def prefilter_references(
+    p_ref: NDArray[np.float64],    # (n, 3) m, shaped position references
+    v_ref: NDArray[np.float64],    # (n, 3) m/s, shaped velocity references
+    At: NDArray[np.float64],       # (3, m, m) per axis, transposed discrete state matrix (zero-padded)
+    B: NDArray[np.float64],        # (3, m)
+    C: NDArray[np.float64],        # (3, m)
+    D: NDArray[np.float64],        # (3,)
+    x_unit: NDArray[np.float64],   # (3, m) steady state for a unit input
+    x: NDArray[np.float64],        # (2, n, 3, m) filter states of positions and velocities (in/out)
+    primed: bool,                  # False: start in steady state at these references
+    p_out: NDArray[np.float64],    # (n, 3) m, out
+    v_out: NDArray[np.float64],    # (n, 3) m/s, out
+) -> None:
+    """One tick of the reference prefilter (``CascadeController``) for all agents and axes."""
+    m = B.shape[1]
+    tmp = np.empty(m)
+    for s in range(2):
+        u_all = p_ref if s == 0 else v_ref
+        out = p_out if s == 0 else v_out
+        for i in range(u_all.shape[0]):
+            for k in range(3):
+                u = u_all[i, k]
+                xs = x[s, i, k]
+                if not primed:
+                    for j in range(m):
+                        xs[j] = u * x_unit[k, j]
+                y = D[k] * u
+                for j in range(m):
+                    y += C[k, j] * xs[j]
+                out[i, k] = y
+                for j in range(m):
+                    acc = u * B[k, j]
+                    for q in range(m):
+                        acc += xs[q] * At[k, q, j]
+                    tmp[j] = acc
+                for j in range(m):
+                    xs[j] = tmp[j]
