@@ -217,12 +217,6 @@ class ControllerDesign:
             raise ValueError(f"acceleration_path: expected a position loop (x, y, z), got {lp.value!r}")
         return control.minreal(self.plant(lp) * _double_integrator() ** -1, verbose=False)
 
-    def acceleration_lag_s(self, loop: Loop | str) -> float:
-        """Mean delay, s, of ``acceleration_path``: the centroid of its impulse response,
-        ``-G'(0) / G(0)``; a first-order lag with this time constant has the same low-frequency phase."""
-        num, den = _num_den(self.acceleration_path(loop))
-        return float(den[-2] / den[-1] - num[-2] / num[-1]) if len(num) > 1 else float(den[-2] / den[-1])
-
     def to_json_dict(self) -> dict[str, object]:
         """The report as JSON-ready plain Python values (no gains; see ``format_table``)."""
         return {

@@ -209,10 +209,9 @@ class PheromoneGrid:
         if by_column and rng is not None:
             _, first = np.unique(idx[:, :2], axis=0, return_index=True)
             idx = idx[np.sort(first)]
-            cand = cand[np.sort(first)]
         centres = self.centre(idx)
         if rng is not None:
-            return centres[int(rng.integers(len(cand)))]
+            return centres[int(rng.integers(len(centres)))]
         if near is None:
             return centres[0]
         return centres[int(np.argmin(np.linalg.norm(centres - np.asarray(near, dtype=float), axis=1)))]
