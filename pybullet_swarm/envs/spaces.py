@@ -188,15 +188,14 @@ class ObservationBuilder:
             self._neighbours(out, pos, vel, sim.state_array)
         if c is not None and (self.kb or self.ks):
             gh = np.array([0.0, 0.0, c.grasp_height])
-            reach = c.view_radius + c.grasp_height
             if self.kb:
                 rel = c.positions[None, :, :] - pos[:, None, :]               # (n, B, 3) m
-                seen = np.linalg.norm(rel + gh, axis=2) <= reach
+                seen = c.in_view(rel + gh)
                 vec, present = _nearest(rel, seen & (c.state == FREE)[None, :], self.kb)
                 out[:, self._sl["boxes"]] = np.concatenate([vec, present[:, :, None]], axis=2).reshape(n, -1)
             if self.ks:
                 rel = c.slots[None, :, :] - pos[:, None, :]                   # (n, S, 3) m
-                seen = np.linalg.norm(rel + gh, axis=2) <= reach
+                seen = c.in_view(rel + gh)
                 vec, present = _nearest(rel, seen & c.slot_open[None, :], self.ks)
                 out[:, self._sl["slots"]] = np.concatenate([vec, present[:, :, None]], axis=2).reshape(n, -1)
         if self.kp:

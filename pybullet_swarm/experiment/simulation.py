@@ -231,7 +231,7 @@ class Simulation:
             c = self.construction
             kw = dict(depot=c.start.copy(), slots=c.slots.copy(), box_size=c.size, grasp_height=c.grasp_height)
             extra.update(search_height=c.spec.search_height, attach_threshold=c.spec.attach_threshold,
-                         view_radius=c.view_radius)
+                         view_radius=c.view_radius, view_norm=c.spec.view_norm)
             if sc.sensing.state.value == "estimated":   # what an agent can expect of its own position estimate
                 from pybullet_swarm.sensing.estimator import EstimatorParams, expected_position_std
                 from pybullet_swarm.sensing.positioning import PositioningParams

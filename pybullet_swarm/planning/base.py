@@ -31,6 +31,14 @@ class CommandKind(enum.IntEnum):
     HOLD = 2       # keep the current reference
 
 
+def view_distance(rel: NDArray[np.float64], norm: str) -> NDArray[np.float64]:
+    """Distance (...,) m of vectors ``rel`` (..., 3) m in a view norm: "chebyshev" (largest per-axis
+    difference, as the thesis measures it) or "euclidean"."""
+    if norm == "chebyshev":
+        return np.max(np.abs(rel), axis=-1)
+    return np.linalg.norm(rel, axis=-1)
+
+
 @dataclasses.dataclass(frozen=True)
 class Command:
     """One agent's command for the next planner period.

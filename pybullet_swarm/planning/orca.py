@@ -641,6 +641,11 @@ def _orca_batch(pos: NDArray[np.float64], vel: NDArray[np.float64], pref: NDArra
             if j >= 0:
                 side = _sidestep(_scale(pr, 1.0 / sp), _add(_row(pos, j), _row(pos, i), -1.0))
                 feasible, res = _solve(N, P, m, n_hard, max_speed, _add(pr, side, right_bias * sp), SN, SP)
+                if _dot(res, res) < stuck * stuck * sp * sp:
+                    # still held: the bias cancelled what the neighbours' planes left free (a box VO
+                    # leaves the axis across the blocking face free; the bias can exactly cancel the
+                    # preferred velocity along it): ask for the sideways step alone
+                    feasible, res = _solve(N, P, m, n_hard, max_speed, _scale(side, sp), SN, SP)
                 f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
         _set_row(out, i, res)
         flags[i] = f

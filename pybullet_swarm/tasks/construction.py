@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.planning.base import view_distance
 from pybullet_swarm.tasks import TASK_MODELS
 from pybullet_swarm.types import Event
 
@@ -46,11 +47,17 @@ class ConstructionTask(pydantic.BaseModel):
     grasp_gap: float = Field(0.005, ge=0.0, le=0.5)             # m, airframe bottom to box top when held
     place_tolerance_m: float = Field(0.01, gt=0.0, le=1.0)
     place_tolerance_deg: float = Field(10.0, gt=0.0, le=45.0)
+    # a placed box counts as displaced only beyond (1 + place_hysteresis) x the place tolerances
+    place_hysteresis: float = Field(0.5, ge=0.0, le=2.0)
     settle_s: float = Field(1.0, ge=0.0, le=100.0)
     settle_speed: float = Field(0.01, gt=0.0, le=10.0)          # m/s, "still" below this
     search_height: float = Field(0.45, gt=0.0, le=100.0)        # m, cruise altitude of the planners
     grip_force: float = Field(2.0, gt=0.0, le=1000.0)           # N, a harder pull on a held box makes it slip
     view_radius: float | None = Field(None, gt=0.0, le=100.0)   # m (default: 2 x agent radius)
+    # distance in which the view radius is measured: "chebyshev" (the largest per-axis difference, a
+    # cube of half-width view_radius: the thesis's appendix A, dist = max(abs(object - agent))) or
+    # "euclidean" (a ball)
+    view_norm: Literal["chebyshev", "euclidean"] = "chebyshev"
 
     def check(self, scenario: Scenario, source: str) -> None:
         """Refuse boxes outside the arena, overlapping boxes or slots, and unsupported slots."""
@@ -204,7 +211,15 @@ class ConstructionRuntime:
         loose = self.state != CARRIED
         new_slot_box = np.full(self.S, -1, dtype=np.int64)
         d = np.linalg.norm(self.positions[None, :, :] - self.slots[:, None, :], axis=2)   # (S, B)
+        # hysteresis: a box in its slot stays there until it has moved clearly out of the tolerances
+        # (a box resting on the boundary would otherwise flicker between placed and free)
+        wide = 1.0 + self.spec.place_hysteresis
+        kept = loose & (tilt <= wide * tol_a) & (yaw <= wide * tol_a)
         for s in range(self.S):
+            b = self.slot_box[s]
+            if b >= 0 and kept[b] and d[s, b] <= wide * self.spec.place_tolerance_m:
+                new_slot_box[s] = b
+                continue
             cand = np.nonzero((d[s] <= self.spec.place_tolerance_m) & aligned & loose)[0]
             if cand.size:
                 new_slot_box[s] = cand[np.argmin(d[s, cand])]
@@ -303,11 +318,15 @@ class ConstructionRuntime:
 
     def visible(self, p: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """Free boxes and open slots within the view radius of position ``p`` (3,) m."""
-        r = self.view_radius
-        free = np.nonzero((self.state == FREE) & (np.linalg.norm(self.grasp_points() - p, axis=1) <= r + self.grasp_height))[0]
-        open_ = np.nonzero(self.slot_open & (np.linalg.norm(self.slots + [0.0, 0.0, self.grasp_height] - p, axis=1)
-                                             <= r + self.grasp_height))[0]
+        free = np.nonzero((self.state == FREE) & self.in_view(self.grasp_points() - p))[0]
+        open_ = np.nonzero(self.slot_open & self.in_view(self.slots + [0.0, 0.0, self.grasp_height] - p))[0]
         return free, open_
+
+    def in_view(self, rel: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """(...,) True where an object whose grasp point lies at ``rel`` (..., 3) m from an agent is in
+        its view: within view_radius + grasp_height in the task's ``view_norm`` (measured from the
+        grasp point, so that an agent holding station over a box sees it)."""
+        return view_distance(rel, self.spec.view_norm) <= self.view_radius + self.grasp_height
 
     def metrics(self) -> dict[str, Any]:
         """Task metrics of the run so far."""

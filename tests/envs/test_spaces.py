@@ -53,10 +53,23 @@ def test_construction_observes_boxes_and_slots_in_view() -> None:
         obs, _ = env.reset(seed=0)
         lay = env.layout
         assert lay.slice("boxes").stop - lay.slice("boxes").start == 8
-        # agents start at the depot's edge (x = 0.12 m), boxes at x >= 0.4 m: beyond the view radius
-        for a in env.possible_agents:
-            assert np.all(obs[a][lay.slice("boxes")] == 0.0)
+        sim = env.sim
+        c = sim.construction
+        pos = sim.state_array[:, :3]
+        seen_any = False
+        for i, a in enumerate(env.possible_agents):
+            rel = c.positions - pos[i]
+            in_view = c.in_view(rel + [0.0, 0.0, c.grasp_height])
+            block = obs[a][lay.slice("boxes")].reshape(2, 4)
+            expected = rel[in_view][np.argsort(np.einsum("ij,ij->i", rel[in_view], rel[in_view]))][:2]
+            assert int(block[:, 3].sum()) == len(expected)           # exactly the boxes in view, nearest first
+            assert np.allclose(block[:len(expected), :3], expected, atol=1e-6)
+            seen_any |= len(expected) > 0
+            # the structure (x = 2.7 m) is far from the depot edge where the agents start
             assert np.all(obs[a][lay.slice("slots")] == 0.0)
+        # agents start 0.28 m in front of the depot's first row: in the thesis's max-norm view
+        # (the nearest box's grasp point within view radius + grasp height on every axis)
+        assert seen_any
         assert env.observation_space("agent_0").contains(obs["agent_0"])
     finally:
         env.close()

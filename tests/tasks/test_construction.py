@@ -117,3 +117,42 @@ def test_shortest_path_completes_construction_with_five_agents():
     assert r.exit_status is ExitStatus.COMPLETED
     assert r.metrics["boxes_placed"] == 9
     assert r.metrics["completion_time_s"] < 200
+
+
+def test_placed_box_stays_placed_within_the_hysteresis_band(make_sim):
+    sc = load_scenario("construction_single", {"task.boxes": [[0.4, 0.5, 0.05]], "task.structure": [[2.7, 0.5, 0.05]]})
+    sim = make_sim(sc)
+    c = sim.construction
+    tol = c.spec.place_tolerance_m
+    wide = (1.0 + c.spec.place_hysteresis) * tol
+    c.update(0.0)
+    sim.world.reset_body(c.bodies[0], [2.7 + 1.2 * tol, 0.5, 0.05])   # lands just outside: not placed
+    c.update(0.1)
+    assert c.slot_box[0] == -1 and c.state[0] == FREE
+    sim.world.reset_body(c.bodies[0], [2.7 + 0.9 * tol, 0.5, 0.05])   # inside: placed
+    c.update(0.2)
+    assert c.slot_box[0] == 0 and c.state[0] == PLACED
+    sim.world.reset_body(c.bodies[0], [2.7 + 1.2 * tol, 0.5, 0.05])   # nudged past the tolerance: still placed
+    c.update(0.3)
+    assert c.slot_box[0] == 0 and c.state[0] == PLACED
+    sim.world.reset_body(c.bodies[0], [2.7 + wide + 0.002, 0.5, 0.05])  # clearly out: displaced
+    c.update(0.4)
+    assert c.slot_box[0] == -1 and c.state[0] == FREE
+    kinds = [e.kind for e in c.events]
+    assert kinds == ["placed", "unplaced"]
+
+
+@pytest.mark.parametrize(("norm", "seen"), [("chebyshev", True), ("euclidean", False)])
+def test_view_radius_is_measured_in_the_task_norm(make_sim, norm, seen):
+    sc = load_scenario("construction_single", {"task.boxes": [[0.4, 0.5, 0.05]], "task.structure": [[2.7, 0.5, 0.05]],
+                                               "task.view_norm": norm})
+    c = make_sim(sc).construction
+    reach = c.view_radius + c.grasp_height
+    grasp = c.grasp_points()[0]
+    diagonal = grasp + 0.95 * reach * np.array([1.0, 1.0, 0.0])        # inside the cube, outside the ball
+    free, _ = c.visible(diagonal)
+    assert (0 in free) is seen
+    along = grasp + 0.95 * reach * np.array([0.0, 1.0, 0.0])           # inside both
+    assert 0 in c.visible(along)[0]
+    beyond = grasp + 1.05 * reach * np.array([0.0, 0.0, 1.0])          # outside both
+    assert 0 not in c.visible(beyond)[0]
