@@ -328,3 +328,21 @@ def test_eight_agents_swap_on_a_circle_with_physics():
     final = r.timeseries.positions[-1].astype(float)
     assert np.max(np.linalg.norm(final - goals, axis=1)) < 0.05
     assert _min_airframe_gap(r.timeseries.positions) > 0.005
+
+
+def test_line_of_stalled_agents_is_broken_sideways():
+    # Three agents at rest in a line along their 2:1 headings (per-axis limits), two one way and one
+    # the other, airframe boxes face to face along x: the right bias alone cancels the preferred
+    # velocity along the free y axis, so each asks for the sideways step alone and moves (a
+    # deadlock of 10 s traced in stigmergy + orca on construction.yaml, seed 5).
+    pos = np.array([[1.735, 0.401, 0.215], [1.554, 0.319, 0.215], [1.374, 0.163, 0.215]])
+    pref = np.array([[-0.15, -0.075, 0.0], [-0.15, -0.075, 0.0], [0.15, 0.075, 0.0]])
+    vm = np.full(3, 0.15)
+    params = OrcaParams()
+    v, flags = orca_velocities(pos, np.zeros((3, 3)), pref, params=params, sensing_radius=1.0, v_max=vm,
+                               radii=np.full(3, R_AGENT), boxes=(np.zeros((3, 3)), np.tile(HALF, (3, 1))),
+                               goals=pos + 10.0 * pref, has_goal=np.ones(3, dtype=bool))
+    speed = np.linalg.norm(v, axis=1)
+    assert np.all(speed >= params.stuck_fraction * np.linalg.norm(pref, axis=1))
+    assert abs(v[1, 1]) > 0.05                   # the middle one steps aside along the free axis
+    assert np.all(np.abs(v) <= vm + 1e-9)
