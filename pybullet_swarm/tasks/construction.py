@@ -53,6 +53,9 @@ class ConstructionTask(pydantic.BaseModel):
     settle_speed: float = Field(0.01, gt=0.0, le=10.0)          # m/s, "still" below this
     search_height: float = Field(0.45, gt=0.0, le=100.0)        # m, cruise altitude of the planners
     grip_force: float = Field(2.0, gt=0.0, le=1000.0)           # N, a harder pull on a held box makes it slip
+    # the grip squares a held box to the airframe (nearest quarter turn), as a square jaw would: a
+    # box knocked askew is placed straight again (false: held as it was grasped)
+    square_grip: bool = True
     view_radius: float | None = Field(None, gt=0.0, le=100.0)   # m (default: 2 x agent radius)
     # distance in which the view radius is measured: "chebyshev" (the largest per-axis difference, a
     # cube of half-width view_radius: the thesis's appendix A, dist = max(abs(object - agent))) or
@@ -260,7 +263,8 @@ class ConstructionRuntime:
         if not np.isfinite(d[i]) or d[i] > self.spec.attach_threshold:
             return -1
         body = self.bodies[i]
-        self._constraints[i] = self.world.attach(agent_body, body, max_force=self.spec.grip_force)
+        self._constraints[i] = self.world.attach(agent_body, body, max_force=self.spec.grip_force,
+                                                 square=self.spec.square_grip)
         for other in self._ghost_partners(i, agent_body):
             self.world.set_pair_collision(other, body, False)
         self.state[i] = CARRIED

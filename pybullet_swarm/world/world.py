@@ -297,10 +297,13 @@ class World:
         pb.changeDynamics(body, -1, mass=float(mass), physicsClientId=self._cid)
 
     # ------------------------------------------------------------ constraints
-    def attach(self, parent: int, child: int, max_force: float = 2.0) -> int:
+    def attach(self, parent: int, child: int, max_force: float = 2.0, square: bool = False) -> int:
         """Hold ``child`` rigidly to ``parent`` at their current relative pose; returns a handle.
 
-        ``max_force`` (N) is the grip: a harder pull (a collision) makes the held body slip.
+        ``max_force`` (N) is the grip: a harder pull (a collision) makes the held body slip. With
+        ``square`` the child (a cube) is held at the quarter-turn orientation nearest to its own
+        relative to the parent, its faces parallel to the parent's axes, as a square jaw grips it:
+        the grip turns it there.
         """
         cid = self._cid
         self.wake(child)
@@ -308,6 +311,8 @@ class World:
         cp, co = pb.getBasePositionAndOrientation(child, physicsClientId=cid)
         ip, io = pb.invertTransform(pp, po)
         rel_p, rel_o = pb.multiplyTransforms(ip, io, cp, co)
+        if square:
+            rel_o = _nearest_quarter_turn(rel_o)
         c = pb.createConstraint(parent, -1, child, -1, pb.JOINT_FIXED, [0, 0, 0], rel_p, [0, 0, 0],
                                 parentFrameOrientation=rel_o, physicsClientId=cid)
         pb.changeConstraint(c, maxForce=float(max_force), physicsClientId=cid)
@@ -365,3 +370,22 @@ class World:
             self.close()
         except Exception:
             pass
+
+
+def _nearest_quarter_turn(q: Any) -> tuple[float, float, float, float]:
+    """The rotation of the cube's symmetry group (axes onto axes) nearest to the rotation ``q``
+    (x, y, z, w)."""
+    from scipy.spatial.transform import Rotation
+
+    R = np.array(pb.getMatrixFromQuaternion(q)).reshape(3, 3)
+    S = np.zeros((3, 3))
+    rows, cols = [0, 1, 2], [0, 1, 2]
+    for _ in range(3):   # greedily give each box axis the parent axis it is most parallel to
+        a, b = np.unravel_index(int(np.argmax(np.abs(R[np.ix_(rows, cols)]))), (len(rows), len(cols)))
+        r, c = rows.pop(a), cols.pop(b)
+        S[r, c] = 1.0 if R[r, c] >= 0.0 else -1.0
+    if np.linalg.det(S) < 0.0:   # a tie near 45 deg: flip the least certain of the three choices
+        r, c = min(zip(*np.nonzero(S)), key=lambda rc: abs(R[rc]))
+        S[r, c] = -S[r, c]
+    x, y, z, w = Rotation.from_matrix(S).as_quat()
+    return (float(x), float(y), float(z), float(w))

@@ -156,3 +156,31 @@ def test_view_radius_is_measured_in_the_task_norm(make_sim, norm, seen):
     assert 0 in c.visible(along)[0]
     beyond = grasp + 1.05 * reach * np.array([0.0, 0.0, 1.0])          # outside both
     assert 0 not in c.visible(beyond)[0]
+
+
+@pytest.mark.parametrize("square", [True, False])
+def test_grip_squares_a_box_knocked_askew(make_sim, square):
+    from pybullet_swarm.tasks.construction import _box_tilt_and_yaw_error
+
+    sc = load_scenario("construction_single", {"agents.start_jitter": 0.0, "task.square_grip": square})
+    sim = make_sim(sc)
+    c = sim.construction
+    body = sim.world.agent_bodies[0]
+    box = 4
+    yaw = np.radians(14.0)                                   # beyond the 10 deg place tolerance
+    sim.world.reset_body(c.bodies[box], c.positions[box], [0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
+    c.read()
+    grasp = c.grasp_points()[box]
+    _hover_to(sim, [grasp[0], grasp[1], 0.45], 12)
+    _hover_to(sim, grasp, 6)
+    assert c.grasp(0, body, sim.state.positions[0], sim.time) == box
+    sim.controller.set_payload(0, c.spec.box_mass)
+    _hover_to(sim, [grasp[0], grasp[1], 0.45], 4)
+    c.read()
+    _, box_yaw = _box_tilt_and_yaw_error(c.quaternions[box:box + 1])
+    _, agent_yaw = _box_tilt_and_yaw_error(sim.state.quaternions[0:1])
+    if square:     # turned square with the airframe, which holds its heading
+        assert abs(np.degrees(box_yaw[0]) - np.degrees(agent_yaw[0])) < 1.0
+        assert np.degrees(box_yaw[0]) < c.spec.place_tolerance_deg
+    else:
+        assert np.degrees(box_yaw[0]) == pytest.approx(14.0, abs=1.0)
