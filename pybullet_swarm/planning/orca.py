@@ -74,7 +74,9 @@ Design decisions (numbers are ``OrcaParams`` defaults):
   its preferred speed sideways and solves again: to the right, so that a crowd turns into a
   roundabout, except when the neighbour is nearly straight ahead but already a little to one
   side, then to the side it leaves free (``_sidestep``); both agents see mirrored numbers and
-  pass each other. A neighbour sitting on the goal itself is waited for (circling it would not
+  pass each other. When the biased velocity is still held (the bias can exactly cancel the
+  preferred velocity along the one axis a box VO leaves free), the agent asks for the sideways
+  step alone. A neighbour sitting on the goal itself is waited for (circling it would not
   help).
 
 Public pieces: ``orca_plane`` (one half-space), ``solve_velocity`` (one LP), ``orca_velocities``
