@@ -642,7 +642,7 @@ class Stigmergy:
     def _gone(self, p: NDArray[np.float64], obj: NDArray[np.float64]) -> bool:
         """True when an object the agent should see from here (well inside its view range) is not there."""
         grasp = obj + [0.0, 0.0, self.info.grasp_height]
-        return bool(view_distance(grasp - p, self.info.extra.get("view_norm", "euclidean")) <= 0.9 * self.geo.view_range)
+        return bool(view_distance(grasp - p, self.info.extra.get("view_norm", "chebyshev")) <= 0.9 * self.geo.view_range)
 
     # ------------------------------------------------------------- boxes and slots
     def _fetch(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
