@@ -61,21 +61,7 @@ def plot_pheromone_activity(t: ArrayLike, marked: Mapping[str, ArrayLike], path:
     Returns:
         The file written.
     """
-    tt = np.asarray(t, dtype=float)
-    fig = Figure(figsize=(9, 4), layout="constrained")
-    ax = fig.subplots()
-    for name, counts in marked.items():
-        c = np.asarray(counts, dtype=float)
-        if c.shape != tt.shape:
-            raise ValueError(f"marked[{name!r}]: expected shape {tt.shape}, got {c.shape}")
-        ax.plot(tt, c, lw=1.5, label=name)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("marked cells")
-    ax.set_title("pheromone activity")
-    ax.set_ylim(bottom=0.0)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    return _save(fig, Path(path))
+    return _layer_lines(t, marked, "marked", "marked cells", "pheromone activity", path)
 
 
 def plot_pheromone_mass(t: ArrayLike, mass: Mapping[str, ArrayLike], path: Path | str) -> Path:
@@ -86,14 +72,23 @@ def plot_pheromone_mass(t: ArrayLike, mass: Mapping[str, ArrayLike], path: Path 
         mass: layer name -> (k,) total |value|.
         path: PNG file to write.
     """
+    return _layer_lines(t, mass, "mass", "pheromone mass [sum of |value|]", "pheromone mass over time", path)
+
+
+def _layer_lines(t: ArrayLike, series: Mapping[str, ArrayLike], what: str, ylabel: str, title: str,
+                 path: Path | str) -> Path:
+    """One line per layer over the snapshot times ``t`` (each series checked against its shape)."""
     tt = np.asarray(t, dtype=float)
     fig = Figure(figsize=(9, 4), layout="constrained")
     ax = fig.subplots()
-    for name, m in mass.items():
-        ax.plot(tt, np.asarray(m, dtype=float), lw=1.5, label=name)
+    for name, values in series.items():
+        v = np.asarray(values, dtype=float)
+        if v.shape != tt.shape:
+            raise ValueError(f"{what}[{name!r}]: expected shape {tt.shape}, got {v.shape}")
+        ax.plot(tt, v, lw=1.5, label=name)
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("pheromone mass [sum of |value|]")
-    ax.set_title("pheromone mass over time")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
     ax.set_ylim(bottom=0.0)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
