@@ -68,7 +68,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.planning.base import Command, CommandKind
+from pybullet_swarm.planning.base import Command, CommandKind, params_from_mapping
 from pybullet_swarm.planning.orca import preferred_velocities
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -170,12 +170,7 @@ class BraitenbergParams:
     @classmethod
     def from_mapping(cls, data: dict[str, Any]) -> BraitenbergParams:
         """Parameters from ``avoidance_params``; unknown names are refused with ValueError."""
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ValueError(f"avoidance_params.{unknown[0]}: unknown parameter of the braitenberg layer "
-                             f"(known: {', '.join(sorted(known))})")
-        return cls(**data)
+        return params_from_mapping(cls, data, "avoidance_params", "the braitenberg layer")
 
 
 class Braitenberg:

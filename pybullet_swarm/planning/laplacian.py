@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pybullet_swarm.errors import ConfigError
-from pybullet_swarm.planning.base import Command, Observation, TaskInfo
+from pybullet_swarm.planning.base import Command, Observation, TaskInfo, params_from_mapping
 from pybullet_swarm.planning.reynolds import (RouteFollower, _positive, migration, scale_to_limits, separation,
                                               switch_radius_from)
 
@@ -157,12 +157,7 @@ class LaplacianParams:
     @classmethod
     def from_mapping(cls, data: dict[str, Any]) -> LaplacianParams:
         """Parameters from ``planner.params``; unknown names are refused with ValueError."""
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ValueError(f"planner.params.{unknown[0]}: unknown parameter of the laplacian planner "
-                             f"(known: {', '.join(sorted(known))})")
-        return cls(**data)
+        return params_from_mapping(cls, data, "planner.params", "the laplacian planner")
 
 
 class LaplacianPlanner:

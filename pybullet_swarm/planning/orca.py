@@ -95,7 +95,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from pybullet_swarm.planning.base import Command, CommandKind
+from pybullet_swarm.planning.base import Command, CommandKind, params_from_mapping
 
 if TYPE_CHECKING:  # pragma: no cover
     from pybullet_swarm.experiment.simulation import Simulation
@@ -1088,12 +1088,7 @@ class OrcaParams:
     @classmethod
     def from_mapping(cls, data: dict[str, Any]) -> OrcaParams:
         """Parameters from ``avoidance_params``; unknown names are refused with ValueError."""
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ValueError(f"avoidance_params.{unknown[0]}: unknown parameter of the orca layer "
-                             f"(known: {', '.join(sorted(known))})")
-        return cls(**data)
+        return params_from_mapping(cls, data, "avoidance_params", "the orca layer")
 
 
 def _check_number(name: str, value: Any, *, strict: bool) -> None:

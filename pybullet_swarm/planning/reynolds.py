@@ -30,7 +30,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.planning.base import Command, Observation, TaskInfo
+from pybullet_swarm.planning.base import Command, Observation, TaskInfo, params_from_mapping
 
 
 def separation(position: NDArray[np.float64], neighbours: NDArray[np.float64], radius: float) -> NDArray[np.float64]:
@@ -136,12 +136,7 @@ class ReynoldsParams:
     @classmethod
     def from_mapping(cls, data: dict[str, Any]) -> ReynoldsParams:
         """Parameters from ``planner.params``; unknown names are refused with ValueError."""
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ValueError(f"planner.params.{unknown[0]}: unknown parameter of the reynolds planner "
-                             f"(known: {', '.join(sorted(known))})")
-        return cls(**data)
+        return params_from_mapping(cls, data, "planner.params", "the reynolds planner")
 
 
 class RouteFollower:
