@@ -29,7 +29,9 @@ What this platform needs beyond the thesis, whose agents moved boxes by being ne
   agent radii, as in the thesis), so agents fly low, at three levels derived from the layout every
   agent is told (``TaskInfo.depot`` and ``slots``): over the open floor level with the middle of
   the structure's grasp points, so that from beside the structure slots of every layer are in
-  view; over the depot high enough for a carried box to clear the waiting boxes; over the
+  view, and high enough for a carried box to clear a box lying on the floor (one knocked out of
+  the structure or let go beside it, which is left where it lies); over the depot high enough
+  for a carried box to clear the waiting boxes; over the
   structure at the task's ``search_height``, clear of the finished structure. An agent climbs
   before it enters a higher zone and descends after leaving it. A search point over the
   structure is moved to the edge of its zone (on the agent's side), where the agent sees its
@@ -106,6 +108,10 @@ ALTITUDE_TOL = 0.03
 """m: an agent counts as at a flying altitude within this."""
 COLUMN_TOL = 0.01
 """m: horizontal distance from an object's column at which the straight descent starts."""
+DRIFT_TOL = 0.04
+"""m: a descent pushed this far off its column is broken off: the agent climbs straight back to its
+flying altitude and comes over the object again (a diagonal way back would sweep its box, or the box
+hanging under it, through a neighbouring stack)."""
 SETTLED_SPEED = 0.03
 """m/s: an agent starts a descent only below this speed."""
 RELEASE_SPEED = 0.02
@@ -144,7 +150,8 @@ class StigmergyParams:
             otherwise the strongest cell wins.
         ties: ``random`` or ``nearest``: which of equally strong cells (e.g. every found box's +1) wins.
         floor_altitude: m, flying altitude over the open floor (default: level with the middle of
-            the structure's grasp points, so that slots of every layer are in view from beside it).
+            the structure's grasp points, so that slots of every layer are in view from beside it,
+            raised if a carried box would not clear a box lying on the floor).
         look_altitude: m, flying altitude over the depot (default: half the view range above a
             box's grasp point, raised if a carried box would not clear the depot's boxes).
         cruise_altitude: m, flying altitude over the structure (default: the task's search height,
@@ -319,9 +326,12 @@ class FlightGeometry:
         view = float(info.extra.get("view_radius", 2.0 * r)) + gh
         carried_bottom = gh + 0.5 * bs                      # m, agent centre above the bottom of its box
         slot_grasp = info.slots[:, 2] + gh
-        # level with the middle of the structure's grasp points: slots of every layer in view from its edge
+        # level with the middle of the structure's grasp points: slots of every layer in view from its edge;
+        # and a carried box clears a box lying on the floor (one knocked out of the structure or let go
+        # beside it lies where carriers stop to climb): a box caught on its edge pushes on the carried box
+        # gh + bs/2 below the airframe's centre, a torque the attitude loop of a small airframe cannot hold
         floor = (p.floor_altitude if p.floor_altitude is not None
-                 else max(0.5 * (slot_grasp.min() + slot_grasp.max()), carried_bottom + VERTICAL_CLEARANCE))
+                 else max(0.5 * (slot_grasp.min() + slot_grasp.max()), bs + carried_bottom + VERTICAL_CLEARANCE))
         ground_grasp = 0.5 * bs + gh
         depot_top = float(np.max(info.depot[:, 2])) + 0.5 * bs if len(info.depot) else bs
         look = (p.look_altitude if p.look_altitude is not None
@@ -453,6 +463,7 @@ class Stigmergy:
         self.descending = False
         self.column = np.zeros(2)            # m, where the agent climbs after a grasp or release
         self.climb_xy: NDArray[np.float64] | None = None   # m, where it climbs before a higher zone
+        self.reclimb: NDArray[np.float64] | None = None    # m, where it climbs back after a broken-off descent
         self.holding = False
         self.released = False
         self.grasp_offset: NDArray[np.float64] | None = None
@@ -520,6 +531,8 @@ class Stigmergy:
         steps = {Phase.SEEK_BOX: self._seek_box, Phase.FETCH: self._fetch, Phase.LIFT: self._lift,
                  Phase.SEEK_GOAL: self._seek_goal, Phase.DELIVER: self._deliver, Phase.CLIMB: self._climb}
         for _ in range(6):   # a step returns None when it changed the phase and the next one should act now
+            if self.phase not in (Phase.FETCH, Phase.DELIVER):
+                self.reclimb = None
             if self.phase == Phase.CHOOSE_BOX:
                 self._choose(obs, medium, +1)
                 self.phase = Phase.SEEK_BOX
@@ -656,7 +669,12 @@ class Stigmergy:
             self.box_id = -1
             return None
         grasp = self.box_pos + [0.0, 0.0, self.info.grasp_height]
+        if self.descending and self._drifted(p, grasp[:2]):
+            self.descending = False
         if not self.descending:
+            back = self._climb_back(p)
+            if back is not None:
+                return back
             if self._over(obs, grasp[:2]):
                 self.descending = True
             else:
@@ -683,7 +701,14 @@ class Stigmergy:
             self.within_since = None
             return None
         drop = self.slot_pos + [0.0, 0.0, self.clearance] - self.offset   # agent centre at release
+        if self.descending and self._drifted(p, drop[:2]):
+            self.descending = False
+            self.descent_start = math.inf
+            self.within_since = None
         if not self.descending:
+            back = self._climb_back(p)
+            if back is not None:
+                return back
             if self._over(obs, drop[:2]):
                 self.descending = True
                 self.descent_start = obs.time_s
@@ -719,6 +744,25 @@ class Stigmergy:
             return False
         d = np.abs(obs.boxes - slot)
         return bool(np.any(np.all(d[:, :2] < self.info.box_size, axis=1) & (d[:, 2] < self.info.box_size)))
+
+    def _drifted(self, p: NDArray[np.float64], xy: NDArray[np.float64]) -> bool:
+        """True when a descent at ``p`` (3,) m has been pushed more than ``DRIFT_TOL`` off its column ``xy``
+        (2,) m (by a neighbour's avoidance, a gust, a snagged box); then it is broken off and the agent
+        climbs straight back from where it is (``_climb_back``)."""
+        if np.hypot(*(p[:2] - xy)) <= DRIFT_TOL:
+            return False
+        self.reclimb = p[:2].copy()
+        return True
+
+    def _climb_back(self, p: NDArray[np.float64]) -> Command | None:
+        """After a broken-off descent: straight up to the flying altitude there, or None once there."""
+        if self.reclimb is None:
+            return None
+        h = self.geo.altitude(self.reclimb)
+        if p[2] >= h - ALTITUDE_TOL:
+            self.reclimb = None
+            return None
+        return Command.goto([self.reclimb[0], self.reclimb[1], h])
 
     def _over(self, obs: Observation, xy: NDArray[np.float64]) -> bool:
         """True when the agent hovers over ``xy`` (2,) m at its flying altitude, ready to descend."""
