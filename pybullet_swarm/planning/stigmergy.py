@@ -42,6 +42,9 @@ What this platform needs beyond the thesis, whose agents moved boxes by being ne
 * Grasping and placing. An agent goes above the object, descends straight down, grasps within
   60 % of the attach threshold, and places its box from ``release_clearance`` above the slot,
   where the box hangs at the offset it had when grasped (measured from the box it saw then).
+  A descent pushed more than ``DRIFT_TOL`` off its column (by a neighbour's avoidance, say) is
+  broken off: the agent climbs straight back to its flying altitude and comes over the object
+  again, rather than sweeping what hangs under it diagonally through a neighbouring stack.
   Boxes lying beside the structure, whose descent would scrape it, are left alone.
 * Claims. An agent leaves a box or slot to a neighbour already working over it (lower, or at
   the same height and nearer), so two agents never descend onto one object.
