@@ -672,8 +672,7 @@ class Stigmergy:
             self.box_id = -1
             return None
         grasp = self.box_pos + [0.0, 0.0, self.info.grasp_height]
-        if self.descending and self._drifted(p, grasp[:2]):
-            self.descending = False
+        self._break_off_if_drifted(p, grasp[:2])
         if not self.descending:
             back = self._climb_back(p)
             if back is not None:
@@ -704,10 +703,7 @@ class Stigmergy:
             self.within_since = None
             return None
         drop = self.slot_pos + [0.0, 0.0, self.clearance] - self.offset   # agent centre at release
-        if self.descending and self._drifted(p, drop[:2]):
-            self.descending = False
-            self.descent_start = math.inf
-            self.within_since = None
+        self._break_off_if_drifted(p, drop[:2])
         if not self.descending:
             back = self._climb_back(p)
             if back is not None:
@@ -748,14 +744,16 @@ class Stigmergy:
         d = np.abs(obs.boxes - slot)
         return bool(np.any(np.all(d[:, :2] < self.info.box_size, axis=1) & (d[:, 2] < self.info.box_size)))
 
-    def _drifted(self, p: NDArray[np.float64], xy: NDArray[np.float64]) -> bool:
-        """True when a descent at ``p`` (3,) m has been pushed more than ``DRIFT_TOL`` off its column ``xy``
-        (2,) m (by a neighbour's avoidance, a gust, a snagged box); then it is broken off and the agent
-        climbs straight back from where it is (``_climb_back``)."""
-        if np.hypot(*(p[:2] - xy)) <= DRIFT_TOL:
-            return False
+    def _break_off_if_drifted(self, p: NDArray[np.float64], xy: NDArray[np.float64]) -> None:
+        """Break off a descent at ``p`` (3,) m that has been pushed more than ``DRIFT_TOL`` off its column
+        ``xy`` (2,) m (by a neighbour's avoidance, a gust, a snagged box): the agent then climbs straight
+        back from where it is (``_climb_back``) and comes over the object again."""
+        if not self.descending or np.hypot(*(p[:2] - xy)) <= DRIFT_TOL:
+            return
+        self.descending = False
+        self.descent_start = math.inf
+        self.within_since = None
         self.reclimb = p[:2].copy()
-        return True
 
     def _climb_back(self, p: NDArray[np.float64]) -> Command | None:
         """After a broken-off descent: straight up to the flying altitude there, or None once there."""
