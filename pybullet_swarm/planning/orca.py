@@ -117,6 +117,7 @@ if TYPE_CHECKING:  # pragma: no cover
 FLAG_INFEASIBLE = 1   # the ORCA planes had no common velocity: least-violating velocity used
 FLAG_BIASED = 2       # stalled by a neighbour ahead: the sideways bias was applied
 FLAG_FREE = 4         # the commanded velocity satisfies every plane: nothing was changed
+FLAG_CLIMB = 8        # took a pair's whole share of a vertical way out (climbing over, see below)
 
 _EPS = 1e-14          # squared length below which two unit normals count as parallel
 _TOL = 1e-12          # m/s, a velocity this far outside a plane still satisfies it
@@ -531,8 +532,10 @@ def _bound_planes(lo: NDArray[np.float64], hi: NDArray[np.float64], i: int, N: N
 @numba.njit(cache=True)
 def _agent_planes(i: int, pos: NDArray[np.float64], vel: NDArray[np.float64], radius: NDArray[np.float64],
                   centre: NDArray[np.float64], half: NDArray[np.float64], boxes: bool, nbr: NDArray[np.int64],
-                  cfg: NDArray[np.float64], N: NDArray[np.float64], P: NDArray[np.float64], k: int) -> int:
-    """Append agent i's ORCA planes (one per neighbour in row i of ``nbr``) after row k; returns the new count.
+                  cfg: NDArray[np.float64], N: NDArray[np.float64], P: NDArray[np.float64],
+                  k: int) -> tuple[int, bool]:
+    """Append agent i's ORCA planes (one per neighbour in row i of ``nbr``) after row k; returns the new
+    count and whether agent i climbs over a neighbour (takes a pair's whole share).
 
     A pair's (n, u) is computed once in index order and negated for the other agent, so both
     halves match to the last bit.
@@ -541,6 +544,7 @@ def _agent_planes(i: int, pos: NDArray[np.float64], vel: NDArray[np.float64], ra
     vi = _row(vel, i)
     resp = cfg[_C_RESP]
     climb = cfg[_C_CLIMB] > 0.0
+    climbs = False
     for c in range(nbr.shape[1]):
         j = nbr[i, c]
         if j < 0 or j >= n or j == i:
@@ -557,10 +561,11 @@ def _agent_planes(i: int, pos: NDArray[np.float64], vel: NDArray[np.float64], ra
             # one takes the pair's whole share (nobody low down is pushed down, see ``velocity_bounds``)
             if abs(vel[j if nrm[2] > 0.0 else i, 2]) <= _LEVEL:
                 r = 2.0 * resp if nrm[2] > 0.0 else 0.0
+                climbs = climbs or nrm[2] > 0.0
         _set_row(N, k, nrm)
         _set_row(P, k, _add(vi, u, r))
         k += 1
-    return k
+    return k, climbs
 
 
 @numba.njit(cache=True)
@@ -646,7 +651,8 @@ def _orca_batch(pos: NDArray[np.float64], vel: NDArray[np.float64], pref: NDArra
     max_speed, right_bias, stuck = cfg[_C_MAX_SPEED], cfg[_C_BIAS], cfg[_C_STUCK]
     for i in range(n):
         n_hard = _bound_planes(lo, hi, i, N, P)
-        m = _agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cfg, N, P, n_hard)
+        m, climbs = _agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cfg, N, P, n_hard)
+        up = FLAG_CLIMB if climbs else 0
         vc = _row(v_cmd, i)
         free = _dot(vc, vc) <= max_speed * max_speed
         for k in range(m):
@@ -655,7 +661,7 @@ def _orca_batch(pos: NDArray[np.float64], vel: NDArray[np.float64], pref: NDArra
                 break
         if free:                              # nothing to avoid: the planner's command stands
             _set_row(out, i, vc)
-            flags[i] = FLAG_FREE
+            flags[i] = FLAG_FREE | up
             continue
         pr = _row(pref, i)
         feasible, res = _solve(N, P, m, n_hard, max_speed, pr, SN, SP)
@@ -673,7 +679,7 @@ def _orca_batch(pos: NDArray[np.float64], vel: NDArray[np.float64], pref: NDArra
                     feasible, res = _solve(N, P, m, n_hard, max_speed, _scale(side, sp), SN, SP)
                 f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
         _set_row(out, i, res)
-        flags[i] = f
+        flags[i] = f | up
 
 
 @numba.njit(cache=True)
@@ -841,7 +847,7 @@ def orca_velocities(positions: NDArray[np.float64], velocities: NDArray[np.float
         neighbours: (n, k) neighbour table from ``neighbour_table`` (computed when None).
 
     Returns:
-        (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE``).
+        (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE | FLAG_CLIMB``).
     """
     pos = np.ascontiguousarray(positions, dtype=float)
     n = pos.shape[0]
@@ -1177,6 +1183,7 @@ class OrcaLayer:
         self._agent_ticks = 0
         self._infeasible = 0
         self._biased = 0
+        self._climbing = 0
         self._changed = 0
         self._time_total = 0.0
         self._time_max = 0.0
@@ -1225,6 +1232,7 @@ class OrcaLayer:
         self._agent_ticks += n
         self._infeasible += int(np.count_nonzero(flags & FLAG_INFEASIBLE))
         self._biased += int(np.count_nonzero(flags & FLAG_BIASED))
+        self._climbing += int(np.count_nonzero(flags & FLAG_CLIMB))
         self._changed += int(n - np.count_nonzero(keep))
         self._time_total += dt
         self._time_max = max(self._time_max, dt)
@@ -1238,6 +1246,7 @@ class OrcaLayer:
             "orca_changed_fraction": self._changed / max(self._agent_ticks, 1),
             "orca_infeasible_agent_ticks": self._infeasible,
             "orca_biased_agent_ticks": self._biased,
+            "orca_climbing_agent_ticks": self._climbing,
             "orca_mean_solve_ms": 1e3 * self._time_total / ticks,
             "orca_max_solve_ms": 1e3 * self._time_max,
         }

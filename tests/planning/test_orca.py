@@ -13,7 +13,8 @@ import pybullet_swarm
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.simulation import Simulation
 from pybullet_swarm.planning.base import Action, Command, CommandKind, TaskInfo, WorldView
-from pybullet_swarm.planning.orca import (FLAG_FREE, FLAG_INFEASIBLE, OrcaParams, Shape, commanded_velocities,
+from pybullet_swarm.planning.orca import (FLAG_CLIMB, FLAG_FREE, FLAG_INFEASIBLE, OrcaParams, Shape,
+                                          bounding_boxes, commanded_velocities, velocity_bounds,
                                           orca_plane, orca_velocities, preferred_velocities, solve_velocity)
 from pybullet_swarm.planning.registry import avoidance_layers, register_planner
 from pybullet_swarm.types import ExitStatus
@@ -346,3 +347,46 @@ def test_line_of_stalled_agents_is_broken_sideways():
     assert np.all(speed >= params.stuck_fraction * np.linalg.norm(pref, axis=1))
     assert abs(v[1, 1]) > 0.05                   # the middle one steps aside along the free axis
     assert np.all(np.abs(v) <= vm + 1e-9)
+
+
+# ----------------------------------------------------------------------------- climbing over
+def _empty_meets_carrier(params: OrcaParams, carrier_vz: float = 0.0):
+    """One tick of an empty agent (0) and a carrier (1, box hanging below) head-on at one altitude,
+    0.4 m apart at 0.15 m/s each (construction.yaml's limits), under the floor rule."""
+    pos = np.array([[0.0, 0.5, 0.245], [0.4, 0.5, 0.245]])
+    vel = np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, carrier_vz]])
+    centre, half = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([False, True]), 0.1, 0.065)
+    vm = np.full(3, 0.15)
+    bounds = velocity_bounds(pos, vel, vm, floor_height=0.5, time_horizon=params.time_horizon)
+    return orca_velocities(pos, vel, vel, params=params, sensing_radius=1.0, v_max=vm, radii=np.array([R_AGENT, 0.15]),
+                           boxes=(centre, half), bounds=bounds, goals=pos + 10.0 * vel, has_goal=np.ones(2, dtype=bool))
+
+
+def test_an_empty_agent_climbs_over_a_carrier_that_flies_on_undisturbed():
+    v, flags = _empty_meets_carrier(OrcaParams())
+    assert flags[0] & FLAG_CLIMB and not flags[1] & FLAG_CLIMB
+    assert v[0, 2] > 0.05 and v[0, 0] > 0.05            # the empty one climbs and keeps going
+    assert flags[1] & FLAG_FREE                          # the carrier's command stands
+    assert np.array_equal(v[1], [-0.15, 0.0, 0.0])
+    # reciprocal halves instead: the carrier may not sink (floor rule), so it is the one held up
+    v, flags = _empty_meets_carrier(OrcaParams(climb_over=False))
+    assert not np.any(flags & FLAG_CLIMB)
+    assert abs(v[1, 0]) < 0.05 and v[0, 2] < 0.1
+    # a carrier on a vertical leg keeps the reciprocal half: its leg is not frozen under a neighbour
+    v, flags = _empty_meets_carrier(OrcaParams(), carrier_vz=0.1)
+    assert not np.any(flags & FLAG_CLIMB)
+
+
+def test_climb_over_parameters_are_checked():
+    with pytest.raises(ValueError, match="climb_over"):
+        OrcaParams(climb_over="yes")
+    with pytest.raises(ValueError, match="vertical_cost"):
+        OrcaParams(vertical_cost=0.0)
+
+
+@pytest.mark.slow
+def test_stigmergy_with_orca_builds_the_wall_without_contact():
+    r = pybullet_swarm.run("construction", planner="stigmergy", avoidance="orca", seed=6, plots=False)
+    assert r.exit_status is ExitStatus.COMPLETED
+    assert r.metrics["collisions"]["agent_agent"] == 0
+    assert r.metrics["orca_climbing_agent_ticks"] > 0    # agents passed over each other
