@@ -90,7 +90,9 @@ Design decisions (numbers are ``OrcaParams`` defaults):
   pass each other. When the biased velocity is still held (the bias can exactly cancel the
   preferred velocity along the one axis a box VO leaves free), the agent asks for the sideways
   step alone. A neighbour sitting on the goal itself is waited for (circling it would not
-  help).
+  help), except by an agent descending straight onto it: the one below can only leave upwards,
+  through the waiting agent, so that one makes way straight up (two agents on vertical legs
+  over a slot may not move sideways).
 
 Public pieces: ``orca_plane`` (one half-space), ``solve_velocity`` (one LP), ``orca_velocities``
 (all agents, plain arrays), ``OrcaLayer`` (the ``--avoidance orca`` layer).
@@ -585,9 +587,11 @@ def _overlap(pa: tuple[float, float, float], pb: tuple[float, float, float], ra:
 @numba.njit(cache=True)
 def _stalled_by(i: int, pos: NDArray[np.float64], pref: tuple[float, float, float], sp: float,
                 radius: NDArray[np.float64], centre: NDArray[np.float64], half: NDArray[np.float64], boxes: bool,
-                nbr: NDArray[np.int64], goal: NDArray[np.float64], has_goal: bool, cfg: NDArray[np.float64]) -> int:
+                nbr: NDArray[np.int64], goal: NDArray[np.float64], has_goal: bool,
+                cfg: NDArray[np.float64]) -> tuple[int, bool]:
     """The nearest neighbour ahead (reachable over the horizon) that is in the way and does not sit
-    on the goal, or -1."""
+    on the goal, or -1; and True instead when, descending straight down, the agent first meets a
+    neighbour below that sits on its goal: that one can only leave upwards, through this agent."""
     n = pos.shape[0]
     pi = _row(pos, i)
     dh = _scale(pref, 1.0 / sp)
@@ -605,9 +609,11 @@ def _stalled_by(i: int, pos: NDArray[np.float64], pref: tuple[float, float, floa
             continue
         if has_goal and _overlap(_row(goal, i), pj, radius[i], radius[j], _row(centre, i), _row(centre, j),
                                  _row(half, i), _row(half, j), boxes, m2):
+            if dh[2] < 0.0 and dh[2] * dh[2] > _CLIMB_COS2 and rel[2] < 0.0:
+                return -1, True         # over the goal's occupant: make way upwards
             continue                    # the neighbour occupies the goal: wait, do not circle it
-        return j
-    return -1
+        return j, False
+    return -1, False
 
 
 @numba.njit(cache=True)
@@ -649,6 +655,7 @@ def _orca_batch(pos: NDArray[np.float64], vel: NDArray[np.float64], pref: NDArra
     SN = np.empty((m_max, 3))
     SP = np.empty((m_max, 3))
     max_speed, right_bias, stuck = cfg[_C_MAX_SPEED], cfg[_C_BIAS], cfg[_C_STUCK]
+    climb_past = cfg[_C_CLIMB] > 0.0
     for i in range(n):
         n_hard = _bound_planes(lo, hi, i, N, P)
         m, climbs = _agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cfg, N, P, n_hard)
@@ -668,9 +675,15 @@ def _orca_batch(pos: NDArray[np.float64], vel: NDArray[np.float64], pref: NDArra
         f = 0 if feasible else FLAG_INFEASIBLE
         sp = math.sqrt(_dot(pr, pr))
         if right_bias > 0.0 and sp > 1e-3 and _dot(res, pr) < stuck * sp * sp:
-            j = _stalled_by(i, pos, pr, sp, radius, centre, half, boxes, nbr, goal, has_goal[i], cfg)
-            if j >= 0:
-                side = _sidestep(_scale(pr, 1.0 / sp), _add(_row(pos, j), _row(pos, i), -1.0))
+            j, make_way = _stalled_by(i, pos, pr, sp, radius, centre, half, boxes, nbr, goal, has_goal[i], cfg)
+            if make_way:
+                feasible, res = _solve(N, P, m, n_hard, max_speed, (0.0, 0.0, sp), SN, SP)
+                f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
+            elif j >= 0:
+                if climb_past and pos[i, 2] > pos[j, 2]:
+                    side = (0.0, 0.0, 1.0)      # above the one in the way: over it
+                else:
+                    side = _sidestep(_scale(pr, 1.0 / sp), _add(_row(pos, j), _row(pos, i), -1.0))
                 feasible, res = _solve(N, P, m, n_hard, max_speed, _add(pr, side, right_bias * sp), SN, SP)
                 if _dot(res, res) < stuck * stuck * sp * sp:
                     # still held: the bias cancelled what the neighbours' planes left free (a box VO

@@ -390,3 +390,25 @@ def test_stigmergy_with_orca_builds_the_wall_without_contact():
     assert r.exit_status is ExitStatus.COMPLETED
     assert r.metrics["collisions"]["agent_agent"] == 0
     assert r.metrics["orca_climbing_agent_ticks"] > 0    # agents passed over each other
+
+
+def test_an_agent_descending_onto_its_goals_occupant_makes_way_upwards():
+    # Traced in shortest_path + orca on estimates (seed 9): a carrier waited 6 cm above its slot for
+    # the agent that had just placed the box below it, which could only leave upwards, through the
+    # carrier (and not sideways: both were on vertical legs); neither moved for 340 s.
+    pos = np.array([[2.7, 0.6, 0.31], [2.7, 0.6, 0.125]])       # 0 carries, 1 sits on 0's goal
+    goals = np.array([[2.7, 0.6, 0.215], [2.7, 0.6, 0.45]])
+    kinds = np.full(2, int(CommandKind.POSITION))
+    vm = np.full(3, 0.15)
+    params = OrcaParams()
+    pref = preferred_velocities(kinds, goals, pos, arrive_time=params.arrive_time, v_max=vm)
+    vcmd = commanded_velocities(kinds, goals, pos, v_max=vm, a_max=np.full(3, 1.0), dt=1.0 / 48.0)
+    has_goal = np.ones(2, dtype=bool)
+    bounds = velocity_bounds(pos, vcmd, vm, floor_height=params.floor_height, time_horizon=params.time_horizon,
+                             goals=goals, has_goal=has_goal, column=params.column_radius)
+    centre, half = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([True, False]), 0.1, 0.065)
+    v, flags = orca_velocities(pos, np.zeros((2, 3)), pref, params=params, sensing_radius=1.0, v_max=vm,
+                               radii=np.array([0.15, R_AGENT]), boxes=(centre, half), goals=goals,
+                               has_goal=has_goal, bounds=bounds, commanded=vcmd)
+    assert v[0, 2] > 0.05 and np.allclose(v[0, :2], 0.0)      # straight up, out of the way
+    assert np.all(np.abs(v) <= vm + 1e-9)
