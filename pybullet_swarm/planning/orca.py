@@ -78,7 +78,8 @@ Design decisions (numbers are ``OrcaParams`` defaults):
   flight (climbing or sinking slower than 2 cm/s), the upper agent takes the pair's whole share
   and the lower one keeps its velocity: an empty agent hops over a carrier and its hanging box,
   which flies on undisturbed. Both agents see the same sensed numbers, so the shares still add
-  up. A lower agent that is climbing or descending (lifting a box, descending to a slot) keeps
+  up. A stalled agent (see Deadlocks) higher than the one in its way climbs past it rather than
+  stepping sideways. A lower agent that is climbing or descending (lifting a box, descending to a slot) keeps
   the reciprocal half: its vertical leg is not frozen under a neighbour.
 * Deadlocks. A symmetric head-on (relative velocity exactly on the line of centres) has no
   defined sphere-VO normal; it is taken to the right (``d x z``, or ``d x x`` for a vertical line),
@@ -1050,7 +1051,8 @@ class OrcaParams:
         vertical_cost: boxes: a vertical change of velocity counts this many times a horizontal
             one when the way out of a velocity obstacle is chosen (> 0; < 1 favours passing over).
         climb_over: when the way out of a pair on a collision course is vertical and the lower
-            agent flies level, the upper agent takes the whole change (see the module notes).
+            agent flies level, the upper agent takes the whole change; a stalled agent higher than
+            the one in its way climbs past it (see the module notes).
         max_neighbours: the nearest this many sensed neighbours give planes.
         recovery_time: s, shapes that already overlap are separated over this time.
         responsibility: share of each pair's avoidance an agent takes (0.5: reciprocal).
