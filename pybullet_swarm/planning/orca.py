@@ -68,9 +68,9 @@ Design decisions (numbers are ``OrcaParams`` defaults):
   nearest way out of a box VO is chosen (any choice is safe; this one is symmetric). The default
   0.75 favours passing over: a 2 cm thin airframe clears a neighbour vertically a few cm above
   its top, where a sideways dodge needs the width of two airframes (measured on
-  ``construction.yaml``, stigmergy, seeds 0..99: median completion 127 s with 3.0 and no climbing
-  over, 114 s with both, no contact either way). The simulator models no downwash; a study of airframes that suffer
-  from it raises ``vertical_cost`` (or ``safety_margin``).
+  ``construction.yaml``, stigmergy, seeds 0..49: median completion 128.6 s with 3.0 and no
+  climbing over, 117.7 s with both, no contact either way). The simulator models no downwash;
+  a study of airframes that suffer from it raises ``vertical_cost`` (or ``safety_margin``).
 * Climbing over (``climb_over``). Near the ground nobody is pushed down (hard bounds above), so a
   reciprocal half of a vertical way out could not be taken by the lower agent: its plane would
   contradict its bound, and the pair would not separate. So when a pair is on a collision course
@@ -79,8 +79,8 @@ Design decisions (numbers are ``OrcaParams`` defaults):
   and the lower one keeps its velocity: an empty agent hops over a carrier and its hanging box,
   which flies on undisturbed. Both agents see the same sensed numbers, so the shares still add
   up. A stalled agent (see Deadlocks) higher than the one in its way climbs past it rather than
-  stepping sideways. A lower agent that is climbing or descending (lifting a box, descending to a slot) keeps
-  the reciprocal half: its vertical leg is not frozen under a neighbour.
+  stepping sideways. A lower agent that is climbing or descending (lifting a box, descending to
+  a slot) keeps the reciprocal half: its vertical leg is not frozen under a neighbour.
 * Deadlocks. A symmetric head-on (relative velocity exactly on the line of centres) has no
   defined sphere-VO normal; it is taken to the right (``d x z``, or ``d x x`` for a vertical line),
   antisymmetric, so both keep right. An agent stalled (progress below ``stuck_fraction`` of its
