@@ -128,7 +128,7 @@ _TOL = 1e-12          # m/s, a velocity this far outside a plane still satisfies
 # indices of the scalar settings passed to the kernels in one array
 _C_MARGIN, _C_LAG, _C_INV_TAU, _C_INV_REC, _C_RESP, _C_WZ, _C_MAX_SPEED, _C_TAU, _C_BIAS, _C_STUCK, _C_CLIMB = range(11)
 
-_CLIMB_COS2 = 0.5     # a pair's way out counts as vertical when its normal is within 45 deg of vertical
+_VERTICAL_COS2 = 0.5  # squared cosine: a direction (a way out, a descent) within 45 deg of vertical counts as vertical
 _LEVEL = 0.02         # m/s, an agent climbing or sinking slower than this is in level flight
 
 
@@ -559,7 +559,7 @@ def _agent_planes(i: int, pos: NDArray[np.float64], vel: NDArray[np.float64], ra
             nrm = _scale(nrm, -1.0)
             u = _scale(u, -1.0)
         r = resp
-        if climb and _dot(nrm, u) > 0.0 and nrm[2] * nrm[2] > _CLIMB_COS2 * _dot(nrm, nrm):
+        if climb and _dot(nrm, u) > 0.0 and nrm[2] * nrm[2] > _VERTICAL_COS2 * _dot(nrm, nrm):
             # on a collision course, the way out vertical, the lower agent in level flight: the upper
             # one takes the pair's whole share (nobody low down is pushed down, see ``velocity_bounds``)
             if abs(vel[j if nrm[2] > 0.0 else i, 2]) <= _LEVEL:
@@ -610,7 +610,7 @@ def _stalled_by(i: int, pos: NDArray[np.float64], pref: tuple[float, float, floa
             continue
         if has_goal and _overlap(_row(goal, i), pj, radius[i], radius[j], _row(centre, i), _row(centre, j),
                                  _row(half, i), _row(half, j), boxes, m2):
-            if dh[2] < 0.0 and dh[2] * dh[2] > _CLIMB_COS2 and rel[2] < 0.0:
+            if dh[2] < 0.0 and dh[2] * dh[2] > _VERTICAL_COS2 and rel[2] < 0.0:
                 return -1, True         # over the goal's occupant: make way upwards
             continue                    # the neighbour occupies the goal: wait, do not circle it
         return j, False
