@@ -350,16 +350,26 @@ def test_line_of_stalled_agents_is_broken_sideways():
 
 
 # ----------------------------------------------------------------------------- climbing over
+R_CARRY = 0.15                   # m, enclosing radius of a quad150 with a 10 cm box hanging 6.5 cm below
+
+
+def _level_boxes(carrying: list[bool]) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding boxes of level quad150 airframes, a 10 cm box hanging 6.5 cm below those that carry."""
+    n = len(carrying)
+    return bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)), HALF, np.array(carrying), 0.1, 0.065)
+
+
 def _empty_meets_carrier(params: OrcaParams, carrier_vz: float = 0.0):
     """One tick of an empty agent (0) and a carrier (1, box hanging below) head-on at one altitude,
     0.4 m apart at 0.15 m/s each (construction.yaml's limits), under the floor rule."""
     pos = np.array([[0.0, 0.5, 0.245], [0.4, 0.5, 0.245]])
     vel = np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, carrier_vz]])
-    centre, half = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([False, True]), 0.1, 0.065)
+    centre, half = _level_boxes([False, True])
     vm = np.full(3, 0.15)
     bounds = velocity_bounds(pos, vel, vm, floor_height=0.5, time_horizon=params.time_horizon)
-    return orca_velocities(pos, vel, vel, params=params, sensing_radius=1.0, v_max=vm, radii=np.array([R_AGENT, 0.15]),
-                           boxes=(centre, half), bounds=bounds, goals=pos + 10.0 * vel, has_goal=np.ones(2, dtype=bool))
+    return orca_velocities(pos, vel, vel, params=params, sensing_radius=1.0, v_max=vm,
+                           radii=np.array([R_AGENT, R_CARRY]), boxes=(centre, half), bounds=bounds,
+                           goals=pos + 10.0 * vel, has_goal=np.ones(2, dtype=bool))
 
 
 def test_an_empty_agent_climbs_over_a_carrier_that_flies_on_undisturbed():
@@ -406,9 +416,9 @@ def test_an_agent_descending_onto_its_goals_occupant_makes_way_upwards():
     has_goal = np.ones(2, dtype=bool)
     bounds = velocity_bounds(pos, vcmd, vm, floor_height=params.floor_height, time_horizon=params.time_horizon,
                              goals=goals, has_goal=has_goal, column=params.column_radius)
-    centre, half = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([True, False]), 0.1, 0.065)
-    v, flags = orca_velocities(pos, np.zeros((2, 3)), pref, params=params, sensing_radius=1.0, v_max=vm,
-                               radii=np.array([0.15, R_AGENT]), boxes=(centre, half), goals=goals,
+    centre, half = _level_boxes([True, False])
+    v, _ = orca_velocities(pos, np.zeros((2, 3)), pref, params=params, sensing_radius=1.0, v_max=vm,
+                           radii=np.array([R_CARRY, R_AGENT]), boxes=(centre, half), goals=goals,
                                has_goal=has_goal, bounds=bounds, commanded=vcmd)
     assert v[0, 2] > 0.05 and np.allclose(v[0, :2], 0.0)      # straight up, out of the way
     assert np.all(np.abs(v) <= vm + 1e-9)
@@ -422,11 +432,11 @@ def test_a_stalled_agent_above_the_one_in_its_way_climbs_past_it():
     vel = np.array([[0.144, -0.104, 0.003], [0.144, 0.0, 0.0]])
     pref = np.array([[-0.15, -0.088, -0.002], [0.15, 0.0, 0.0]])
     vm = np.full(3, 0.15)
-    centre, half = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([False, True]), 0.1, 0.065)
+    centre, half = _level_boxes([False, True])
     bounds = velocity_bounds(pos, pref, vm, floor_height=0.5, time_horizon=1.5)
     goals = pos + 10.0 * pref
     for climb, climbs in ((True, True), (False, False)):
-        v, flags = orca_velocities(pos, vel, pref, params=OrcaParams(climb_over=climb), sensing_radius=1.0, v_max=vm,
-                                   radii=np.array([R_AGENT, 0.15]), boxes=(centre, half), bounds=bounds,
-                                   goals=goals, has_goal=np.ones(2, dtype=bool))
+        v, _ = orca_velocities(pos, vel, pref, params=OrcaParams(climb_over=climb), sensing_radius=1.0, v_max=vm,
+                               radii=np.array([R_AGENT, R_CARRY]), boxes=(centre, half), bounds=bounds,
+                               goals=goals, has_goal=np.ones(2, dtype=bool))
         assert bool(v[0, 2] > 0.05) == climbs
