@@ -1,6 +1,7 @@
 """Turn pydantic validation errors and YAML syntax errors into one-line ``ConfigError``s."""
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Any, TypeVar
@@ -15,6 +16,8 @@ M = TypeVar("M", bound=pydantic.BaseModel)
 
 MAX_DEPTH = 32          # deepest nesting of mappings and lists accepted in a configuration file
 MAX_INT_BITS = 10_000   # larger integers cannot even be printed (Python's int-to-str digit limit)
+MAX_BYTES = 1 << 20     # largest configuration file read, bytes (a 10,000-point tour takes about 300 KB)
+MAX_NODES = 250_000     # most values a document may hold with its aliases expanded
 
 
 def _short(value: Any, limit: int = 60) -> str:
@@ -139,17 +142,21 @@ def validate(model: type[M], data: Any, *, source: str | None, prefix: str = "")
         raise from_pydantic(exc, source=source, prefix=prefix, data=data) from None
 
 
-def check_plain(data: Any, *, source: str | None, max_depth: int = MAX_DEPTH) -> None:
+def check_plain(data: Any, *, source: str | None, max_depth: int = MAX_DEPTH, finite: bool = True) -> None:
     """Refuse data that cannot be validated, resolved and written back as YAML.
 
     YAML aliases can build a list that contains itself, nesting can be deep enough to overflow
-    the validators and serialisers, and integers can be too large to print: each is a
-    ``ConfigError`` naming the field.
+    the validators and serialisers, integers can be too large to print, and (with ``finite``) a
+    ``.nan`` or ``.inf`` means nothing anywhere in a configuration: each is a ``ConfigError``
+    naming the field. Checking every number here also covers sections whose models are written
+    elsewhere (task and planner models).
     """
     done: dict[int, int] = {}   # id of a container checked -> depth it was checked at
     on_path: set[int] = set()
 
     def walk(node: Any, path: str, depth: int) -> None:
+        if finite and isinstance(node, float) and not math.isfinite(node):
+            raise ConfigError(f"must be a finite number, got {node!r}", source=source, field=path or None)
         if isinstance(node, int) and not isinstance(node, bool) and node.bit_length() > MAX_INT_BITS:
             raise ConfigError(f"must be an integer of at most {MAX_INT_BITS} bits, got {_short(node)}",
                               source=source, field=path or None)
@@ -178,8 +185,21 @@ def check_plain(data: Any, *, source: str | None, max_depth: int = MAX_DEPTH) ->
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
-    """The safe loader, refusing a key that appears twice in one mapping (YAML forbids it; the
-    plain loader silently keeps the last one, so a second ``sim:`` section would replace the first)."""
+    """The safe loader with limits, refusing a key that appears twice in one mapping.
+
+    YAML forbids duplicate keys; the plain loader silently keeps the last one, so a second
+    ``sim:`` section would replace the first. Before anything is constructed, the composed
+    document is measured with every alias expanded (``_check_expansion``): a few hundred bytes of
+    nested anchors ("billion laughs") would otherwise expand to billions of values in the
+    validators. Floats are also read the way a person writes them (``1e6``, not only YAML 1.1's
+    ``1.0e+6``).
+    """
+
+    def get_single_node(self) -> yaml.Node | None:
+        node = super().get_single_node()
+        if node is not None:
+            _check_expansion(node)
+        return node
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:  # type: ignore[override]
         if isinstance(node, yaml.MappingNode):
@@ -200,11 +220,72 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+# YAML 1.1 reads `1e6` and `1.5e3` as strings (its floats need a dot and a signed exponent:
+# `1.0e+6`); a person writing a number means a number. Floats YAML 1.1 already reads keep their
+# resolver; this one, consulted after the int resolver, adds exponents without a dot or a sign.
+_EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9][0-9_]*)[eE][-+]?[0-9]+$")
+_UniqueKeyLoader.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT, list("-+0123456789."))
+
+
+class YamlTooLarge(yaml.YAMLError):
+    """A YAML document that expands (aliases included) to more values than ``MAX_NODES``."""
+
+    def __init__(self, message: str, mark: Any) -> None:
+        super().__init__(message)
+        self.problem = message
+        self.problem_mark = mark
+
+
+def _check_expansion(root: yaml.Node, limit: int | None = None) -> int:
+    """Number of values the document holds with every alias expanded; refuse more than ``limit``.
+
+    Counted on the composed node graph, where an alias is the anchored node itself: each node's
+    expanded size is computed once (memoised), so a billion-laughs document is measured in time
+    proportional to its text. An alias to a node still being composed (a recursive structure)
+    is counted once and left to ``check_plain``, which names its field.
+
+    Raises:
+        YamlTooLarge: more than ``limit`` (default ``MAX_NODES``) values.
+    """
+    limit = MAX_NODES if limit is None else limit
+    size: dict[int, int] = {}
+    on_path: set[int] = set()
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        children: list[yaml.Node] = []
+        if isinstance(node, yaml.SequenceNode):
+            children = list(node.value)
+        elif isinstance(node, yaml.MappingNode):
+            children = [n for pair in node.value for n in pair]
+        if done:
+            on_path.discard(key)
+            total = 1 + sum(size.get(id(c), 1) for c in children)
+            size[key] = total
+            if total > limit:
+                raise YamlTooLarge(f"the document expands to more than {limit} values (YAML aliases or anchors "
+                                   f"repeated); at most {limit} are accepted", node.start_mark)
+            continue
+        if key in size or key in on_path:
+            continue   # measured already, or a recursive alias (counted as one value)
+        on_path.add(key)
+        stack.append((node, True))
+        stack.extend((c, False) for c in children if id(c) not in size and id(c) not in on_path)
+    return size.get(id(root), 1)
+
+
 def parse_yaml(text: str, *, source: str | None) -> Any:
-    """Parse YAML text; syntax errors, duplicate keys and unconstructible values (``2020-13-45``,
-    ``!!int abc``) become one-line ``ConfigError``s naming ``source``."""
+    """Parse YAML text; syntax errors, duplicate keys, unconstructible values (``2020-13-45``,
+    ``!!int abc``) and documents too large (``MAX_BYTES``, ``MAX_NODES`` with aliases expanded)
+    become one-line ``ConfigError``s naming ``source``."""
+    if len(text) > MAX_BYTES:
+        raise ConfigError(f"too large: more than {MAX_BYTES} characters (a configuration file holds at most "
+                          f"{MAX_BYTES // 1024} KiB)", source=source)
     try:
         return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+    except YamlTooLarge as exc:
+        raise ConfigError(f"too large: {exc.problem}", source=source) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else "unknown position"
@@ -217,11 +298,21 @@ def parse_yaml(text: str, *, source: str | None) -> Any:
 
 
 def read_yaml(path: Path) -> Any:
-    """Parse a YAML file; syntax errors become one-line ``ConfigError``s naming the file."""
+    """Parse a YAML file of at most ``MAX_BYTES``; every problem is a one-line ``ConfigError`` naming the file."""
     try:
-        text = path.read_text(encoding="utf-8")
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_BYTES + 1)
     except FileNotFoundError:
         raise ConfigError("file not found", source=str(path)) from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
         raise ConfigError(f"cannot read file ({exc.__class__.__name__})", source=str(path)) from None
+    if len(raw) > MAX_BYTES:
+        raise ConfigError(f"too large: more than {MAX_BYTES} bytes (a configuration file holds at most "
+                          f"{MAX_BYTES // 1024} KiB)", source=path.name)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"cannot read file ({exc.__class__.__name__}: not UTF-8 text)", source=str(path)) from None
+    if "\x00" in text:
+        raise ConfigError("cannot read file (binary data: NUL characters)", source=str(path))
     return parse_yaml(text, source=path.name)

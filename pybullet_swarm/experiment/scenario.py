@@ -9,10 +9,11 @@ import dataclasses
 import enum
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal, Mapping, Sequence
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Mapping, Sequence
 
 import numpy as np
 import pydantic
+import pydantic_core
 from numpy.typing import NDArray
 from pydantic import Field
 
@@ -20,7 +21,12 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.resources import bundled_scenarios, scenarios_dir
 from pybullet_swarm.validation import _short, check_plain, parse_yaml, read_yaml, validate
 
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+if TYPE_CHECKING:  # pragma: no cover
+    from pybullet_swarm.vehicle import VehicleParams
+
+MAX_COORD = 1e5   # m, largest coordinate accepted anywhere (the largest arena is 1e4 m)
+Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD)]
+Vec3 = Annotated[list[Coord], Field(min_length=3, max_length=3)]
 PosVec3 = Annotated[list[Annotated[float, Field(gt=0)]], Field(min_length=3, max_length=3)]
 PosFloat = Annotated[float, Field(gt=0, le=1e6)]
 
@@ -59,7 +65,7 @@ class Obstacle(_Strict):
 
     shape: Literal["cylinder", "box"]   # an ObstacleShape value
     size: Annotated[list[Annotated[float, Field(gt=0, le=1e4)]], Field(min_length=2, max_length=3)]
-    position: Annotated[list[float], Field(min_length=2, max_length=3)]
+    position: Annotated[list[Coord], Field(min_length=2, max_length=3)]
     yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)
 
     def center(self) -> NDArray[np.float64]:
@@ -103,7 +109,7 @@ class AgentsSection(_Strict):
     start: list[Vec3] | None = None          # m, explicit start positions (count of them)
     layout: Literal["grid", "line"] = "grid"  # used when `start` is not given
     spacing: PosFloat = 0.5                  # m, between neighbours of the layout
-    origin: Annotated[list[float], Field(min_length=2, max_length=2)] | None = None  # m, layout centre (default: arena centre)
+    origin: Annotated[list[Coord], Field(min_length=2, max_length=2)] | None = None  # m, layout centre (default: arena centre)
     sensing_radius: PosFloat = 1.0           # m, neighbours within it are observed
     start_jitter: float = Field(0.0, ge=0.0, le=1.0)  # m, uniform horizontal noise on start positions (per seed)
 
@@ -372,30 +378,48 @@ def _check_sensing(sim: SimSection, sensing: SensingSection, source: str) -> Non
                               source=source, field=f"sensing.positioning.outages[{i}]")
 
 
-def _check_agents(s: Scenario, source: str) -> None:
+def _load_vehicle(s: Scenario, source: str) -> VehicleParams:
+    """The scenario's vehicle; a bad vehicle file is refused naming the scenario field and the vehicle file's field."""
     from pybullet_swarm.vehicle import load_vehicle
 
     try:
-        vehicle = load_vehicle(s.agents.vehicle)
-    except ConfigError as exc:
-        raise ConfigError(exc.detail, source=source, field="agents.vehicle") from None
+        return load_vehicle(s.agents.vehicle)
+    except ConfigError as exc:   # str(exc) names the vehicle file and its field, when it has them
+        raise ConfigError(str(exc), source=source, field="agents.vehicle") from None
     except OSError as exc:  # e.g. a name too long for the file system
         raise ConfigError(f"must be a bundled vehicle name or a vehicle .yaml file ({exc.strerror}), "
                           f"got {_short(s.agents.vehicle)}", source=source, field="agents.vehicle") from None
+
+
+def _check_agents(s: Scenario, vehicle: VehicleParams, source: str) -> None:
     if s.agents.start is not None and len(s.agents.start) != s.agents.count:
         raise ConfigError(f"must hold agents.count ({s.agents.count}) positions, got {len(s.agents.start)}",
                           source=source, field="agents.start")
-    starts = s.start_positions(0.5 * vehicle.collision_size[2] + 1e-3)
+    half_h = 0.5 * vehicle.collision_size[2]
+    starts = s.start_positions(half_h + 1e-3)
     lx, ly = s.arena.size
     r = 0.5 * max(vehicle.collision_size[0], vehicle.collision_size[1])
+
+    def inside(x: float, y: float) -> bool:
+        return r - 1e-9 <= x <= lx - r + 1e-9 and r - 1e-9 <= y <= ly - r + 1e-9
+
+    if s.agents.start is None and s.agents.origin is not None and not inside(*s.layout_origin()):
+        ox, oy = s.layout_origin()
+        raise ConfigError(f"layout centre ({ox:.3g}, {oy:.3g}) is outside the arena [0, {lx:g}] x [0, {ly:g}] m "
+                          f"(with the agents' radius {r:g} m)", source=source, field="agents.origin")
+    top = s.arena.height
     for i, p in enumerate(starts):
-        if not (r - 1e-9 <= p[0] <= lx - r + 1e-9 and r - 1e-9 <= p[1] <= ly - r + 1e-9):
+        if not inside(p[0], p[1]):
             field = f"agents.start[{i}]" if s.agents.start is not None else "agents.count"
             raise ConfigError(f"agent {i} starts at ({p[0]:.3g}, {p[1]:.3g}), outside the arena "
                               f"[0, {lx:g}] x [0, {ly:g}] m (with its radius {r:g} m)", source=source, field=field)
         if p[2] < 0.0:
             raise ConfigError(f"agent {i} starts below the ground, got z = {p[2]:g}", source=source,
                               field=f"agents.start[{i}]")
+        if top is not None and p[2] + half_h > top + 1e-9:
+            field = f"agents.start[{i}]" if s.agents.start is not None else "arena.height"
+            raise ConfigError(f"agent {i} starts above the ceiling (arena.height {top:g} m less the airframe's half "
+                              f"height {half_h:g} m), got z = {p[2]:g}", source=source, field=field)
     if s.agents.count > 1:
         from scipy.spatial import cKDTree
 
@@ -407,10 +431,17 @@ def _check_agents(s: Scenario, source: str) -> None:
                               source=source, field=field)
 
 
-def _check_obstacles(s: Scenario, source: str) -> None:
-    """Obstacles: sizes that fit their shape, footprints inside the arena, no agent starting inside one."""
+def _check_obstacles(s: Scenario, vehicle: VehicleParams, source: str) -> None:
+    """Obstacles: sizes that fit their shape, footprints inside the arena, no agent starting inside one.
+
+    An agent starts inside an obstacle when its footprint (the airframe's enclosing circle, moved by
+    at most the start jitter) reaches the obstacle's and its vertical extent overlaps the obstacle's:
+    an agent may start on top of a box or under a raised one, never within it.
+    """
     lx, ly = s.arena.size
-    starts = None
+    half_h = 0.5 * vehicle.collision_size[2]
+    starts = s.start_positions(half_h + 1e-3)
+    clearance = float(vehicle.radius) + math.sqrt(2.0) * s.agents.start_jitter
     for i, ob in enumerate(s.arena.obstacles):
         field = f"arena.obstacles[{i}]"
         want = 2 if ob.shape == ObstacleShape.CYLINDER else 3
@@ -424,22 +455,21 @@ def _check_obstacles(s: Scenario, source: str) -> None:
                               f"not inside the arena [0, {lx:g}] x [0, {ly:g}] m", source=source,
                               field=f"{field}.position")
         h = ob.size[1] if ob.shape == ObstacleShape.CYLINDER else ob.size[2]
-        if c[2] - 0.5 * h < -1e-9:
+        bottom, top = c[2] - 0.5 * h, c[2] + 0.5 * h
+        if bottom < -1e-9:
             raise ConfigError(f"obstacle reaches below the ground (centre z {c[2]:g} m, height {h:g} m)",
                               source=source, field=f"{field}.position")
-        if starts is None:
-            from pybullet_swarm.vehicle import load_vehicle
-
-            vehicle = load_vehicle(s.agents.vehicle)
-            starts = s.start_positions(0.5 * vehicle.collision_size[2] + 1e-3)
-            clearance = float(vehicle.radius)
-        inside = np.flatnonzero(ob.horizontal_distance(starts[:, :2]) < clearance)
-        if inside.size and c[2] - 0.5 * h < 0.5:   # an obstacle standing where an agent starts
-            raise ConfigError(f"agent {int(inside[0])} starts within {clearance:.3g} m of this obstacle",
+        near = ob.horizontal_distance(starts[:, :2]) < clearance
+        level = (starts[:, 2] + half_h > bottom + 1e-9) & (starts[:, 2] - half_h < top - 1e-9)
+        inside = np.flatnonzero(near & level)
+        if inside.size:
+            k = int(inside[0])
+            raise ConfigError(f"agent {k} starts inside this obstacle (within {clearance:.3g} m of its footprint, "
+                              f"at z = {starts[k, 2]:.3g} m between its bottom {bottom:.3g} m and top {top:.3g} m)",
                               source=source, field=field)
 
 
-def _check_waypoints(task: WaypointsTask, source: str) -> None:
+def _check_waypoints(s: Scenario, task: WaypointsTask, vehicle: VehicleParams, source: str) -> None:
     times = [w.t_s for w in task.waypoints]
     for i in range(1, len(times)):
         if times[i] < times[i - 1]:
@@ -448,6 +478,156 @@ def _check_waypoints(task: WaypointsTask, source: str) -> None:
     if times[-1] > task.time_limit_s:
         raise ConfigError(f"last waypoint at {times[-1]:g} s is after the time limit {task.time_limit_s:g} s",
                           source=source, field="task.waypoints")
+    top = s.arena.height
+    if top is None:
+        return
+    half_h = 0.5 * vehicle.collision_size[2]
+    base = s.start_positions(half_h + 1e-3)[:, 2] if task.relative else np.zeros(1)
+    for i, w in enumerate(task.waypoints):
+        z = float(np.max(base)) + w.position[2]
+        if z + half_h > top + 1e-9:
+            where = " (relative to the highest start)" if task.relative else ""
+            raise ConfigError(f"set-point above the ceiling (arena.height {top:g} m less the airframe's half height "
+                              f"{half_h:g} m): z = {z:.3g} m{where}", source=source,
+                              field=f"task.waypoints[{i}].position")
+
+
+MIN_GRAVITY = 0.1   # m/s^2: the hover controller carries m g and limits its tilt relative to g
+
+
+def _check_flight(s: Scenario, vehicle: VehicleParams, source: str) -> None:
+    """Gravity the hover controller can fly in, and a controller design that finds gains.
+
+    The position loop feeds the weight forward and limits the commanded tilt relative to g: with
+    no gravity it has nothing to hold (zero-g flight is out of scope, refused); with more gravity
+    than the rotors can lift the vehicle cannot take off (refused).
+    """
+    g = s.sim.gravity
+    if g < MIN_GRAVITY:
+        raise ConfigError(f"must be >= {MIN_GRAVITY:g} m/s^2 (the hover controller carries the weight m g and "
+                          f"limits its tilt relative to g), got {g:g}", source=source, field="sim.gravity")
+    if vehicle.thrust_to_weight(g) < 1.0:
+        raise ConfigError(f"{vehicle.name} cannot lift its own weight at {g:g} m/s^2 (thrust-to-weight "
+                          f"{vehicle.thrust_to_weight(g):.3g} < 1)", source=source, field="sim.gravity")
+    from pybullet_swarm.control.design import design_controller
+    from pybullet_swarm.vehicle.params import vehicle_file
+
+    try:
+        design_controller(vehicle, physics_hz=s.sim.physics_hz, position_hz=s.sim.control_hz)
+    except ValueError as exc:   # no gains meet the design targets (rates were checked before)
+        text = " ".join(str(exc).split())
+        loop, sep, why = text.partition(" loop: ")
+        what = f"finds no gains for the {loop} loop ({why})" if sep and " " not in loop else f"fails ({text})"
+        raise ConfigError(f"{vehicle_file(s.agents.vehicle).name}: motor_time_constant: the controller design {what} "
+                          f"with motor_time_constant {vehicle.motor_time_constant:g} s at sim.physics_hz "
+                          f"{s.sim.physics_hz} and sim.control_hz {s.sim.control_hz}", source=source,
+                          field="agents.vehicle") from None
+
+
+# ----------------------------------------------------------------- memory budget
+# Planner parameters that set array sizes, with the documented defaults used when a scenario
+# leaves them out: planner -> ((parameter, module, class, fallback default), ...).
+_SIZING_PARAMS: dict[str, tuple[tuple[str, str, str, Any], ...]] = {
+    "stigmergy": (("cell_size", "stigmergy", "StigmergyParams", 0.1), ("grid_height", "stigmergy", "StigmergyParams", 1.0),
+                  ("snapshot_s", "stigmergy", "StigmergyParams", 1.0)),
+    "aco_tour": (("ants", "aco", "ACOParams", 10), ("iterations", "aco", "ACOParams", 500),
+                 ("candidates", "aco", "ACOParams", 15)),
+}
+_SIZING_PARAMS["layered_stigmergy"] = _SIZING_PARAMS["stigmergy"]
+_GRID_LAYERS = {"stigmergy": 1, "layered_stigmergy": 2}   # task layer (+ presence layer)
+
+
+def _param_default(module: str, cls_name: str, name: str, fallback: Any) -> Any:
+    """The documented default of a planner parameter (a dataclass or pydantic field), else ``fallback``."""
+    import importlib
+
+    try:
+        cls = getattr(importlib.import_module(f"pybullet_swarm.planning.{module}"), cls_name)
+    except (ImportError, AttributeError):
+        return fallback
+    fields = getattr(cls, "model_fields", None)
+    if isinstance(fields, dict) and name in fields:
+        default = getattr(fields[name], "default", fallback)
+        return fallback if default is pydantic_core.PydanticUndefined else default
+    if dataclasses.is_dataclass(cls):
+        for f in dataclasses.fields(cls):
+            if f.name == name and f.default is not dataclasses.MISSING:
+                return f.default
+    return fallback
+
+
+def _sizing(planner: str, params: Mapping[str, Any]) -> dict[str, float | None]:
+    """The sizing parameters of ``planner``: the scenario's value when it is a usable number, else the default.
+
+    A value of the wrong type or out of range is left to the planner's own validation; the default
+    stands in for it here.
+    """
+    out: dict[str, float | None] = {}
+    for name, module, cls_name, fallback in _SIZING_PARAMS.get(planner, ()):
+        default = _param_default(module, cls_name, name, fallback)
+        value = params.get(name, default)
+        if value is None and default is None:
+            out[name] = None
+            continue
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value >= 0
+        out[name] = float(value) if ok else (None if default is None else float(default))
+    return out
+
+
+def _check_budgets(s: Scenario) -> None:
+    """Refuse a scenario whose arrays would not fit the memory budget (``pybullet_swarm.memory``).
+
+    Reads the raw ``planner.params`` of the scenario's planner (its default planner when it names
+    none) with the planners' documented defaults, and the arena, task and swarm sizes.
+    """
+    check_budgets(s)
+
+
+def check_budgets(s: Scenario, planner: str | None = None) -> None:
+    """Refuse a run of ``s`` by ``planner`` (default: the scenario's) whose arrays exceed the memory budget.
+
+    Estimated: the recorder's buffers (time limit x record rate x agents), the pheromone grid of
+    the stigmergy planners (``cell_size``, ``grid_height``, snapshots), the ant colony of
+    ``aco_tour`` (points squared, ``iterations``, ``ants``) and the tour task's per-tick distances
+    (agents x points).
+
+    Raises:
+        ConfigError: one line naming the field whose value sets the size, and the bytes it would need.
+    """
+    from pybullet_swarm import memory
+    from pybullet_swarm.planning.registry import default_planner
+
+    src, n = s.source, s.agents.count
+    samples = math.ceil(s.task.time_limit_s * s.sim.record_hz) + 2
+    channels = 20 + (30 if s.sensing.estimating else 0)
+    memory.check_budget(memory.recorder_bytes(samples, n, channels),
+                        f"recording {samples} samples of {n} agents (task.time_limit_s x sim.record_hz)",
+                        source=src, field="sim.record_hz")
+    name = planner or s.planner.name or default_planner(s.task.kind) or ""
+    params = s.planner.params if s.planner.name in (None, name) else {}
+    size = _sizing(name, params)
+    if name in _GRID_LAYERS and size.get("cell_size"):
+        cell, height = float(size["cell_size"] or 0.1), float(size["grid_height"] or 1.0)
+        nx, ny, nz = (max(1.0, math.ceil(e / cell - 1e-9)) for e in (*s.arena.size, height))
+        snapshots = s.task.time_limit_s / size["snapshot_s"] + 1 if size.get("snapshot_s") else 0.0
+        field = "planner.params.grid_height" if nz > max(nx, ny) and "grid_height" in params else \
+            "planner.params.cell_size"
+        memory.check_budget(memory.grid_bytes(nx * ny * nz, nx * ny, _GRID_LAYERS[name], snapshots),
+                            f"a pheromone grid of {nx:.0f} x {ny:.0f} x {nz:.0f} cells", source=src, field=field)
+    points = getattr(s.task, "points", None)
+    if points is not None:
+        w = len(points)
+        memory.check_budget(8.0 * 3 * 4 * n * w, f"the tour task's distances of {n} agents to {w} points",
+                            source=src, field="task.points")
+        if name == "aco_tour":
+            ants, iterations = int(size.get("ants") or 10), int(size.get("iterations") or 500)
+            cand = size.get("candidates")
+            need = max(8.0 * 16 * w * w, memory.colony_bytes(w, ants=ants, iterations=iterations,
+                                                             candidates=None if cand is None else int(cand)))
+            field = "planner.params.iterations" if 8.0 * iterations > 8.0 * 16 * w * w else \
+                "planner.params.ants" if 24.0 * ants * w > 8.0 * 16 * w * w else "task.points"
+            memory.check_budget(need, f"an ant colony on {w} points ({ants} ants, {iterations} iterations)",
+                                source=src, field=field)
 
 
 def build_scenario(data: Any, *, source: str) -> Scenario:
@@ -473,13 +653,17 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
     s = Scenario(source=source, name=f.name, description=f.description, seed=f.seed, sim=f.sim, arena=f.arena,
                  agents=f.agents, limits=f.limits, task=task, planner=f.planner, avoidance=f.avoidance,
                  collisions=f.collisions, data=resolved, sensing=f.sensing)
-    _check_agents(s, source)
-    _check_obstacles(s, source)
-    if isinstance(task, WaypointsTask):
-        _check_waypoints(task, source)
-    check = getattr(task, "check", None)
-    if callable(check):
-        check(s, source)
+    vehicle = _load_vehicle(s, source)
+    with np.errstate(all="ignore"):   # huge finite values may overflow in the geometry: refused, never warned
+        _check_agents(s, vehicle, source)
+        _check_obstacles(s, vehicle, source)
+        if isinstance(task, WaypointsTask):
+            _check_waypoints(s, task, vehicle, source)
+        check = getattr(task, "check", None)
+        if callable(check):
+            check(s, source)
+    _check_flight(s, vehicle, source)
+    _check_budgets(s)
     return s
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import pydantic
@@ -15,20 +15,86 @@ from pybullet_swarm.resources import bundled_vehicles, urdf_dir
 from pybullet_swarm.validation import read_yaml, validate
 
 
-class _VehicleFile(pydantic.BaseModel):
-    model_config = pydantic.ConfigDict(extra="forbid", frozen=True)
+# finite numbers in (0, bound]
+_UpTo1 = Annotated[float, pydantic.Field(gt=0, le=1.0)]
+_UpTo10 = Annotated[float, pydantic.Field(gt=0, le=10.0)]
+_UpTo100 = Annotated[float, pydantic.Field(gt=0, le=100.0)]
+_UpTo1000 = Annotated[float, pydantic.Field(gt=0, le=1000.0)]
+_UpTo1e5 = Annotated[float, pydantic.Field(gt=0, le=1e5)]
 
-    name: str
-    urdf: str
-    mass: float = pydantic.Field(gt=0)
-    inertia: tuple[pydantic.PositiveFloat, pydantic.PositiveFloat, pydantic.PositiveFloat]
-    arm_length: float = pydantic.Field(gt=0)
+
+class _VehicleFile(pydantic.BaseModel):
+    """The parameter file beside a URDF; physical ranges wide enough for any small multirotor."""
+
+    model_config = pydantic.ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    name: Annotated[str, pydantic.Field(min_length=1, max_length=100)]
+    urdf: Annotated[str, pydantic.Field(min_length=1, max_length=1000)]
+    mass: _UpTo1000                                      # kg
+    inertia: tuple[_UpTo1000, _UpTo1000, _UpTo1000]      # kg m^2, principal moments
+    arm_length: _UpTo10                                  # m
     configuration: Literal["x", "plus"] = "x"
-    kf: float = pydantic.Field(gt=0)
-    km: float = pydantic.Field(gt=0)
-    motor_time_constant: float = pydantic.Field(gt=0)
-    max_rotor_speed: float = pydantic.Field(gt=0)
-    collision_size: tuple[pydantic.PositiveFloat, pydantic.PositiveFloat, pydantic.PositiveFloat]
+    kf: _UpTo1                                           # N/(rad/s)^2
+    km: _UpTo1                                           # N m/(rad/s)^2
+    motor_time_constant: _UpTo10                         # s
+    max_rotor_speed: _UpTo1e5                            # rad/s
+    collision_size: tuple[_UpTo100, _UpTo100, _UpTo100]  # m
+
+    @pydantic.field_validator("inertia")
+    @classmethod
+    def _triangle(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
+        # principal moments of a rigid body: each at most the sum of the other two
+        for k in range(3):
+            if value[k] > value[(k + 1) % 3] + value[(k + 2) % 3] * (1 + 1e-9):
+                raise ValueError(f"principal moments of a rigid body must each be at most the sum of the other two, "
+                                 f"got {list(value)}")
+        return value
+
+
+MAX_URDF_BYTES = 10 << 20   # bytes
+
+
+def check_urdf(urdf: Path, *, source: str) -> None:
+    """Refuse a file that is not a URDF of one rigid body: XML with a ``<robot>`` root, at least one
+    ``<link>``, only fixed joints (merged into one body) and mesh files that exist.
+
+    Raises:
+        ConfigError: one line naming ``source`` and its ``urdf`` field.
+    """
+    import xml.etree.ElementTree as ET
+
+    def bad(why: str) -> ConfigError:
+        return ConfigError(f"{urdf.name} is not a usable URDF: {why}", source=source, field="urdf")
+
+    try:
+        with open(urdf, "rb") as fh:
+            raw = fh.read(MAX_URDF_BYTES + 1)
+    except OSError as exc:
+        raise bad(f"cannot read it ({exc.__class__.__name__})") from None
+    if len(raw) > MAX_URDF_BYTES:
+        raise bad(f"larger than {MAX_URDF_BYTES >> 20} MiB")
+    if b"<!ENTITY" in raw:
+        raise bad("XML entities are not accepted")
+    try:
+        root = ET.fromstring(raw)
+    except (ET.ParseError, ValueError) as exc:
+        raise bad(f"not well-formed XML ({' '.join(str(exc).split())})") from None
+    if root.tag != "robot":
+        raise bad(f"its root element must be <robot>, got <{_short_tag(root.tag)}>")
+    if root.find("link") is None:
+        raise bad("it has no <link>")
+    for joint in root.iter("joint"):
+        if joint.get("type") != "fixed":
+            raise bad(f"a vehicle is one rigid body, but joint {joint.get('name')!r} is {joint.get('type')!r} "
+                      f"(only fixed joints)")
+    for mesh in root.iter("mesh"):
+        name = mesh.get("filename") or ""
+        if name and "://" not in name and not (urdf.parent / name).is_file():
+            raise bad(f"mesh file {name!r} not found")
+
+
+def _short_tag(tag: str) -> str:
+    return tag if len(tag) <= 40 else tag[:37] + "..."
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,6 +168,15 @@ class VehicleParams:
         return float(0.5 * np.hypot(self.collision_size[0], self.collision_size[1]))
 
 
+def vehicle_file(name_or_path: str | Path) -> Path:
+    """The parameter file of a bundled vehicle name or a vehicle YAML path.
+
+    Raises:
+        ConfigError: neither a bundled vehicle nor an existing ``.yaml`` file.
+    """
+    return _resolve(name_or_path)
+
+
 def _resolve(name_or_path: str | Path) -> Path:
     p = Path(name_or_path)
     try:
@@ -125,8 +200,13 @@ def _load(path: Path) -> VehicleParams:
         raise ConfigError("must be a mapping of vehicle parameters", source=path.name)
     data = validate(_VehicleFile, raw, source=path.name)
     urdf = path.parent / data.urdf
-    if not urdf.is_file():
+    try:
+        found = urdf.is_file()
+    except (OSError, ValueError):   # a name the file system refuses (too long, a NUL character)
+        found = False
+    if not found:
         raise ConfigError(f"URDF file {data.urdf!r} not found beside the parameter file", source=path.name, field="urdf")
+    check_urdf(urdf, source=path.name)
     fields = data.model_dump()
     fields.pop("urdf")
     return VehicleParams(urdf_path=urdf, **fields)
