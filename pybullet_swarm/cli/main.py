@@ -69,6 +69,15 @@ def _format_metrics(m: dict[str, Any]) -> str:
     return "\n".join(f"  {k.ljust(width)}  {v}" for k, v in rows)
 
 
+def _check_display() -> None:
+    """Refuse ``--gui`` where no window can open (Linux without an X or Wayland display)."""
+    import os
+
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise ConfigError("needs a display (DISPLAY is not set); run without --gui, or record one with --video",
+                          source="--gui")
+
+
 def _fmt(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.4g}"
@@ -92,7 +101,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pybullet_swarm.planning.registry import default_planner
 
     planner = args.planner or scenario.planner.name or default_planner(scenario.task.kind) or "planner"
-    out = args.out or default_run_dir(scenario.name, planner, seed)
+    if args.planner is not None:
+        from pybullet_swarm.experiment.scenario import check_budgets
+
+        check_budgets(scenario, args.planner)
+    if args.gui:
+        _check_display()
+    from pybullet_swarm.experiment.rundir import check_run_dir
+
+    out = check_run_dir(args.out, source="--out") if args.out is not None else default_run_dir(scenario.name, planner, seed)
     result = run(scenario, planner=args.planner, avoidance=args.avoidance, seed=seed, out=out, gui=args.gui,
                  plots=not args.no_plots, video=args.video, quiet=args.quiet)
     if not args.quiet:
@@ -138,17 +155,35 @@ def _cmd_design(args: argparse.Namespace) -> int:
     from pybullet_swarm.control.design import design_controller, format_table
     from pybullet_swarm.vehicle import load_vehicle
 
+    import math
+
+    from pybullet_swarm.control.design import check_rates
+    from pybullet_swarm.vehicle.params import vehicle_file
+
+    for option, value in (("--physics-hz", args.physics_hz), ("--control-hz", args.control_hz)):
+        if not (math.isfinite(value) and 0 < value <= 1e5):
+            raise ConfigError(f"must be a rate in (0, 100000] Hz, got {value:g}", source=option)
+    if args.plot is not None:
+        from pybullet_swarm.experiment.rundir import check_output_dir
+
+        check_output_dir(args.plot, source="--plot")
     try:
         params = load_vehicle(args.vehicle)
     except OSError as exc:  # e.g. a name too long for the file system
         raise ConfigError(f"must be a bundled vehicle name or a vehicle .yaml file ({exc.strerror})",
                           source="--vehicle") from None
-    if args.physics_hz <= 0 or args.control_hz <= 0:
-        raise ConfigError("rates must be > 0", source="--physics-hz/--control-hz")
     try:
-        design = design_controller(params, physics_hz=args.physics_hz, position_hz=args.control_hz)
+        check_rates(args.physics_hz, args.control_hz)
     except ValueError as exc:
         raise ConfigError(str(exc), source="--control-hz") from None
+    try:
+        design = design_controller(params, physics_hz=args.physics_hz, position_hz=args.control_hz)
+    except ValueError as exc:   # no gains meet the design targets
+        text = " ".join(str(exc).split())
+        loop, sep, why = text.partition(" loop: ")
+        what = f"finds no gains for the {loop} loop ({why})" if sep and " " not in loop else f"fails ({text})"
+        raise ConfigError(f"the controller design {what} with motor_time_constant {params.motor_time_constant:g} s",
+                          source=vehicle_file(args.vehicle).name, field="motor_time_constant") from None
     if args.json:
         print(json.dumps(design.to_json_dict()))
     else:
@@ -180,19 +215,25 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
     if is_sweep_dir(args.run_dir):
         return _plot_sweep(args)
-    from pybullet_swarm.experiment.recorder import TimeSeries
-    from pybullet_swarm.experiment.results import read_events, read_scenario_data
+    from pybullet_swarm.experiment.results import (read_events, read_metrics, read_pheromones, read_scenario_data,
+                                                   read_timeseries)
+    from pybullet_swarm.experiment.rundir import check_output_dir
     from pybullet_swarm.plotting.run_plots import plot_run, plot_saved_artifacts
 
     npz = args.run_dir / "timeseries.npz"
     if not npz.is_file():
         raise ConfigError("not a run directory (no timeseries.npz) nor a sweep directory (no runs.csv)",
                           source=str(args.run_dir))
-    metrics_path = args.run_dir / "metrics.json"
-    metrics = json.loads(metrics_path.read_text()) if metrics_path.is_file() else {}
-    files = plot_run(TimeSeries.load(npz), args.out or args.run_dir / "plots", metrics,
-                     scenario=read_scenario_data(args.run_dir), events=read_events(args.run_dir / "events.csv"))
-    files += plot_saved_artifacts(args.run_dir, args.out or args.run_dir / "plots")
+    out = check_output_dir(args.out or args.run_dir / "plots", source="--out" if args.out else None)
+    # every saved file is read and checked before the first figure is drawn
+    metrics = read_metrics(args.run_dir) if (args.run_dir / "metrics.json").is_file() else {}
+    series = read_timeseries(npz)
+    scenario = read_scenario_data(args.run_dir)
+    events = read_events(args.run_dir / "events.csv")
+    if (args.run_dir / "pheromones.npz").is_file():
+        read_pheromones(args.run_dir / "pheromones.npz")
+    files = plot_run(series, out, metrics, scenario=scenario, events=events)
+    files += plot_saved_artifacts(args.run_dir, out)
     for f in files:
         print(f)
     return 0
@@ -202,13 +243,35 @@ def _plot_sweep(args: argparse.Namespace) -> int:
     from pybullet_swarm.experiment.summary import format_table, summarize
     from pybullet_swarm.experiment.sweep import draw_comparison, load_sweep
 
+    from pybullet_swarm.experiment.rundir import check_output_dir
+
+    out = check_output_dir(args.out or args.run_dir / "plots", source="--out" if args.out else None)
     rows, group_by = load_sweep(args.run_dir)
     if not rows:
         raise ConfigError("no finished run yet (runs.csv is empty)", source=str(args.run_dir))
-    print(format_table(summarize(rows, group_by, ci=args.ci), args.metrics))
-    for f in draw_comparison(rows, group_by, args.out or args.run_dir / "plots", args.metrics):
+    summary = summarize(rows, group_by, ci=args.ci)
+    _check_metric_names(args.metrics, summary)
+    print(format_table(summary, args.metrics))
+    for f in draw_comparison(rows, group_by, out, args.metrics):
         print(f)
     return 0
+
+
+def _check_metric_names(names: Sequence[str] | None, summary: Sequence[Any]) -> None:
+    """Refuse ``--metrics`` names that no compared run has (a typo would silently show nothing)."""
+    if not names:
+        return
+    present = list(dict.fromkeys(s.metric for s in summary))
+    if not present:
+        return   # no run finished without an error: the table says so
+    unknown = [n for n in names if n not in present]
+    if unknown:
+        import difflib
+
+        close = difflib.get_close_matches(unknown[0], present, n=3, cutoff=0.6)
+        hint = f"did you mean {', '.join(close)}?" if close else \
+            f"metrics of these runs: {', '.join(present[:30])}{' ...' if len(present) > 30 else ''}"
+        raise ConfigError(f"unknown metric {unknown[0]!r}; {hint}", source="--metrics")
 
 
 # -------------------------------------------------------------------- sweep
@@ -279,6 +342,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if args.address is not None and args.executor != "ray":
         raise ConfigError("needs --executor ray", source="--address")
     grid = [_grid(g) for g in args.grid]
+    if args.out is not None:
+        from pybullet_swarm.experiment.rundir import check_output_dir
+
+        check_output_dir(args.out, source="--out")
     sweep = Sweep(args.scenario, planners=args.planners, avoidance=args.avoidance, grid=grid,
                   seeds=range(args.seed_start, args.seed_start + args.seeds), overrides=args.overrides)
     result = run_sweep(sweep, args.out, executor=args.executor, workers=args.workers, address=args.address,
@@ -316,6 +383,10 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from pybullet_swarm.experiment.summary import format_table, summarize, write_summary
     from pybullet_swarm.experiment.sweep import draw_comparison, load_sweep
 
+    from pybullet_swarm.experiment.rundir import check_output_dir
+
+    out = args.out or Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
+    check_output_dir(out, source="--out" if args.out else None)
     rows: list[dict[str, Any]] = []
     grid: list[str] = []
     for d in args.dirs:
@@ -331,8 +402,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     if not rows:
         raise ConfigError("no finished run to compare", source="compare")
     by = [c for c in ("sweep", "scenario", "planner", "avoidance", "config", *grid) if any(c in r for r in rows)]
-    out = args.out or Path("runs") / f"compare-{time.strftime('%Y%m%d-%H%M%S')}"
     summary = summarize(rows, by, ci=args.ci)
+    _check_metric_names(args.metrics, summary)
     print(format_table(summary, args.metrics))
     write_summary(out / "summary.csv", summary)
     for f in [out / "summary.csv", *draw_comparison(rows, by, out, args.metrics)]:

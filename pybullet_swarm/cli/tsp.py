@@ -11,10 +11,13 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
+from pybullet_swarm.memory import check_budget, colony_bytes
 from pybullet_swarm.planning.aco import ACOParams, LocalSearch, Schedule, solve_tsp
 from pybullet_swarm.planning.tsplib import TSPInstance, load_tsplib
 
 _PROG = "pybullet-swarm"
+MAX_RUNS = 1_000_000          # independent runs of one command
+MAX_SEED = 2**63 - 1 - MAX_RUNS   # seeds seed .. seed + runs - 1 must all be valid numpy seeds
 _SCHEDULES = {
     "constant": Schedule.CONSTANT,
     "linear": Schedule.LINEAR,
@@ -118,10 +121,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 def run(args: argparse.Namespace) -> int:
     """Run the ``tsp`` subcommand; 0 on success, 2 on bad input (message on stderr)."""
     try:
-        if args.runs < 1:
-            raise ValueError(f"--runs: expected an integer >= 1, got {args.runs}")
+        if args.runs < 1 or args.runs > MAX_RUNS:
+            raise ValueError(f"--runs: expected an integer in [1, {MAX_RUNS}], got {args.runs}")
+        if not 0 <= args.seed <= MAX_SEED:
+            raise ValueError(f"--seed: expected an integer in [0, 2^63 - 1 - runs], got {args.seed}")
         instance = load_tsplib(args.file)
         params = params_from_args(args)
+        check_budget(colony_bytes(instance.dimension, ants=params.ants, iterations=params.iterations,
+                                  candidates=params.candidates),
+                     f"an ant colony on {instance.dimension} nodes ({params.ants} ants, {params.iterations} iterations)",
+                     source=instance.name, field="DIMENSION")
     except ValueError as exc:  # ConfigError is a ValueError
         print(f"{_PROG}: error: {_one_line(exc)}", file=sys.stderr)
         return 2

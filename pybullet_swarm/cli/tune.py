@@ -80,7 +80,10 @@ def run(args: argparse.Namespace) -> int:
                     trials=args.trials, seeds_per_trial=args.seeds_per_trial, seed_start=args.seed_start,
                     sampler=sampler, sampler_seed=args.sampler_seed, penalty=args.penalty,
                     overrides=args.overrides, study_name=args.study)
-    out = args.out or Path("runs") / f"tune-{Path(str(args.scenario)).stem}-{args.planner}"
+    from pybullet_swarm.experiment.rundir import check_output_dir, safe_name
+
+    out = args.out or Path("runs") / f"tune-{safe_name(Path(str(args.scenario)).stem)}-{safe_name(args.planner)}"
+    check_output_dir(out, source="--out" if args.out else None)
     result = run_tuning(spec, out, storage=args.storage, executor=args.executor, workers=args.workers,
                         address=args.address, quiet=args.quiet, figures=not args.no_plots)
     if result.interrupted:

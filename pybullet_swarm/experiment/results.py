@@ -18,8 +18,6 @@ import os
 from pathlib import Path
 from typing import Any, Iterable, Iterator, Mapping, Sequence
 
-import yaml
-
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.rundir import atomic_write
 from pybullet_swarm.types import Event
@@ -173,24 +171,33 @@ class RunsTable:
         if raw and not raw.endswith(b"\n"):   # torn last line of a killed writer: drop it
             raw = raw[: raw.rfind(b"\n") + 1]
             repaired = True
-        reader = csv.reader(io.StringIO(raw.decode("utf-8"), newline=""))
-        header = next(reader, None)
-        if header is None:
-            self.path.unlink()
-            return
-        if not header or header[0] != "run_id":
-            raise ConfigError("not a runs table (its first column must be run_id)", source=str(self.path))
-        self.columns = header
-        for cells in reader:
-            if not cells:
-                continue
-            row = {c: parse_cell(t) for c, t in zip(header, cells)}
-            run_id = str(row["run_id"])
-            if run_id in self._rows:
-                repaired = True       # keep one row per run: the later one, unless it is an error
-                if row.get("exit_status") == RunStatus.ERROR.value:
+        try:
+            text = raw.decode("utf-8")
+            if "\x00" in text:
+                raise ValueError("binary data (NUL characters)")
+            reader = csv.reader(io.StringIO(text, newline=""))
+            header = next(reader, None)
+            if header is None:
+                self.path.unlink()
+                return
+            if not header or header[0] != "run_id" or len(set(header)) != len(header):
+                raise ConfigError("not a runs table (its first column must be run_id, its columns unique)",
+                                  source=str(self.path))
+            self.columns = header
+            for cells in reader:
+                if not cells:
                     continue
-            self._rows[run_id] = row
+                row = {c: parse_cell(t) for c, t in zip(header, cells)}
+                run_id = str(row["run_id"])
+                if run_id in self._rows:
+                    repaired = True       # keep one row per run: the later one, unless it is an error
+                    if row.get("exit_status") == RunStatus.ERROR.value:
+                        continue
+                self._rows[run_id] = row
+        except (ValueError, csv.Error) as exc:   # UnicodeDecodeError is a ValueError
+            if isinstance(exc, ConfigError):
+                raise
+            raise ConfigError(f"unreadable runs table ({_reason(exc)})", source=str(self.path)) from None
         if repaired:
             self._rewrite()
 
@@ -333,44 +340,252 @@ def is_sweep_dir(path: Path) -> bool:
     return (Path(path) / RUNS_CSV).is_file() or (Path(path) / MANIFEST).is_file()
 
 
-def read_metrics(run_dir: Path) -> dict[str, Any]:
-    """``metrics.json`` of a finished run."""
-    path = Path(run_dir) / "metrics.json"
+def _reason(exc: BaseException) -> str:
+    """An exception as a short one-line reason."""
+    text = " ".join(str(exc).split())
+    text = text if len(text) <= 120 else text[:117] + "..."
+    return f"{exc.__class__.__name__}: {text}" if text else exc.__class__.__name__
+
+
+def _read_text(path: Path) -> str:
+    """The UTF-8 text of a result file (at most ``MAX_RESULT_BYTES``); anything else is a one-line ConfigError."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("not a finished run directory (no metrics.json)", source=str(run_dir)) from None
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"unreadable metrics.json ({exc})", source=str(run_dir)) from None
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_RESULT_BYTES + 1)
+    except OSError as exc:
+        raise ConfigError(f"unreadable ({_reason(exc)})", source=str(path)) from None
+    if len(raw) > MAX_RESULT_BYTES:
+        raise ConfigError(f"unreadable (larger than {MAX_RESULT_BYTES >> 20} MiB)", source=str(path))
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError("unreadable (not UTF-8 text)", source=str(path)) from None
+    if "\x00" in text:
+        raise ConfigError("unreadable (binary data)", source=str(path))
+    return text
+
+
+MAX_RESULT_BYTES = 256 << 20   # largest metrics.json, scenario.yaml or events.csv read back, bytes
+
+
+def _check_metrics(data: Mapping[str, Any], path: Path) -> None:
+    """Refuse metrics whose values the figures and tables read have the wrong shape."""
+    def bad(field: str, want: str) -> ConfigError:
+        return ConfigError(f"corrupt: must be {want}, got {_short_value(data.get(field))}",
+                           source=str(path), field=field)
+
+    for key in ("completion_time_s", "sim_time_s", "positioning_noise_std_m"):
+        v = data.get(key)
+        if v is not None and not is_number(v):
+            raise bad(key, "a finite number or null")
+    for key in ("exit_status", "planner", "avoidance", "scenario"):
+        v = data.get(key)
+        if v is not None and not isinstance(v, str):
+            raise bad(key, "a string")
+    times = data.get("waypoint_times_s")
+    if times is not None and not (isinstance(times, list) and all(v is None or is_number(v) for v in times)):
+        raise bad("waypoint_times_s", "a list of numbers or nulls")
+    est = data.get("estimation")
+    if est is not None and not (isinstance(est, dict) and all(isinstance(est.get(k, {}), dict)
+                                                              for k in ("kalman", "gps", "imu"))):
+        raise bad("estimation", "a mapping of kalman, gps and imu mappings")
+
+
+def _short_value(v: Any) -> str:
+    text = " ".join(repr(v).split())
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def read_metrics(run_dir: Path) -> dict[str, Any]:
+    """``metrics.json`` of a finished run.
+
+    Raises:
+        ConfigError: missing, unreadable, not JSON, not a mapping or holding values of the wrong
+            shape: one line naming the file.
+    """
+    path = Path(run_dir) / "metrics.json"
+    if not path.is_file():
+        raise ConfigError("not a finished run directory (no metrics.json)", source=str(run_dir))
+    text = _read_text(path)
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise ConfigError(f"unreadable: not JSON ({_reason(exc)})", source=str(path)) from None
     if not isinstance(data, dict):
-        raise ConfigError("metrics.json must hold a mapping", source=str(run_dir))
+        raise ConfigError("corrupt: must hold a mapping", source=str(path))
+    _check_metrics(data, path)
     return data
 
 
 def read_scenario_data(run_dir: Path) -> dict[str, Any] | None:
-    """The resolved ``scenario.yaml`` of a run directory (None when missing or unreadable)."""
+    """The resolved ``scenario.yaml`` of a run directory (None when there is none).
+
+    Raises:
+        ConfigError: unreadable, malformed, or not a scenario (the sections the figures read are
+            validated: arena, agents and their vehicle, task): one line naming the file.
+    """
+    from pybullet_swarm.validation import parse_yaml
+
     path = Path(run_dir) / "scenario.yaml"
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError):
+    if not path.is_file():
         return None
-    return data if isinstance(data, dict) else None
+    text = _read_text(path)
+    data = parse_yaml(text, source=str(path))
+    if not isinstance(data, dict):
+        raise ConfigError("corrupt: must hold a mapping of scenario sections", source=str(path))
+    from pybullet_swarm.experiment.scenario import check_saved_scenario
+
+    check_saved_scenario(data, source=str(path))
+    return data
 
 
 def read_events(path: Path) -> list[Event]:
-    """Events of ``events.csv`` (empty when the file is missing)."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
+    """Events of ``events.csv`` (empty when the file is missing; rows that cannot be read are skipped).
+
+    Raises:
+        ConfigError: the file is not text (binary, not UTF-8) or not CSV.
+    """
+    path = Path(path)
+    if not path.is_file():
         return []
+    text = _read_text(path)
     events = []
-    for rec in csv.DictReader(io.StringIO(text, newline="")):
-        try:
-            events.append(Event(time_s=float(rec["time_s"]), kind=rec["kind"], a=rec.get("a", ""),
-                                b=rec.get("b", "") or "", detail=rec.get("detail", "") or ""))
-        except (KeyError, TypeError, ValueError):
-            continue
-    return events
+    try:
+        for rec in csv.DictReader(io.StringIO(text, newline="")):
+            try:
+                events.append(Event(time_s=float(rec["time_s"]), kind=str(rec["kind"]), a=str(rec.get("a", "") or ""),
+                                    b=str(rec.get("b", "") or ""), detail=str(rec.get("detail", "") or "")))
+            except (KeyError, TypeError, ValueError):
+                continue
+    except csv.Error as exc:
+        raise ConfigError(f"unreadable: not CSV ({_reason(exc)})", source=str(path)) from None
+    return [e for e in events if math.isfinite(e.time_s)]
+
+
+def _open_npz(path: Path) -> Any:
+    """``np.load`` of an ``.npz`` whose members would fit the memory budget (a zip bomb is refused unread)."""
+    import zipfile
+
+    import numpy as np
+
+    from pybullet_swarm.memory import format_bytes, memory_budget
+
+    try:
+        with zipfile.ZipFile(path) as zf:
+            size = sum(info.file_size for info in zf.infolist())
+        if size > memory_budget():
+            raise ConfigError(f"unreadable (its arrays would take {format_bytes(size)}, above the memory "
+                              f"budget)", source=str(path))
+        return np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError(f"unreadable ({_reason(exc)})", source=str(path)) from None
+
+
+def _npz_arrays(path: Path) -> dict[str, Any]:
+    """Every array of an ``.npz`` file, read (decompressed) under the same guards as ``_open_npz``."""
+    z = _open_npz(path)
+    try:
+        with z:
+            return {k: z[k] for k in z.files}
+    except Exception as exc:  # noqa: BLE001 - a member that cannot be read (truncated, bad CRC, zlib.error ...)
+        raise ConfigError(f"unreadable ({_reason(exc)})", source=str(path)) from None
+
+
+_SERIES_SHAPES = {"t": (), "positions": (3,), "quaternions": (4,), "velocities": (3,), "rotor_speeds": (4,),
+                  "ref_positions": (3,), "ref_velocities": (3,)}
+
+
+def read_timeseries(path: Path) -> Any:
+    """The ``TimeSeries`` of ``timeseries.npz``, its arrays checked: present, numeric, of consistent shapes
+    (``t`` (m,), per-agent channels (m, n, k)) and finite (the core channels).
+
+    Raises:
+        ConfigError: empty, truncated, garbage or inconsistent: one line naming the file.
+    """
+    import numpy as np
+
+    from pybullet_swarm.experiment.recorder import TimeSeries
+
+    path = Path(path)
+    arrays = _npz_arrays(path)
+
+    def bad(name: str, why: str) -> ConfigError:
+        return ConfigError(f"corrupt: {why}", source=str(path), field=name)
+
+    for name in _SERIES_SHAPES:
+        if name not in arrays:
+            raise bad(name, "array missing")
+        if arrays[name].dtype.kind not in "fiu":
+            raise bad(name, f"must hold numbers, got dtype {arrays[name].dtype}")
+    t = arrays["t"]
+    if t.ndim != 1:
+        raise bad("t", f"must have shape (m,), got {t.shape}")
+    m = t.shape[0]
+    n = arrays["positions"].shape[1] if arrays["positions"].ndim == 3 else -1
+    if n < 1:
+        raise bad("positions", f"must have shape (m, n, 3) with n >= 1, got {arrays['positions'].shape}")
+    for name, tail in _SERIES_SHAPES.items():
+        want = (m, *(() if name == "t" else (n, *tail)))
+        if arrays[name].shape != want:
+            raise bad(name, f"must have shape {want}, got {arrays[name].shape}")
+        if name in ("t", "positions", "quaternions", "velocities", "rotor_speeds") and \
+                not np.all(np.isfinite(arrays[name])):
+            raise bad(name, "must hold finite numbers")
+    extra = {}
+    for key, value in arrays.items():
+        if key.startswith("extra_"):
+            if value.dtype.kind not in "fiub" or value.ndim < 1 or value.shape[0] != m:
+                raise bad(key, f"must hold numbers with {m} samples first, got {value.dtype} {value.shape}")
+            extra[key[6:]] = value
+    return TimeSeries(**{k: arrays[k] for k in _SERIES_SHAPES}, extra=extra)
+
+
+def read_pheromones(path: Path) -> dict[str, Any]:
+    """The arrays of ``pheromones.npz`` (see ``PheromoneGrid.arrays``), checked for the figures.
+
+    Raises:
+        ConfigError: unreadable or inconsistent: one line naming the file.
+    """
+    import numpy as np
+
+    path = Path(path)
+    arrays = _npz_arrays(path)
+
+    def bad(name: str, why: str) -> ConfigError:
+        return ConfigError(f"corrupt: {why}", source=str(path), field=name)
+
+    def numeric(name: str, ndim: int) -> Any:
+        if name not in arrays:
+            raise bad(name, "array missing")
+        a = arrays[name]
+        if a.dtype.kind not in "fiu" or a.ndim != ndim or not np.all(np.isfinite(a)):
+            raise bad(name, f"must hold {ndim}-dimensional finite numbers, got {a.dtype} {a.shape}")
+        return a
+
+    cell = numeric("cell", 0)
+    if not float(cell) > 0:
+        raise bad("cell", "must be > 0")
+    extent = numeric("extent", 1)
+    if extent.shape != (3,) or not np.all(extent > 0):
+        raise bad("extent", f"must be 3 lengths > 0, got {extent.tolist()}")
+    t = numeric("snapshot_t", 1)
+    layers = arrays.get("layers")
+    if layers is None or layers.dtype.kind != "U" or layers.ndim != 1 or layers.size == 0:
+        raise bad("layers", "must be a list of layer names")
+    for name in (str(x) for x in layers):
+        values = numeric(name, 3)
+        hist = numeric(f"{name}_history", 3)
+        if hist.shape[0] not in (0, t.shape[0]) or hist.shape[1:] != values.shape[:2] or 0 in values.shape:
+            raise bad(f"{name}_history", f"must have shape ({t.shape[0]}, {values.shape[0]}, {values.shape[1]}), "
+                                         f"got {hist.shape}")
+        marked = numeric(f"{name}_marked", 1)
+        if marked.shape != t.shape:
+            raise bad(f"{name}_marked", f"must have shape {t.shape}, got {marked.shape}")
+        if f"{name}_mass" in arrays and numeric(f"{name}_mass", 1).shape != t.shape:
+            raise bad(f"{name}_mass", f"must have shape {t.shape}")
+    return arrays
 
 
 def run_dir_row(run_dir: Path) -> Row:

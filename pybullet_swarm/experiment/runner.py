@@ -46,6 +46,10 @@ def run(
         scenario = scenario.with_overrides(overrides)
     if video and out is None:
         raise ValueError("video needs an output directory (out=...)")
+    if out is not None:
+        from pybullet_swarm.experiment.rundir import check_run_dir
+
+        check_run_dir(Path(out))   # before the simulation: a directory it could not write is refused now
     video_path = None
     if video and out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
@@ -62,9 +66,15 @@ def run(
 
 
 def write_run(result: RunResult, out: Path, *, plots: bool = True) -> Path:
-    """Write ``scenario.yaml``, ``metrics.json``, ``timeseries.npz``, ``events.csv`` and ``plots/``."""
-    from pybullet_swarm.experiment.rundir import atomic_write
+    """Write ``scenario.yaml``, ``metrics.json``, ``timeseries.npz``, ``events.csv`` and ``plots/``.
 
+    A previous run's files in ``out`` are removed first (``rundir.clear_run_dir``): the directory
+    then holds this run only.
+    """
+    from pybullet_swarm.experiment.rundir import atomic_write, clear_run_dir
+
+    video = result.metrics.get("video")
+    clear_run_dir(out, keep=frozenset({video}) if isinstance(video, str) else frozenset())
     out.mkdir(parents=True, exist_ok=True)
     data = dict(result.scenario.data)
     data["seed"] = result.metrics.get("seed", data.get("seed"))

@@ -667,6 +667,35 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
     return s
 
 
+def check_saved_scenario(data: Any, *, source: str) -> None:
+    """Refuse a run's saved ``scenario.yaml`` whose sections the figures read are not valid.
+
+    The schema of every section, the task model of its kind and the vehicle are checked; the
+    semantic checks of ``build_scenario`` (and the controller design) are not repeated for a
+    scenario that already ran.
+
+    Raises:
+        ConfigError: one line naming ``source`` and the field.
+    """
+    if not isinstance(data, dict):
+        raise ConfigError(f"must be a mapping of scenario sections, got {type(data).__name__}", source=source)
+    check_plain(data, source=source)
+    f = validate(_ScenarioFile, data, source=source)
+    from pybullet_swarm import tasks as _tasks
+    from pybullet_swarm.vehicle import load_vehicle
+
+    models = {**TASK_MODELS, **_tasks.task_models()}
+    kind = f.task.get("kind")
+    if not isinstance(kind, str) or kind not in models:
+        raise ConfigError(f"must be one of {', '.join(sorted(models))}, got {_short(kind)}", source=source,
+                          field="task.kind")
+    validate(models[kind], f.task, source=source, prefix="task")
+    try:
+        load_vehicle(f.agents.vehicle)
+    except (ConfigError, OSError) as exc:
+        raise ConfigError(str(exc), source=source, field="agents.vehicle") from None
+
+
 def _is_file(p: Path) -> bool:
     """``p.is_file()``, False also for names the file system refuses (too long, ...)."""
     try:

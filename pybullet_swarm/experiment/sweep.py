@@ -263,7 +263,9 @@ def base_scenario(sweep: Sweep) -> tuple[dict[str, Any], str]:
 def default_out(sweep: Sweep, root: Path = Path("runs")) -> Path:
     """``runs/sweep-<scenario>-<hash of the base scenario>``: the same command finds the same directory."""
     data, _ = base_scenario(sweep)
-    return root / f"sweep-{data.get('name', 'scenario')}-{config_hash(_without_seed(data), 8)}"
+    from pybullet_swarm.experiment.rundir import safe_name
+
+    return root / f"sweep-{safe_name(str(data.get('name', 'scenario')))}-{config_hash(_without_seed(data), 8)}"
 
 
 def _without_seed(data: Mapping[str, Any]) -> dict[str, Any]:
@@ -330,10 +332,13 @@ def read_manifest(out: Path) -> dict[str, Any] | None:
         return None
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"unreadable manifest ({exc})", source=str(path)) from None
-    if not isinstance(data, dict) or "runs" not in data:
-        raise ConfigError("not a sweep manifest", source=str(path))
+    except (OSError, ValueError, RecursionError) as exc:   # UnicodeDecodeError is a ValueError
+        raise ConfigError(f"unreadable manifest ({' '.join(str(exc).split())[:120]})", source=str(path)) from None
+    if not isinstance(data, dict) or not isinstance(data.get("runs"), dict):
+        raise ConfigError("not a sweep manifest (no mapping of runs)", source=str(path))
+    keys = data.get("grid_keys", [])
+    if not isinstance(keys, list) or not all(isinstance(k, str) for k in keys):
+        raise ConfigError("corrupt sweep manifest: grid_keys must be a list of names", source=str(path))
     return data
 
 
@@ -425,8 +430,9 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, executor: str = "l
     out = Path(out) if out is not None else default_out(sweep)
     plan = plan_sweep(sweep, out, plots=plots)
     out = plan.out
-    if out.exists() and not out.is_dir():
-        raise ConfigError("exists and is not a directory", source=str(out))
+    from pybullet_swarm.experiment.rundir import check_output_dir
+
+    check_output_dir(out)   # before any run: a directory that cannot be written is refused now
     old = read_manifest(out) if out.is_dir() else None
     if old is None and out.is_dir() and any(p.name != ".lock" for p in out.iterdir()):
         raise ConfigError("exists and is not a sweep directory (no sweep.json); use another --out", source=str(out))

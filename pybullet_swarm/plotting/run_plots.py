@@ -103,8 +103,9 @@ def plot_saved_artifacts(run_dir: Path, out_dir: Path) -> list[Path]:
     if pher.is_file():
         from pybullet_swarm.plotting.pheromone_plots import plot_pheromones
 
-        with np.load(pher) as z:
-            arrays = {k: z[k] for k in z.files}
+        from pybullet_swarm.experiment.results import read_pheromones
+
+        arrays = read_pheromones(pher)
         names = [str(n) for n in np.asarray(arrays["layers"]).ravel()]
         lasting = [n for n in names if n == "task"]
         files += plot_pheromones(arrays, out_dir, persistent=lasting)

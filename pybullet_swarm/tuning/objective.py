@@ -45,6 +45,10 @@ _FUNCTIONS: dict[str, tuple[Callable[..., float], int, int | None]] = {   # name
 
 Evaluator = Callable[[Mapping[str, Any]], float]
 
+MAX_CHARS = 2000   # longest objective expression
+MAX_NODES = 500    # most syntax-tree nodes (numbers, names, operators) in one expression
+MAX_DEPTH = 60     # deepest nesting of an expression (compiled and evaluated by recursion)
+
 
 class Direction(str, enum.Enum):
     """Whether an objective is minimised or maximised."""
@@ -114,14 +118,38 @@ def parse_objective(text: str, direction: Direction | str = Direction.MINIMIZE, 
     """
     if not isinstance(text, str) or not text.strip():
         raise ConfigError(f"expected an expression over metric names, got {text!r}", source=source)
+    if len(text) > MAX_CHARS:
+        raise ConfigError(f"expression too long: {len(text)} characters, at most {MAX_CHARS}", source=source)
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
-        raise ConfigError(f"not a valid expression ({exc.msg}), got {text!r}", source=source) from None
+        raise ConfigError(f"not a valid expression ({exc.msg}), got {_clip(text)!r}", source=source) from None
+    except (RecursionError, MemoryError):
+        raise ConfigError(f"expression nested too deeply (at most {MAX_DEPTH} levels)", source=source) from None
+    nodes, depth = _size(tree.body)
+    if nodes > MAX_NODES or depth > MAX_DEPTH:
+        raise ConfigError(f"expression too large: {nodes} terms nested {depth} levels deep, at most {MAX_NODES} "
+                          f"terms and {MAX_DEPTH} levels", source=source)
     names: list[str] = []
     fn = _compile(tree.body, names, source, text)
     return Objective(text=text.strip(), direction=Direction.parse(direction), names=tuple(dict.fromkeys(names)),
                      _fn=fn)
+
+
+def _size(root: ast.AST) -> tuple[int, int]:
+    """(number of nodes, depth) of an expression tree, walked without recursion."""
+    count, deepest = 0, 0
+    stack = [(root, 1)]
+    while stack:
+        node, depth = stack.pop()
+        count += 1
+        deepest = max(deepest, depth)
+        stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
+    return count, deepest
+
+
+def _clip(text: str, limit: int = 80) -> str:
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _dotted(node: ast.AST) -> str | None:
