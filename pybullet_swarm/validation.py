@@ -199,7 +199,21 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         node = super().get_single_node()
         if node is not None:
             _check_expansion(node)
+        self._root = node
         return node
+
+    def construct_object(self, node: yaml.Node, deep: bool = False) -> Any:
+        try:
+            return super().construct_object(node, deep=deep)
+        except (ValueError, TypeError, OverflowError, KeyError, AttributeError, IndexError) as exc:
+            # an explicit tag on a value it does not fit (`!!int abc`, `!!bool maybe`) fails inside
+            # PyYAML's constructors: report the value and where it is
+            tag = str(node.tag).replace("tag:yaml.org,2002:", "!!")
+            value = node.value if isinstance(node, yaml.ScalarNode) else f"<{type(node).__name__}>"
+            reason = "not a value of this type" if isinstance(exc, (KeyError, AttributeError, IndexError)) else \
+                " ".join(str(exc).split()) or exc.__class__.__name__
+            raise YamlValueError(f"cannot read {tag} {_short(value, 30)} ({reason[:100]})", node.start_mark,
+                                 _node_path(getattr(self, "_root", None), node)) from None
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:  # type: ignore[override]
         if isinstance(node, yaml.MappingNode):
@@ -225,6 +239,39 @@ class _UniqueKeyLoader(yaml.SafeLoader):
 # resolver; this one, consulted after the int resolver, adds exponents without a dot or a sign.
 _EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9][0-9_]*)[eE][-+]?[0-9]+$")
 _UniqueKeyLoader.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT, list("-+0123456789."))
+
+
+class YamlValueError(yaml.YAMLError):
+    """A scalar that its tag's constructor cannot read, with the field path where it is."""
+
+    def __init__(self, message: str, mark: Any, field: str | None) -> None:
+        super().__init__(message)
+        self.problem = message
+        self.problem_mark = mark
+        self.field = field
+
+
+def _node_path(root: yaml.Node | None, target: yaml.Node) -> str | None:
+    """The field path (``task.waypoints[1].t_s``) of ``target`` in the composed document, if found."""
+    if root is None:
+        return None
+    seen: set[int] = set()
+    stack: list[tuple[yaml.Node, str]] = [(root, "")]
+    while stack:
+        node, path = stack.pop()
+        if node is target:
+            return path or None
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.SequenceNode):
+            stack.extend((child, f"{path}[{i}]") for i, child in enumerate(node.value))
+        elif isinstance(node, yaml.MappingNode):
+            for key, value in node.value:
+                name = str(key.value) if isinstance(key, yaml.ScalarNode) else "?"
+                stack.append((value, f"{path}.{name}" if path else name))
+                stack.append((key, f"{path}.{name}" if path else name))
+    return None
 
 
 class YamlTooLarge(yaml.YAMLError):
@@ -286,6 +333,10 @@ def parse_yaml(text: str, *, source: str | None) -> Any:
         return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
     except YamlTooLarge as exc:
         raise ConfigError(f"too large: {exc.problem}", source=source) from None
+    except YamlValueError as exc:
+        mark = exc.problem_mark
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+        raise ConfigError(f"{exc.problem}{where}", source=source, field=exc.field) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else "unknown position"
@@ -293,8 +344,10 @@ def parse_yaml(text: str, *, source: str | None) -> Any:
         raise ConfigError(f"malformed YAML at {where}: {problem}", source=source) from None
     except RecursionError:
         raise ConfigError("malformed YAML: nested too deeply", source=source) from None
-    except (ValueError, TypeError, OverflowError) as exc:
-        raise ConfigError(f"malformed YAML: a value cannot be read ({exc})", source=source) from None
+    except (ValueError, TypeError, OverflowError, KeyError, AttributeError, IndexError) as exc:
+        # an explicit tag on a value it does not fit (`!!bool maybe`, `!!timestamp 1`) fails inside PyYAML
+        reason = " ".join(str(exc).split()) or exc.__class__.__name__
+        raise ConfigError(f"malformed YAML: a value cannot be read ({reason[:120]})", source=source) from None
 
 
 def read_yaml(path: Path) -> Any:

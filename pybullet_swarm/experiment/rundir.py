@@ -6,6 +6,7 @@ import csv
 import io
 import json
 import os
+import re
 import shutil
 import tempfile
 import time
@@ -81,13 +82,13 @@ def write_events(path: Path, events: list[Event]) -> None:
 def safe_name(text: str, *, fallback: str = "scenario", limit: int = 64) -> str:
     """``text`` as one harmless path component: letters, digits, ``. _ -`` (others become ``_``).
 
-    No path separator, no leading dot (so never ``.`` or ``..``), at most ``limit`` characters;
+    No path separator, no leading dot or dash (so never ``.``, ``..`` nor a hidden name), at most ``limit`` characters;
     ``fallback`` when nothing is left. A scenario's ``name`` is free text; directory names made
     from it stay inside the chosen output directory.
     """
     out = "".join(ch if (ch.isascii() and ch.isalnum()) or ch in "._-" else "_" for ch in str(text))
-    out = out.lstrip(".")[:limit].strip("_") or fallback
-    return out
+    out = re.sub(r"_{2,}", "_", out).lstrip("._-")[:limit].rstrip("_")
+    return out or fallback
 
 
 def default_run_dir(scenario: str, planner: str, seed: int, root: Path = Path("runs")) -> Path:

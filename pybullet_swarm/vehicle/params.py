@@ -193,8 +193,9 @@ def _resolve(name_or_path: str | Path) -> Path:
     )
 
 
-@functools.cache
-def _load(path: Path) -> VehicleParams:
+@functools.lru_cache(maxsize=64)
+def _load(path: Path, stamp: tuple[int, int] = (0, 0)) -> VehicleParams:
+    """Parameters of ``path``; ``stamp`` (modification time, size) makes an edited file read again."""
     raw = read_yaml(path)
     if not isinstance(raw, dict):
         raise ConfigError("must be a mapping of vehicle parameters", source=path.name)
@@ -214,4 +215,10 @@ def _load(path: Path) -> VehicleParams:
 
 def load_vehicle(name_or_path: str | Path) -> VehicleParams:
     """Parameters of a bundled vehicle by name ('quad150', 'cf2x') or of a vehicle YAML file."""
-    return _load(_resolve(name_or_path).resolve())
+    path = _resolve(name_or_path).resolve()
+    try:
+        st = path.stat()
+        stamp = (st.st_mtime_ns, st.st_size)
+    except OSError:
+        stamp = (0, 0)
+    return _load(path, stamp)

@@ -282,7 +282,7 @@ EXPLICIT: list[tuple[str, Callable[[], str], list[str], str | tuple[str, ...]]] 
      (f"bad.yaml: malformed YAML at line {COUNT_LINE}, column 1: found character '\\t' that cannot start any token",)),
     ("duplicate_key", lambda: HOVER_TEXT + "seed: 1\n", [], ("bad.yaml: malformed YAML at line", "duplicate key 'seed'")),
     ("bad_date", lambda: HOVER_TEXT.replace("seed: 0", "seed: 2024-02-30"), [],
-     "bad.yaml: malformed YAML: a value cannot be read (day is out of range for month)"),
+     ("bad.yaml: seed: cannot read !!timestamp '2024-02-30' (day is out of range for month) (line ",)),
     ("empty", lambda: "", [], "bad.yaml: must be a mapping of scenario sections, got NoneType"),
     ("top_level_list", lambda: "- name: hover\n- seed: 0\n", [],
      "bad.yaml: must be a mapping of scenario sections, got list"),
