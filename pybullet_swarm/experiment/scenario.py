@@ -27,8 +27,10 @@ if TYPE_CHECKING:  # pragma: no cover
 MAX_COORD = 1e5   # m, largest coordinate accepted anywhere (the largest arena is 1e4 m)
 Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD)]
 Vec3 = Annotated[list[Coord], Field(min_length=3, max_length=3)]
-PosVec3 = Annotated[list[Annotated[float, Field(gt=0)]], Field(min_length=3, max_length=3)]
 PosFloat = Annotated[float, Field(gt=0, le=1e6)]
+# reference-shaping limits: at least 1 mm/s (mm/s^2), below which the shaper's times overflow
+Limit = Annotated[float, Field(ge=1e-3, le=1e6)]
+LimitVec3 = Annotated[list[Limit], Field(min_length=3, max_length=3)]
 
 
 class _Strict(pydantic.BaseModel):
@@ -117,8 +119,8 @@ class AgentsSection(_Strict):
 class LimitsSection(_Strict):
     """Reference-shaping limits, per axis (a number applies to all three axes)."""
 
-    velocity: PosFloat | PosVec3 | None = 0.5   # m/s; None: no shaping (raw steps)
-    acceleration: PosFloat | PosVec3 = 1.0      # m/s^2
+    velocity: Limit | LimitVec3 | None = 0.5   # m/s; None: no shaping (raw steps)
+    acceleration: Limit | LimitVec3 = 1.0      # m/s^2
 
 
 class Waypoint(_Strict):

@@ -2,8 +2,8 @@
 accepts a short ``run`` neither refuses nor fails on.
 
 Each example mutates one bundled scenario one to three times: a value of the wrong type, NaN or
-infinity, a huge or tiny number, a scaled number, a plausible number (-1000 .. 3000), an unknown field, a deleted field, shared YAML aliases, an alias
-bomb, a recursive alias or a YAML tag. Then
+infinity, a huge or tiny number, a scaled number, a plausible number (-1000 .. 3000), an unknown
+field, a deleted field, shared YAML aliases, an alias bomb, a recursive alias or a YAML tag. Then
 
 - ``pybullet-swarm check`` exits 0, or 2 with exactly one ``pybullet-swarm: error:`` line naming
   the file; no warning is emitted either way;
