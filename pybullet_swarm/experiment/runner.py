@@ -71,12 +71,31 @@ def write_run(result: RunResult, out: Path, *, plots: bool = True) -> Path:
     write_yaml(out / "scenario.yaml", data)
     atomic_write(out / "timeseries.npz", result.timeseries.save_to, binary=True)
     write_events(out / "events.csv", result.events)
+    write_artefacts(out, result.artifacts)
     if plots:
-        from pybullet_swarm.plotting.run_plots import plot_run
+        from pybullet_swarm.plotting.run_plots import plot_run, plot_saved_artifacts
 
         plot_run(result.timeseries, out / "plots", result.metrics, scenario=result.scenario.data,
                  events=result.events)
-    for artifact in result.artifacts.values():
-        artifact.write(out, plots)
+        plot_saved_artifacts(out, out / "plots")
     write_json(out / "metrics.json", result.metrics)   # last: its presence marks a finished run
     return out
+
+
+def write_artefacts(out: Path, artefacts: dict[str, Any]) -> list[Path]:
+    """Write a run's artefacts (data by file name: ``.json`` plain data, ``.npz`` arrays by name) atomically."""
+    import numpy as np
+
+    from pybullet_swarm.experiment.rundir import atomic_write
+
+    written = []
+    for name, data in artefacts.items():
+        path = out / name
+        if name.endswith(".npz"):
+            atomic_write(path, lambda fh, d=data: np.savez_compressed(fh, **d), binary=True)
+        elif name.endswith(".json"):
+            write_json(path, data)
+        else:
+            raise ValueError(f"artefact {name!r}: expected a .json or .npz file name")
+        written.append(path)
+    return written

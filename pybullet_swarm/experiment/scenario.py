@@ -18,6 +18,7 @@ from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.resources import bundled_scenarios, scenarios_dir
+from pybullet_swarm.tasks.waypoints import WaypointsTask
 from pybullet_swarm.validation import _short, check_plain, parse_yaml, read_yaml, validate
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
@@ -115,26 +116,7 @@ class LimitsSection(_Strict):
     acceleration: PosFloat | PosVec3 = 1.0      # m/s^2
 
 
-class Waypoint(_Strict):
-    """A timed set-point."""
-
-    t_s: float = Field(ge=0.0, le=1e5)   # s, when it becomes active
-    position: Vec3                        # m, relative to the agent's start when `relative`
-    yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)
-
-
-class WaypointsTask(_Strict):
-    """Every agent follows a timed list of set-points; completed when all hold the last one."""
-
-    kind: Literal["waypoints"]
-    time_limit_s: float = Field(gt=0.0, le=1e5)
-    waypoints: Annotated[list[Waypoint], Field(min_length=1)]
-    relative: bool = True                 # positions are offsets from each agent's start
-    tolerance_m: float = Field(0.05, gt=0.0, le=100.0)
-    hold_s: float = Field(1.0, ge=0.0, le=1e4)
-
-
-TASK_MODELS: dict[str, type[_Strict]] = {"waypoints": WaypointsTask}
+TASK_MODELS: dict[str, type[pydantic.BaseModel]] = {"waypoints": WaypointsTask}
 
 
 class RangeSensing(_Strict):

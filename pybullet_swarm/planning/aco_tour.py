@@ -34,7 +34,7 @@ from scipy.optimize import linear_sum_assignment
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.aco import ACOParams, solve_tsp
-from pybullet_swarm.planning.base import Command, TaskInfo, WorldView
+from pybullet_swarm.planning.base import Command, TaskInfo, TourPlan, WorldView
 
 VIA = -1    # waypoint tag: a climb/descent point, not an inspection point
 HOME = -2   # waypoint tag: the agent's home point
@@ -311,7 +311,8 @@ class AcoTour:
         self.n = n
         self.points = pts                                           # (W, 3) m
         self.radius = float(info.extra.get("visit_radius", 0.1))    # m
-        self.board = info.extra.get("tour_board")
+        self.plan: TourPlan | None = None                           # published once the legs are cut
+        self.points_done = np.zeros(len(pts), dtype=bool)           # what the task counts as visited
         self.return_home = bool(info.extra.get("return_home", False))
         self.homes = info.extra.get("homes")                        # (n, 3) m or None
         self.costs = CostModel(self.metric, self.safe_altitude, info.v_max, info.extra.get("a_max"))
@@ -342,9 +343,11 @@ class AcoTour:
         if self.costs.time_defined:
             self.planned_makespan = max(float(self.costs.segment(np.diff(p, axis=0), Metric.TIME).sum())
                                         for p in paths)
-        if self.board is not None and hasattr(self.board, "publish"):
-            self.board.publish(legs=self.legs, paths=paths, tour=self.tour, planned_time_s=self.planned_makespan,
-                               metric=self.costs.metric.value)
+        self.plan = TourPlan(np.asarray(self.tour, dtype=np.int64).reshape(-1),
+                             tuple(np.asarray(leg, dtype=np.int64).reshape(-1) for leg in self.legs),
+                             tuple(np.asarray(p, dtype=float).reshape(-1, 3) for p in paths),
+                             None if self.planned_makespan is None else float(self.planned_makespan),
+                             self.costs.metric.value)
         return self.legs
 
     def _route(self, start: NDArray[np.float64], leg: NDArray[np.int64],
@@ -367,7 +370,7 @@ class AcoTour:
             return False   # hold it; the task judges completion
         if tag == VIA:
             return bool(np.linalg.norm(p - target) <= self.via_tolerance)
-        counted = self.board is not None and bool(self.board.visited[tag])
+        counted = bool(self.points_done[tag])
         if counted or np.linalg.norm(p - target) <= self.radius:
             self.done[tag] = True
         return bool(self.done[tag])
@@ -382,10 +385,17 @@ class AcoTour:
 
     def plan_all(self, view: WorldView) -> list[Command]:
         """One position command per agent."""
+        if view.task is not None and view.task.points_done.shape == self.points_done.shape:
+            self.points_done = view.task.points_done
         if self.starts is None:
             self.starts = view.positions.copy()
             self.plan_legs(self.starts)
         return [self._command(i, view.positions[i], self.starts[i]) for i in range(self.n)]
+
+
+    def artefacts(self) -> dict[str, Any]:
+        """The published plan (``tour_plan``: legs, paths, planned time), once the legs are cut."""
+        return {} if self.plan is None else {"tour_plan": self.plan}
 
 
 def _enum(kind: type[enum.Enum], value: Any, field: str) -> Any:

@@ -63,16 +63,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.planning.base import Command, CommandKind, params_from_mapping
+from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, TaskView, params_from_mapping
 from pybullet_swarm.planning.orca import preferred_velocities
-
-if TYPE_CHECKING:  # pragma: no cover
-    from pybullet_swarm.experiment.simulation import Simulation
+from pybullet_swarm.types import Perception
 
 
 def lateral_weight(phi: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -385,43 +383,44 @@ class Braitenberg:
 class BraitenbergLayer:
     """The ``--avoidance braitenberg`` layer: each agent avoids what its own range sensors see.
 
-    Turns the range sensors on (``sensing.range`` of the scenario: 8 horizontal rays of 0.5 m by
-    default). Every planner tick it reads each agent's own observation (range readings, position,
-    velocity, yaw, sensed neighbours) and replaces the command of each agent it takes over by a
-    VELOCITY command with the same yaw and action.
+    Needs the range sensors (``sensing.range`` of the scenario: 8 horizontal rays of 0.5 m by
+    default; the clock turns them on for this layer). Every planner tick it reads each agent's own
+    row of the perception snapshot (range readings, position, velocity, yaw, sensed neighbours) and
+    replaces the command of each agent it takes over by a VELOCITY command with the same yaw and action.
 
     Args:
-        sim: the simulation.
+        setup: what the layer is told before the run (ray fan, limits, planner period).
         **params: ``BraitenbergParams`` fields (scenario ``avoidance_params``).
     """
 
-    def __init__(self, sim: Simulation, **params: Any) -> None:
+    needs_range_sensors: ClassVar[bool] = True
+
+    def __init__(self, setup: AvoidanceSetup, **params: Any) -> None:
         self.params = BraitenbergParams.from_mapping(params)
-        sim.enable_range_sensors()
-        fan = sim.range_sensor.fan
-        self.v_max = sim.scenario.velocity_limits()
-        acc = sim.scenario.acceleration_limits()
-        self.rule = Braitenberg(self.params, fan.angles, fan.range_m, self.v_max, sim.n, offset=fan.start_offset,
-                                decel=float(min(acc[0], acc[1])), dt=1.0 / sim.scenario.sim.planner_hz)
-        self.n = sim.n
+        if setup.range_angles.size == 0:
+            raise ValueError("the braitenberg layer needs range sensors (sensing.range)")
+        self.v_max = setup.v_max
+        acc = setup.a_max
+        self.rule = Braitenberg(self.params, setup.range_angles, setup.range_m, self.v_max, setup.n,
+                                offset=setup.range_offset, decel=float(min(acc[0], acc[1])), dt=setup.planner_dt)
+        self.n = setup.n
         self._ticks = 0
         self._active_ticks = 0
         self._switches = 0
 
-    def filter(self, commands: list[Command], sim: Simulation) -> list[Command]:
+    def filter(self, commands: list[Command], perception: Perception, task: TaskView) -> list[Command]:
         """Commands for this planner tick (``action`` and ``yaw`` of each command are kept)."""
-        obs = sim.observations()   # each agent's own readings and state
         n = self.n
-        pos = np.array([o.position for o in obs], dtype=float).reshape(n, 3)
-        vel = np.array([o.velocity for o in obs], dtype=float).reshape(n, 3)
-        yaws = np.array([o.yaw for o in obs], dtype=float)
-        ranges = np.array([o.ranges for o in obs], dtype=float).reshape(n, -1)
-        k = max((len(o.neighbour_ids) for o in obs), default=0)
+        pos, vel, yaws, ranges = perception.positions, perception.velocities, perception.yaws, perception.ranges
+        counts = np.diff(perception.nb_start)
+        k = int(counts.max()) if counts.size else 0
         nb_pos = np.full((n, k, 3), np.nan)
         nb_vel = np.full((n, k, 3), np.nan)
-        for i, o in enumerate(obs):
-            nb_pos[i, :len(o.neighbour_ids)] = o.neighbour_positions
-            nb_vel[i, :len(o.neighbour_ids)] = o.neighbour_velocities
+        if perception.nb_ids.size:
+            owner = np.repeat(np.arange(n), counts)
+            col = np.arange(owner.size) - np.repeat(perception.nb_start[:-1], counts)
+            nb_pos[owner, col] = perception.nb_positions
+            nb_vel[owner, col] = perception.nb_velocities
         kinds = np.fromiter((int(c.kind) for c in commands), dtype=np.int64, count=n)
         vectors = np.array([c.vector for c in commands], dtype=float).reshape(n, 3)
         pref = preferred_velocities(kinds, vectors, pos, arrive_time=self.params.arrive_time, v_max=None)

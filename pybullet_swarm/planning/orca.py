@@ -104,17 +104,15 @@ import dataclasses
 import enum
 import math
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any, ClassVar
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from pybullet_swarm.planning.base import Command, CommandKind, params_from_mapping
-
-if TYPE_CHECKING:  # pragma: no cover
-    from pybullet_swarm.experiment.simulation import Simulation
+from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, TaskView, params_from_mapping
+from pybullet_swarm.types import Perception
 
 #: flags returned per agent by ``orca_velocities``
 FLAG_INFEASIBLE = 1   # the ORCA planes had no common velocity: least-violating velocity used
@@ -1162,34 +1160,34 @@ def _warm_up() -> None:
 class OrcaLayer:
     """The ``--avoidance orca`` layer: turns every planner's commands into safe ones.
 
-    Each planner tick, per agent: neighbours within the sensing radius (k-d tree over the sensed
-    positions, as ``Simulation.observations``), shapes from sensed attitude and load, one LP; a
+    Each planner tick, per agent: the nearest neighbours within the sensing radius (from the swarm's
+    perception snapshot), shapes from sensed attitude and load, one LP; a
     command is kept when it is safe as it is (or a precise final approach is clear), else replaced
     by a VELOCITY command with the same ``action`` and ``yaw``.
 
     Args:
-        sim: the simulation (read for the vehicle, the limits, the sensing radius, the task and,
-            every tick, the sensed state of the swarm).
+        setup: what the layer is told before the run (vehicle, limits, rates, sensing radius, task layout).
         **params: ``OrcaParams`` fields (scenario ``avoidance_params``).
     """
 
-    def __init__(self, sim: Simulation, **params: Any) -> None:
+    needs_range_sensors: ClassVar[bool] = False
+
+    def __init__(self, setup: AvoidanceSetup, **params: Any) -> None:
         self.params = OrcaParams.from_mapping(params)
-        std = float(sim.info.extra.get("position_std", 0.0))      # m, per-axis, flying on estimates
+        info = setup.info
+        std = float(info.extra.get("position_std", 0.0))      # m, per-axis, flying on estimates
         if std > 0.0:
             grow = self.params.uncertainty_sigmas * math.sqrt(2.0) * std / 2.0
             self.params = dataclasses.replace(self.params, safety_margin=self.params.margin + grow)
-        self.n = sim.n
-        self.v_max = sim.scenario.velocity_limits()            # (3,) m/s or None
-        self.a_max = sim.scenario.acceleration_limits()        # (3,) m/s^2
-        self.control_dt = 1.0 / sim.scenario.sim.control_hz     # s, the shaper's tick
-        self.sensing_radius = float(sim.scenario.agents.sensing_radius)
-        vp = sim.params
-        self.r_agent = float(vp.radius)                         # m, airframe enclosing radius
-        self.half_extent = 0.5 * np.asarray(vp.collision_size, dtype=float)   # (3,) m
-        c = sim.construction
-        self.box_size = float(c.size) if c is not None else 0.0
-        self.box_drop = float(c.grasp_height) if c is not None else 0.0        # m, box centre below agent
+        self.n = setup.n
+        self.v_max = setup.v_max                                # (3,) m/s or None
+        self.a_max = setup.a_max                                # (3,) m/s^2
+        self.control_dt = setup.control_dt                      # s, the shaper's tick
+        self.sensing_radius = setup.sensing_radius
+        self.r_agent = float(setup.agent_radius)                # m, airframe enclosing radius
+        self.half_extent = 0.5 * np.asarray(setup.collision_size, dtype=float)   # (3,) m
+        self.box_size = float(info.box_size)                    # m, 0 when the task has no boxes
+        self.box_drop = float(info.grasp_height)                # m, box centre below agent
         # sphere around the agent centre enclosing airframe and hanging box
         self.r_carry = max(self.r_agent, math.hypot(math.sqrt(2.0) * 0.5 * self.box_size,
                                                     self.box_drop + 0.5 * self.box_size))
@@ -1203,16 +1201,14 @@ class OrcaLayer:
         self._time_total = 0.0
         self._time_max = 0.0
 
-    def filter(self, commands: list[Command], sim: Simulation) -> list[Command]:
+    def filter(self, commands: list[Command], perception: Perception, task: TaskView) -> list[Command]:
         """Safe commands for this planner tick (``action`` and ``yaw`` of each command are kept)."""
         t0 = time.perf_counter()
         p = self.params
         n = self.n
-        state = getattr(sim, "sensed_state_array", sim.state_array)   # sensed (estimated) state, as observations
-        pos = np.ascontiguousarray(state[:, :3])
-        vel = np.ascontiguousarray(state[:, 7:10])
-        c = sim.construction
-        carrying = (c.carrying(n) >= 0) if c is not None else np.zeros(n, dtype=bool)
+        pos = np.ascontiguousarray(perception.positions)     # sensed (estimated) own states
+        vel = np.ascontiguousarray(perception.velocities)
+        carrying = task.carrying >= 0
         kinds = np.fromiter((int(cmd.kind) for cmd in commands), dtype=np.int64, count=n)
         vectors = np.array([cmd.vector for cmd in commands], dtype=float).reshape(n, 3)
         hold = kinds == int(CommandKind.HOLD)
@@ -1222,8 +1218,8 @@ class OrcaLayer:
         pref = preferred_velocities(kinds, vectors, pos, arrive_time=p.arrive_time, v_max=self.v_max,
                                     max_speed=p.max_speed)
         v_cmd = commanded_velocities(kinds, vectors, pos, v_max=self.v_max, a_max=self.a_max, dt=self.control_dt)
-        nbr = neighbour_table(pos, self.sensing_radius, p.max_neighbours)
-        centre, half = bounding_boxes(np.ascontiguousarray(state[:, 3:7]), self.half_extent, carrying,
+        nbr = perception.nearest_table(p.max_neighbours)
+        centre, half = bounding_boxes(np.ascontiguousarray(perception.quaternions), self.half_extent, carrying,
                                       self.box_size, self.box_drop)
         radii = np.where(carrying, self.r_carry, self.r_agent)
         # bounds around what the command itself asks for (per axis it covers the preferred velocity)

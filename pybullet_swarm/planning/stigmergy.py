@@ -431,19 +431,11 @@ class Stigmergy:
         return [LayerSpec(Layer.TASK.value, fatigue=p.fatigue)]
 
     @classmethod
-    def make_medium(cls, sim: Any) -> PheromoneGrid:
-        """The pheromone grid shared by the agents of a simulation (the planner's parameters come
-        from the scenario's ``planner.params``)."""
-        sc = sim.scenario
-        raw = dict(sc.planner.params) if sc.planner.name in (None, sim.planner_name) else {}
-        try:
-            p = cls.Params(**raw)
-        except TypeError as exc:
-            raise ConfigError(f"bad parameters for planner {cls.name!r}: {exc}", source=sc.source,
-                              field="planner.params") from None
-        except ConfigError as exc:
-            raise exc.with_source(sc.source) from None
-        return PheromoneGrid(sim.info.arena_size, cls.layer_specs(p), cell=p.cell_size, height=p.grid_height,
+    def make_medium(cls, info: TaskInfo, params: Any) -> PheromoneGrid:
+        """The pheromone grid shared by the agents of a run, over the arena of ``info``, from the planner's
+        parameters (a ``Params`` instance or the scenario's ``planner.params`` mapping)."""
+        p = params if isinstance(params, cls.Params) else cls.Params(**dict(params))
+        return PheromoneGrid(info.arena_size, cls.layer_specs(p), cell=p.cell_size, height=p.grid_height,
                              snapshot_s=p.snapshot_s)
 
     # ------------------------------------------------------------- protocol

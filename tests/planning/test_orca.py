@@ -309,7 +309,7 @@ def test_layer_keeps_action_and_refuses_bad_params():
     try:
         # both aim at the other's place: the layer must change the commands, keeping the action
         cmds = [Command.goto(starts[1], Action.GRASP), Command.goto(starts[0], Action.RELEASE)]
-        out = sim.avoidance_layer.filter(cmds, sim)
+        out = sim.avoidance_layer.filter(cmds, sim.perceive(), sim.task.view(sim.time))
         assert [c.action for c in out] == [Action.GRASP, Action.RELEASE]
         assert all(c.kind is CommandKind.VELOCITY for c in out)
         assert np.all(np.abs(np.array([c.vector for c in out])) <= 0.5 + 1e-9)
