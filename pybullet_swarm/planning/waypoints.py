@@ -7,13 +7,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pybullet_swarm.planning.base import Command, TaskInfo, WorldView
+from pybullet_swarm.planning.params import NoParams
 
 
 class WaypointFollower:
-    """Centralised: reads the task's schedule (``info.extra['schedule']``: t -> (targets (n, 3), yaws (n,)))."""
+    """Centralised: reads the task's schedule (``info.extra['schedule']``: t -> (targets (n, 3), yaws (n,))).
+
+    Args:
+        params: none (``NoParams``).
+    """
 
     name: ClassVar[str] = "waypoints"
     centralized: ClassVar[bool] = True
+    Params: ClassVar[type[NoParams]] = NoParams
+
+    def __init__(self, params: NoParams | None = None) -> None:
+        self.params = params if params is not None else NoParams()
 
     def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Keep the task's schedule."""

@@ -37,11 +37,11 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.rundir import exclusive_directory
-from pybullet_swarm.experiment.results import RUNS_CSV, Row, RunsTable, RunStatus, config_hash, read_metrics
+from pybullet_swarm.experiment.results import RUNS_CSV, Row, RunsTable, RunStatus, read_metrics
 from pybullet_swarm.tuning.objective import (DEFAULT_OBJECTIVE, DEFAULT_PENALTY, MissingMetric, Objective,
                                              check_names, is_completed, parse_objectives, score_run,
                                              split_expressions)
-from pybullet_swarm.tuning.space import ParamSpec, check_params, parse_param
+from pybullet_swarm.tuning.space import ParamSpec, check_params, check_ranges, parse_param
 
 if TYPE_CHECKING:  # pragma: no cover
     from pybullet_swarm.experiment.sweep import RunSpec
@@ -221,20 +221,33 @@ class _Context:
 
 
 def _resolve(spec: TuneSpec, out: Path) -> _Context:
-    from pybullet_swarm.experiment.sweep import Sweep, base_scenario, plan_sweep
+    """Resolve the study's scenario (planner, avoidance layer, overrides) and check the search space
+    against the parameter models: types and ranges from the models, then the scenario validated at
+    both ends of the ranges (rules between fields); nothing is simulated."""
+    from pybullet_swarm.experiment.scenario import field_info, load_scenario
+    from pybullet_swarm.experiment.sweep import Sweep, plan_sweep
 
+    scenario = load_scenario(spec.scenario, dict(spec.overrides), planner=spec.planner,   # type: ignore[arg-type]
+                             avoidance=spec.avoidance)
+    check_ranges(spec.params, lambda key: field_info(scenario, key))   # type: ignore[arg-type]
     sweep = Sweep(spec.scenario, planners=(spec.planner,), avoidance=(spec.avoidance,), seeds=(spec.seed_start,),
                   overrides=spec.overrides)
-    data, _ = base_scenario(sweep)
-    run0 = plan_sweep(sweep, out).runs[0]
-    return _Context(spec=spec, out=out, planner=run0.planner, avoidance=run0.avoidance,
-                    scenario_name=str(data.get("name", "scenario")),
-                    base_hash=config_hash({k: v for k, v in data.items() if k != "seed"}))
+    plan = plan_sweep(sweep, out)
+    ctx = _Context(spec=spec, out=out, planner=plan.runs[0].planner, avoidance=plan.runs[0].avoidance,
+                   scenario_name=plan.scenario_name, base_hash=plan.base_hash)
+    for end in ("low", "high"):
+        values = {p.key: _cast(p, getattr(p, end)) for p in spec.params}   # type: ignore[union-attr]
+        try:
+            ctx.plan(values, seeds=(spec.seed_start,))
+        except ConfigError as exc:
+            where = ", ".join(f"{k}={v:g}" for k, v in values.items())
+            raise ConfigError(f"the {end} end of the ranges is refused ({where}): {exc}", source="--param") from None
+    return ctx
 
 
 def probe_run(spec: RunSpec) -> Row:
     """Run a spec for three planner ticks in this process (nothing written): the row's keys are the
-    metric names of a run, and any parameter the planner refuses raises here."""
+    metric names of a run (the objectives are checked against them)."""
     import copy
 
     from pybullet_swarm.experiment.scenario import build_scenario
@@ -248,21 +261,14 @@ def probe_run(spec: RunSpec) -> Row:
     return make_row(spec, metrics)
 
 
-def _probe(ctx: _Context, probe: Worker) -> list[str]:
-    """Metric names of a run, checked at both ends of every range; refuses ranges the planner refuses."""
-    names: set[str] = set()
-    for end in ("low", "high"):
-        values = {p.key: _cast(p, getattr(p, end)) for p in ctx.spec.params}   # type: ignore[union-attr]
-        try:
-            spec = ctx.plan(values, seeds=(ctx.spec.seed_start,))[0]
-            row = probe(spec)
-        except ConfigError as exc:
-            where = ", ".join(f"{k}={v:g}" for k, v in values.items())
-            raise ConfigError(f"the {end} end of the ranges is refused ({where}): {exc}", source="--param") from None
-        if row.get("exit_status") == RunStatus.ERROR.value:
-            raise ConfigError(f"a run at the {end} end of the ranges fails: {row.get('error')}", source="--param")
-        names |= set(row)
-    return sorted(names)
+def _metric_names(ctx: _Context, probe: Worker) -> list[str]:
+    """Metric names of a run, from one short run at the low end of the ranges (parameters were
+    checked by ``_resolve``, against the models)."""
+    values = {p.key: _cast(p, p.low) for p in ctx.spec.params}   # type: ignore[union-attr]
+    row = probe(ctx.plan(values, seeds=(ctx.spec.seed_start,))[0])
+    if row.get("exit_status") == RunStatus.ERROR.value:
+        raise ConfigError(f"a run at the low end of the ranges fails: {row.get('error')}", source="--param")
+    return sorted(row)
 
 
 def _cast(p: ParamSpec, v: float) -> float | int:
@@ -502,7 +508,7 @@ def run_tuning(spec: TuneSpec, out: str | Path, *, storage: str | None = None, e
     if out.exists() and not out.is_dir():
         raise ConfigError("exists and is not a directory", source=str(out))
     ctx = _resolve(spec, out)
-    check_names(spec.objective_list, _probe(ctx, probe or (worker if worker is not None else probe_run)),
+    check_names(spec.objective_list, _metric_names(ctx, probe or (worker if worker is not None else probe_run)),
                 source="--objectives" if spec.multi else "--objective")
     exclusive = storage is None
     url = storage or default_storage(out)
