@@ -99,7 +99,7 @@ def _expectation(err: dict[str, Any]) -> str:
     return msg[0].lower() + msg[1:] if msg else "invalid value"
 
 
-def _rule_field(err: dict[str, Any]) -> tuple[str, ...]:
+def _rule_field(err: Any) -> tuple[str, ...]:
     """The field a model validator blamed: a ValueError it raised with a ``field`` attribute (e.g.
     ``planning.params.ParamRuleError``) is reported at that field."""
     field = getattr((err.get("ctx") or {}).get("error"), "field", None)

@@ -151,7 +151,7 @@ def params_from_args(args: argparse.Namespace) -> ACOParams:
         return ACOParams(**overrides)  # type: ignore[arg-type]
     except pydantic.ValidationError as exc:  # name the option the user typed, not the field
         err = from_pydantic(exc, source=None, data=overrides)
-        option = next((o for o, name in _NUMERIC_OPTIONS if name == err.field), err.field)
+        option = next((o for o, name in _NUMERIC_OPTIONS if name == err.field), err.field or "option")
         raise ConfigError(err.detail, source=f"--{option}") from None
 
 

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
-from pybullet_swarm.planning.params import NoParams, ParamInfo, Params, ParamRuleError, PlanContext
+from pybullet_swarm.planning.params import NoParams, ParamInfo, ParamRuleError, Params, PlanContext
 from pybullet_swarm.planning.params import field_info as describe_field
 from pybullet_swarm.resources import bundled_scenarios, scenarios_dir
 from pybullet_swarm.validation import _short, check_plain, parse_yaml, read_yaml, validate

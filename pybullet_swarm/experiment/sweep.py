@@ -292,7 +292,7 @@ def _base_hash(data: Mapping[str, Any], sweep: Sweep) -> str:
     """Hash of what every run of a sweep shares: the resolved scenario without its seed and without
     what the planner and avoidance choices decide, plus the ``--set`` overrides of those."""
     shared = {k: v for k, v in data.items() if k != "seed" and k not in _CHOSEN}
-    chosen = {k: v for k, v in sweep.overrides if k.split(".")[0] in _CHOSEN}   # type: ignore[misc]
+    chosen = {k: v for k, v in sweep.overrides if k.split(".")[0] in _CHOSEN}   # type: ignore[misc, str-unpack]
     if chosen:
         shared["overrides"] = chosen
     return config_hash(shared)

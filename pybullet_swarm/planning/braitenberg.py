@@ -71,7 +71,7 @@ from pydantic import Field
 
 from pybullet_swarm.planning.base import Command, CommandKind
 from pybullet_swarm.planning.orca import preferred_velocities
-from pybullet_swarm.planning.params import Params, ParamRuleError, PlanContext, check_memory
+from pybullet_swarm.planning.params import ParamRuleError, Params, PlanContext, check_memory
 
 if TYPE_CHECKING:  # pragma: no cover
     from pybullet_swarm.experiment.simulation import Simulation
@@ -107,8 +107,6 @@ def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
-_WEIGHT = dict(ge=0.0, le=100.0)
-_UNITS = dict(ge=0.0, le=10.0)
 
 
 class BraitenbergParams(Params):
@@ -118,8 +116,8 @@ class BraitenbergParams(Params):
     activations (1 - reading / range) lie in [0, 1].
     """
 
-    weight_lateral: float = Field(3.0, **_WEIGHT, description="sideways push per unit of summed activation")
-    weight_forward: float = Field(2.0, **_WEIGHT,
+    weight_lateral: float = Field(3.0, ge=0.0, le=100.0, description="sideways push per unit of summed activation")
+    weight_forward: float = Field(2.0, ge=0.0, le=100.0,
                                   description="braking (ahead) or pushing (behind) per unit of summed activation")
     on_threshold: float = Field(0.3, ge=0.0, le=1.0, description="activation above which the layer takes over")
     off_threshold: float = Field(0.15, ge=0.0, le=1.0,
@@ -127,14 +125,15 @@ class BraitenbergParams(Params):
                                              "(<= on_threshold)")
     watch_deg: float = Field(100.0, ge=0.0, le=180.0,
                              description="deg, rays within this bearing of the heading are watched for the thresholds")
-    front_deg: float = Field(50.0, ge=0.0, le=180.0, description="deg, the cone in which a symmetric obstacle is looked for")
+    front_deg: float = Field(50.0, ge=0.0, le=180.0,
+                             description="deg, the cone in which a symmetric obstacle is looked for")
     symmetry_threshold: float = Field(0.3, ge=0.0, le=1.0,
                                       description="front activation above which a symmetric reading is corrected")
-    symmetry_ratio: float = Field(0.25, **_UNITS,
+    symmetry_ratio: float = Field(0.25, ge=0.0, le=10.0,
                                   description="a lateral sum below this fraction of the front activation is symmetric")
-    symmetry_step: float = Field(0.25, **_UNITS, description="growth of the symmetry correction per planner tick")
-    symmetry_max: float = Field(1.0, **_UNITS, description="cap of the symmetry correction")
-    max_reverse: float = Field(0.3, **_UNITS, description="fastest backing away along the heading")
+    symmetry_step: float = Field(0.25, ge=0.0, le=10.0, description="growth of the symmetry correction per planner tick")
+    symmetry_max: float = Field(1.0, ge=0.0, le=10.0, description="cap of the symmetry correction")
+    max_reverse: float = Field(0.3, ge=0.0, le=10.0, description="fastest backing away along the heading")
     arrive_time: float = Field(0.5, gt=0.0, le=60.0,
                                description="s, a POSITION command's preferred velocity is (target - p) / arrive_time")
     reaction_time: float = Field(0.3, ge=0.0, le=10.0,

@@ -37,7 +37,7 @@ from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import Command, Observation, TaskInfo
-from pybullet_swarm.planning.params import Params, ParamRuleError, PlanContext
+from pybullet_swarm.planning.params import ParamRuleError, Params, PlanContext
 from pybullet_swarm.planning.reynolds import RouteFollower, migration, scale_to_limits, separation, switch_radius_from
 
 
@@ -115,8 +115,6 @@ def laplacian_velocities(L: NDArray[np.float64], positions: NDArray[np.float64],
     return -gain * (np.asarray(L, dtype=float) @ (np.asarray(positions, dtype=float) - np.asarray(slots, dtype=float)))
 
 
-_GAIN = dict(ge=0.0, le=100.0)
-_LENGTH = dict(ge=0.0, le=1e4)
 MAX_GRAPH = 2000
 """Largest explicit adjacency matrix (rows), as many as agents a scenario may have."""
 Matrix = Annotated[list[Annotated[list[Annotated[float, Field(ge=0.0, le=1e6)]], Field(max_length=MAX_GRAPH)]],
@@ -133,14 +131,15 @@ class LaplacianParams(Params):
     migration_speed: float | None = Field(None, ge=0.0, le=100.0,
                                           description="m/s, migration speed (null: 0.7 x the horizontal limit)")
     altitude: float | None = Field(None, gt=0.0, le=1e4, description="m, flight altitude (null: each waypoint's z)")
-    altitude_gain: float = Field(1.0, **_GAIN, description="1/s, pull to the flight altitude")
-    separation_radius: float = Field(0.4, **_LENGTH, description="m, formation mates closer than this repel")
-    w_separation: float = Field(0.12, **_GAIN, description="m^2/s, separation weight (0: the pure Laplacian controller)")
+    altitude_gain: float = Field(1.0, ge=0.0, le=100.0, description="1/s, pull to the flight altitude")
+    separation_radius: float = Field(0.4, ge=0.0, le=1e4, description="m, formation mates closer than this repel")
+    w_separation: float = Field(0.12, ge=0.0, le=100.0,
+                                description="m^2/s, separation weight (0: the pure Laplacian controller)")
     switch_radius: float | None = Field(None, gt=0.0, le=1e4,
                                         description="m, move on when the estimated reference point is this close to "
                                                     "the waypoint (null: 0.75 x the task's pass_radius)")
-    slow_radius: float = Field(0.5, **_LENGTH, description="m, slow down within this distance of the last waypoint")
-    takeoff_height: float = Field(0.3, **_LENGTH,
+    slow_radius: float = Field(0.5, ge=0.0, le=1e4, description="m, slow down within this distance of the last waypoint")
+    takeoff_height: float = Field(0.3, ge=0.0, le=1e4,
                                   description="m, below this an agent climbs vertically before it moves sideways")
 
     @pydantic.model_validator(mode="after")

@@ -185,14 +185,18 @@ def _bounds(metadata: list[Any]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for m in metadata:
         if isinstance(m, annotated_types.Ge):
-            out.update(low=float(m.ge), low_open=False)
+            out.update(low=_number(m.ge), low_open=False)
         elif isinstance(m, annotated_types.Gt):
-            out.update(low=float(m.gt), low_open=True)
+            out.update(low=_number(m.gt), low_open=True)
         elif isinstance(m, annotated_types.Le):
-            out.update(high=float(m.le), high_open=False)
+            out.update(high=_number(m.le), high_open=False)
         elif isinstance(m, annotated_types.Lt):
-            out.update(high=float(m.lt), high_open=True)
+            out.update(high=_number(m.lt), high_open=True)
     return out
+
+
+def _number(bound: Any) -> float:
+    return float(bound)
 
 
 def type_text(annotation: Any) -> str:

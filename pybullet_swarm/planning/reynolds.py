@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.planning.base import Command, Observation, TaskInfo
-from pybullet_swarm.planning.params import Params, ParamRuleError
+from pybullet_swarm.planning.params import ParamRuleError, Params
 
 
 def separation(position: NDArray[np.float64], neighbours: NDArray[np.float64], radius: float) -> NDArray[np.float64]:
@@ -83,8 +83,6 @@ def scale_to_limits(v: NDArray[np.float64], v_max: NDArray[np.float64]) -> NDArr
     return v * float(np.min(ratio))
 
 
-_GAIN = dict(ge=0.0, le=100.0)
-_LENGTH = dict(ge=0.0, le=1e4)
 Altitude = Annotated[float, Field(gt=0.0, le=1e4)]
 
 
@@ -93,20 +91,20 @@ class ReynoldsParams(Params):
 
     radius: float = Field(1.0, gt=0.0, le=1e4,
                           description="m, neighbourhood radius of separation, alignment and cohesion")
-    separation_radius: float = Field(0.6, **_LENGTH, description="m, only neighbours closer than this repel")
-    w_separation: float = Field(0.15, **_GAIN, description="m^2/s, separation weight")
-    w_alignment: float = Field(0.5, **_GAIN, description="alignment weight (dimensionless)")
-    w_cohesion: float = Field(0.2, **_GAIN, description="1/s, cohesion weight")
+    separation_radius: float = Field(0.6, ge=0.0, le=1e4, description="m, only neighbours closer than this repel")
+    w_separation: float = Field(0.15, ge=0.0, le=100.0, description="m^2/s, separation weight")
+    w_alignment: float = Field(0.5, ge=0.0, le=100.0, description="alignment weight (dimensionless)")
+    w_cohesion: float = Field(0.2, ge=0.0, le=100.0, description="1/s, cohesion weight")
     migration_speed: float | None = Field(None, ge=0.0, le=100.0,
                                           description="m/s, speed of the migratory urge (null: 0.8 x the horizontal "
                                                       "limit)")
     altitude_band: Annotated[list[Altitude], Field(min_length=2, max_length=2)] = Field(
         default_factory=lambda: [0.8, 1.2], description="[lo, hi] m, the flock flies between these altitudes")
-    altitude_gain: float = Field(1.0, **_GAIN, description="1/s, pull back into the altitude band")
+    altitude_gain: float = Field(1.0, ge=0.0, le=100.0, description="1/s, pull back into the altitude band")
     switch_radius: float | None = Field(None, gt=0.0, le=1e4,
                                         description="m, move on to the next waypoint when the local centroid is this "
                                                     "close (null: 0.75 x the task's pass_radius)")
-    slow_radius: float = Field(0.5, **_LENGTH, description="m, slow down within this distance of the last waypoint")
+    slow_radius: float = Field(0.5, ge=0.0, le=1e4, description="m, slow down within this distance of the last waypoint")
 
     @pydantic.model_validator(mode="after")
     def _band(self) -> ReynoldsParams:

@@ -24,7 +24,6 @@ import enum
 from typing import ClassVar
 
 import numpy as np
-
 from pydantic import Field
 
 from pybullet_swarm.planning.base import Action, Command, TaskInfo, WorldView

@@ -140,7 +140,6 @@ def _field_error(name: str, message: str) -> ConfigError:
     return ConfigError(message, field=f"planner.params.{name}")
 
 
-_POSITIVE_ALTITUDE = dict(gt=0.0, le=100.0)
 
 
 class StigmergyParams(Params):
@@ -167,11 +166,11 @@ class StigmergyParams(Params):
                                                      "scale)); null: the strongest cell wins")
     ties: TieBreak = Field(TieBreak.RANDOM, strict=False,
                            description="which of equally strong cells wins: random or nearest")
-    floor_altitude: float | None = Field(None, **_POSITIVE_ALTITUDE,
+    floor_altitude: float | None = Field(None, gt=0.0, le=100.0,
                                          description="m, flying altitude over the open floor (null: from the layout)")
-    look_altitude: float | None = Field(None, **_POSITIVE_ALTITUDE,
+    look_altitude: float | None = Field(None, gt=0.0, le=100.0,
                                         description="m, flying altitude over the depot (null: from the layout)")
-    cruise_altitude: float | None = Field(None, **_POSITIVE_ALTITUDE,
+    cruise_altitude: float | None = Field(None, gt=0.0, le=100.0,
                                           description="m, flying altitude over the structure (null: from the task)")
     arrive_tol: float = Field(0.05, gt=0.0, le=10.0,
                               description="m, horizontal distance at which a search point counts as reached")

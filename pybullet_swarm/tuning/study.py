@@ -227,16 +227,15 @@ def _resolve(spec: TuneSpec, out: Path) -> _Context:
     from pybullet_swarm.experiment.scenario import field_info, load_scenario
     from pybullet_swarm.experiment.sweep import Sweep, plan_sweep
 
-    scenario = load_scenario(spec.scenario, dict(spec.overrides), planner=spec.planner,   # type: ignore[arg-type]
-                             avoidance=spec.avoidance)
-    check_ranges(spec.params, lambda key: field_info(scenario, key))   # type: ignore[arg-type]
+    scenario = load_scenario(spec.scenario, spec.overrides, planner=spec.planner, avoidance=spec.avoidance)
+    check_ranges(spec.params, lambda key: field_info(scenario, key))   # type: ignore[arg-type]  # normalised
     sweep = Sweep(spec.scenario, planners=(spec.planner,), avoidance=(spec.avoidance,), seeds=(spec.seed_start,),
                   overrides=spec.overrides)
     plan = plan_sweep(sweep, out)
     ctx = _Context(spec=spec, out=out, planner=plan.runs[0].planner, avoidance=plan.runs[0].avoidance,
                    scenario_name=plan.scenario_name, base_hash=plan.base_hash)
     for end in ("low", "high"):
-        values = {p.key: _cast(p, getattr(p, end)) for p in spec.params}   # type: ignore[union-attr]
+        values = {p.key: _cast(p, getattr(p, end)) for p in spec.params}   # type: ignore[union-attr, arg-type]
         try:
             ctx.plan(values, seeds=(spec.seed_start,))
         except ConfigError as exc:
@@ -264,7 +263,7 @@ def probe_run(spec: RunSpec) -> Row:
 def _metric_names(ctx: _Context, probe: Worker) -> list[str]:
     """Metric names of a run, from one short run at the low end of the ranges (parameters were
     checked by ``_resolve``, against the models)."""
-    values = {p.key: _cast(p, p.low) for p in ctx.spec.params}   # type: ignore[union-attr]
+    values = {p.key: _cast(p, p.low) for p in ctx.spec.params}   # type: ignore[union-attr, arg-type]
     row = probe(ctx.plan(values, seeds=(ctx.spec.seed_start,))[0])
     if row.get("exit_status") == RunStatus.ERROR.value:
         raise ConfigError(f"a run at the low end of the ranges fails: {row.get('error')}", source="--param")

@@ -5,8 +5,14 @@ import numpy as np
 import pytest
 
 from pybullet_swarm.planning.base import Observation, TaskInfo
-from pybullet_swarm.planning.laplacian import (LaplacianParams, LaplacianPlanner, adjacency, algebraic_connectivity, formation_error,
-                                               laplacian)
+from pybullet_swarm.planning.laplacian import (
+    LaplacianParams,
+    LaplacianPlanner,
+    adjacency,
+    algebraic_connectivity,
+    formation_error,
+    laplacian,
+)
 from pybullet_swarm.tasks.route import SEED_FORMATION
 
 

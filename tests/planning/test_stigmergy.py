@@ -381,13 +381,14 @@ def _refused_field(model, **values):
 def test_bad_parameters_are_refused_naming_the_field():
     assert _refused_field(StigmergyParams, goal_pheromone=1.0) == "goal_pheromone"
     assert _refused_field(LayeredStigmergyParams, lookahead=0.0) == "lookahead"
-    assert _refused_field(StigmergyParams, lookahead=0.2) == "lookahead"    # a layered parameter: not for plain stigmergy
+    assert _refused_field(StigmergyParams, lookahead=0.2) == "lookahead"    # a layered parameter only
     assert _refused_field(StigmergyParams, ties="first") == "ties"
     assert _refused_field(StigmergyParams, cell_size=float("nan")) == "cell_size"
     assert _refused_field(StigmergyParams, fatigue=True) == "fatigue"        # strict: a boolean is not a number
     assert StigmergyParams(ties="nearest").ties is TieBreak.NEAREST
     assert Stigmergy(StigmergyParams(ties="nearest")).params.ties is TieBreak.NEAREST
-    with pytest.raises(ConfigError, match=r"^construction\.yaml: planner\.params\.cell_size: must be >= 0\.01, got -0\.1$"):
+    with pytest.raises(ConfigError,
+                       match=r"^construction\.yaml: planner\.params\.cell_size: must be >= 0\.01, got -0\.1$"):
         pybullet_swarm.run("construction", planner="stigmergy", overrides={"planner.params.cell_size": -0.1})
     with pytest.raises(ConfigError, match=r"^construction\.yaml: planner\.params\.speed: unknown field, got 2$"):
         pybullet_swarm.run("construction", planner="stigmergy", overrides={"planner.params.speed": 2})
@@ -395,7 +396,8 @@ def test_bad_parameters_are_refused_naming_the_field():
 
 def test_a_grid_beyond_the_memory_budget_is_refused_at_load():
     with pytest.raises(ConfigError) as err:
-        pybullet_swarm.load_scenario("construction", {"planner.params.cell_size": 0.01, "planner.params.grid_height": 20.0,
+        pybullet_swarm.load_scenario("construction", {"planner.params.cell_size": 0.01,
+                                                      "planner.params.grid_height": 20.0,
                                                       "arena.size": [300.0, 100.0]}, planner="stigmergy")
     # 30000 x 10000 x 2000 cells of 16 bytes, plus 501 snapshots of 30000 x 10000 floats
     assert err.value.field == "planner.params.cell_size"

@@ -179,8 +179,8 @@ def _never(spec: RunSpec) -> dict[str, Any]:
                                                                    "give its range with :int"),
     ("hover", None, "orca", "avoidance_params.max_neighbours=0:8:int", "the range 0:8 leaves the parameter's range "
                                                                        "[1, 100]"),
-    ("hover", None, None, "sim.planner_hz=1:20000:int", "sim.planner_hz: the range 1:20000 leaves the parameter's range "
-                                                       "[1, 10000]"),
+    ("hover", None, None, "sim.planner_hz=1:20000:int",
+     "sim.planner_hz: the range 1:20000 leaves the parameter's range [1, 10000]"),
     # within the model's ranges, but a rule between fields refuses one end (formation: on_threshold 0.55)
     ("formation", None, None, "avoidance_params.off_threshold=0.1:0.9",
      "the high end of the ranges is refused (avoidance_params.off_threshold=0.9): formation.yaml: "
