@@ -310,9 +310,22 @@ class Scenario:
         return np.broadcast_to(np.asarray(self.limits.acceleration, dtype=float), (3,)).copy()
 
     def with_overrides(self, overrides: Mapping[str, Any] | Sequence[str]) -> Scenario:
-        """A new scenario with ``key.path=value`` overrides applied and validated again."""
-        data = apply_overrides(copy.deepcopy(dict(self.data)), overrides, source=self.source)
-        return build_scenario(data, source=self.source)
+        """A new scenario with ``key.path=value`` overrides applied and validated again.
+
+        A scenario holds every parameter of its planner and avoidance layer, so ``planner.name``
+        and ``avoidance`` overrides are taken as choices (``with_choices``): another planner or
+        layer starts from its own defaults.
+        """
+        items = overrides.items() if isinstance(overrides, Mapping) else (
+            parse_override(o, source=self.source) if isinstance(o, str) else tuple(o) for o in overrides)
+        choices: dict[str, Any] = {}
+        rest: dict[str, Any] = {}
+        for key, value in items:
+            if key in ("planner.name", "avoidance") and isinstance(value, str):
+                choices["planner" if key == "planner.name" else "avoidance"] = value
+            else:
+                rest[key] = value
+        return self.with_choices(**choices, overrides=rest)
 
     def with_choices(self, *, planner: str | None = None, avoidance: str | None = None, seed: int | None = None,
                      overrides: Mapping[str, Any] | Sequence[str] = ()) -> Scenario:
