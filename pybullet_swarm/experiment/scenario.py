@@ -8,6 +8,7 @@ import copy
 import dataclasses
 import enum
 import math
+import numbers
 from pathlib import Path
 from typing import Annotated, Any, Literal, Mapping, Sequence
 
@@ -331,12 +332,13 @@ class Scenario:
                      overrides: Mapping[str, Any] | Sequence[str] = ()) -> Scenario:
         """A new scenario with another planner, avoidance layer or seed (see ``apply_choices``), then
         ``overrides``, validated again; the same scenario when nothing changes."""
+        seed = None if seed is None else _seed(seed, self.source)
         if (planner in (None, self.planner.name) and avoidance in (None, self.avoidance) and not overrides
                 and seed in (None, self.seed)):
             return self
         if planner in (None, self.planner.name) and avoidance in (None, self.avoidance) and not overrides:
-            _check_seed(seed, self.source)   # only the seed: nothing else to validate again
-            return dataclasses.replace(self, seed=int(seed), data={**self.data, "seed": int(seed)})  # type: ignore[arg-type]
+            assert seed is not None   # only the seed changes: nothing else to validate again
+            return dataclasses.replace(self, seed=seed, data={**self.data, "seed": seed})
         data = apply_choices(copy.deepcopy(dict(self.data)), planner=planner, avoidance=avoidance, seed=seed,
                              source=self.source)
         return build_scenario(apply_overrides(data, overrides, source=self.source), source=self.source)
@@ -418,9 +420,11 @@ def apply_choices(data: dict[str, Any], *, planner: str | None = None, avoidance
     return data
 
 
-def _check_seed(seed: Any, source: str) -> None:
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= 2**63 - 1:
+def _seed(seed: Any, source: str) -> int:
+    """A run's seed as an int (numpy integers too), refused outside [0, 2**63 - 1]."""
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral) or not 0 <= seed <= 2**63 - 1:
         raise ConfigError(f"must be an integer in [0, 2**63 - 1], got {_short(seed)}", source=source, field="seed")
+    return int(seed)
 
 
 def _resolve_plugins(f: _ScenarioFile, task: Any, source: str) -> tuple[str, Params, Params]:
@@ -676,6 +680,7 @@ def load_scenario(path_or_name: str | Path, overrides: Mapping[str, Any] | Seque
     if overrides or planner is not None or avoidance is not None or seed is not None:
         if not isinstance(data, dict):
             raise ConfigError(f"must be a mapping of scenario sections, got {type(data).__name__}", source=path.name)
-        data = apply_choices(data, planner=planner, avoidance=avoidance, seed=seed, source=path.name)
+        data = apply_choices(data, planner=planner, avoidance=avoidance,
+                             seed=None if seed is None else _seed(seed, path.name), source=path.name)
         data = apply_overrides(data, overrides, source=path.name)
     return build_scenario(data, source=path.name)
