@@ -64,35 +64,24 @@ class Simulation:
     Args:
         scenario: a validated scenario.
         seed: seed of the run's random generator (default: the scenario's).
-        planner: planner name (None: the task's own set-points).
-        avoidance: avoidance layer name ('none').
+        planner: planner name (default: the scenario's).
+        avoidance: avoidance layer name (default: the scenario's).
         gui: watch in the Bullet GUI.
         record: keep time series.
+
+    ``planner``, ``avoidance`` and ``seed`` are applied to the scenario and validated with it
+    (``Scenario.with_choices``): ``self.scenario`` names what runs.
     """
 
     def __init__(self, scenario: Scenario, *, seed: int | None = None, planner: str | None = None,
                  avoidance: str | None = None, gui: bool = False, record: bool = True,
                  video: Path | None = None, video_quiet: bool = False) -> None:
+        # the choices are applied to the scenario and validated with it (its data then name them)
+        scenario = scenario.with_choices(planner=planner, avoidance=avoidance, seed=seed)
         self.scenario = scenario
-        self.seed = scenario.seed if seed is None else int(seed)
-        from pybullet_swarm.planning.registry import avoidance_layers, default_planner, planners
-
-        PLANNERS = planners()
-        kind = scenario.task.kind
-        planner = planner if planner is not None else scenario.planner.name
-        planner = planner or default_planner(kind)
-        if planner not in PLANNERS:
-            raise ConfigError(f"unknown planner {planner!r}; available: {', '.join(PLANNERS)}",
-                              source=scenario.source, field="planner.name")
-        if kind not in PLANNERS[planner][2]:
-            raise ConfigError(f"planner {planner!r} does not solve {kind!r} tasks (it solves "
-                              f"{', '.join(PLANNERS[planner][2])})", source=scenario.source, field="planner.name")
-        avoidance = avoidance if avoidance is not None else scenario.avoidance
-        if avoidance not in avoidance_layers():
-            raise ConfigError(f"unknown avoidance {avoidance!r}; available: {', '.join(avoidance_layers())}",
-                              source=scenario.source, field="avoidance")
-        self.planner_name = planner
-        self.avoidance_name = avoidance
+        self.seed = scenario.seed
+        self.planner_name = str(scenario.planner.name)
+        self.avoidance_name = scenario.avoidance
         s = scenario.sim
         self.physics_hz = s.physics_hz
         self.dt = 1.0 / s.physics_hz
@@ -264,42 +253,26 @@ class Simulation:
     def _make_planner(self) -> None:
         from pybullet_swarm.planning.registry import avoidance_layers, planners
 
-        factory = planners()[self.planner_name][0]
-        # A planner may bring a shared medium (e.g. a pheromone grid): ``make_medium(sim) -> medium``.
-        params = dict(self.scenario.planner.params) if self.scenario.planner.name in (None, self.planner_name) else {}
+        factory = planners()[self.planner_name].factory
+        params = self.scenario.planner_params            # validated when the scenario was loaded
+        # A planner may bring a shared medium (e.g. a pheromone grid): ``make_medium(params, info) -> medium``.
         make_medium = getattr(factory, "make_medium", None)
-        try:
-            self.medium = make_medium(self.info, params) if callable(make_medium) else None
-        except ConfigError as exc:
-            raise (exc.with_source(self.scenario.source) if exc.source is None else exc) from None
-        except (TypeError, ValueError) as exc:
-            raise ConfigError(f"bad parameters for planner {self.planner_name!r}: {exc}",
-                              source=self.scenario.source, field="planner.params") from None
-        av_factory = avoidance_layers()[self.avoidance_name][0]
-        av_params = dict(self.scenario.data.get("avoidance_params", {}) or {})
-        try:
-            self.avoidance_layer = (av_factory(self._avoidance_setup(), **av_params) if av_factory is not None
-                                    else None)
-        except ConfigError as exc:
-            raise (exc.with_source(self.scenario.source) if exc.source is None else exc) from None
-        except (TypeError, ValueError) as exc:
-            raise ConfigError(f"bad parameters for avoidance {self.avoidance_name!r}: {exc}",
-                              source=self.scenario.source, field="avoidance_params") from None
+        self.medium = make_medium(params, self.info) if callable(make_medium) else None
+        av_factory = avoidance_layers()[self.avoidance_name].factory
+        self.avoidance_layer = (av_factory(self._avoidance_setup(), self.scenario.avoidance_params)
+                                if av_factory is not None else None)
         try:
             if getattr(factory, "centralized", False):
-                self.planner = factory(**params)
+                self.planner = factory(params)
                 self.planner.reset(self.n, named_rng(self.seed, "planner"), self.info)
                 self.agent_planners = None
             else:
                 self.planner = None
-                self.agent_planners = [factory(**params) for _ in range(self.n)]
+                self.agent_planners = [factory(params) for _ in range(self.n)]
                 for i, pl in enumerate(self.agent_planners):
                     pl.reset(i, named_rng(self.seed, f"planner/{i}"), self.info)
-        except ConfigError as exc:
+        except ConfigError as exc:   # what only the task's layout shows (e.g. altitudes that do not rise)
             raise (exc.with_source(self.scenario.source) if exc.source is None else exc) from None
-        except (TypeError, ValueError) as exc:
-            raise ConfigError(f"bad parameters for planner {self.planner_name!r}: {exc}",
-                              source=self.scenario.source, field="planner.params") from None
 
     #: simulated frames per second of a video, and the playback rate (4x faster than real time)
     VIDEO_SIM_HZ = 5

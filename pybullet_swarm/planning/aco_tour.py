@@ -30,6 +30,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field
 from scipy.optimize import linear_sum_assignment
 
 from pybullet_swarm.errors import ConfigError
@@ -273,35 +274,39 @@ def split_tour(tour: NDArray[np.int64], point_cost: NDArray[np.float64], approac
     return out, worst
 
 
+class AcoTourParams(ACOParams):
+    """Parameters of the ``aco_tour`` planner: the tour's cost and split, and the colony's settings
+    (those of :class:`~pybullet_swarm.planning.aco.ACOParams`)."""
+
+    metric: Metric = Field(Metric.TIME, strict=False,
+                           description="what the colony and the split minimise: time (rest-to-rest flight time "
+                                       "under the per-axis limits) or length (Euclidean)")
+    split: Split = Field(Split.CONTIGUOUS, strict=False,
+                         description="how agents share the tour: contiguous (one leg of the tour each)")
+    safe_altitude: float = Field(0.3, ge=0.0, le=1e4,
+                                 description="m, horizontal moves happen at or above it (take-off climbs to it first)")
+    via_tolerance: float = Field(0.05, ge=1e-6, le=10.0,
+                                 description="m, distance at which a climb/descent point counts as reached")
+
+
 class AcoTour:
     """Centralised tour planner: ACO order, contiguous legs per agent, fly them point by point.
 
     Args:
-        metric: 'time' (rest-to-rest flight time under the per-axis limits; default) or 'length'
-            (Euclidean), for the colony and the split.
-        split: how agents share the tour; 'contiguous' (one leg of the tour each).
-        safe_altitude: m, horizontal moves happen at or above it (take-off climbs to it first).
-        via_tolerance: m, distance at which a climb/descent point counts as reached.
-        **aco: fields of :class:`~pybullet_swarm.planning.aco.ACOParams` (variant, alpha, beta,
-            rho, ants, iterations, q0, xi, schedule, local_search, candidates, ls_neighbours, tau0).
+        params: validated ``AcoTourParams`` (default: the defaults).
     """
 
     name: ClassVar[str] = "aco_tour"
     centralized: ClassVar[bool] = True
+    Params: ClassVar[type[AcoTourParams]] = AcoTourParams
 
-    def __init__(self, *, metric: str = "time", split: str = "contiguous", safe_altitude: float = 0.3,
-                 via_tolerance: float = 0.05, **aco: Any) -> None:
-        self.metric = _enum(Metric, metric, "metric")
-        self.split = _enum(Split, split, "split")
-        for field, value, low in (("safe_altitude", safe_altitude, 0.0), ("via_tolerance", via_tolerance, 1e-6)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < low:
-                raise ConfigError(f"must be a finite number >= {low:g}, got {value!r}", field=f"planner.params.{field}")
-        self.safe_altitude = float(safe_altitude)
-        self.via_tolerance = float(via_tolerance)
-        try:
-            self.aco = ACOParams(**aco)
-        except ValueError as exc:
-            raise ConfigError(str(exc), field="planner.params") from None
+    def __init__(self, params: AcoTourParams | None = None) -> None:
+        self.params = params if params is not None else AcoTourParams()
+        self.metric = self.params.metric
+        self.split = self.params.split
+        self.safe_altitude = float(self.params.safe_altitude)
+        self.via_tolerance = float(self.params.via_tolerance)
+        self.aco = ACOParams(**{k: getattr(self.params, k) for k in ACOParams.model_fields})
 
     def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Order the points of ``info.route`` with the colony (legs are cut at the first tick)."""
@@ -396,14 +401,6 @@ class AcoTour:
     def artefacts(self) -> dict[str, Any]:
         """The published plan (``tour_plan``: legs, paths, planned time), once the legs are cut."""
         return {} if self.plan is None else {"tour_plan": self.plan}
-
-
-def _enum(kind: type[enum.Enum], value: Any, field: str) -> Any:
-    try:
-        return kind(value)
-    except ValueError:
-        choices = ", ".join(repr(m.value) for m in kind)
-        raise ConfigError(f"must be one of {choices}, got {value!r}", field=f"planner.params.{field}") from None
 
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402

@@ -33,16 +33,6 @@ class CommandKind(enum.IntEnum):
     HOLD = 2       # keep the current reference
 
 
-def params_from_mapping(cls: Any, data: dict[str, Any], section: str, owner: str) -> Any:
-    """Dataclass ``cls`` built from the scenario mapping ``data``; a name that is not one of its fields
-    is refused with a ValueError naming ``section.name`` and ``owner`` (e.g. "the orca layer")."""
-    known = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(data) - known)
-    if unknown:
-        raise ValueError(f"{section}.{unknown[0]}: unknown parameter of {owner} (known: {', '.join(sorted(known))})")
-    return cls(**data)
-
-
 def view_distance(rel: NDArray[np.float64], norm: str) -> NDArray[np.float64]:
     """Distance (...,) m of vectors ``rel`` (..., 3) m in a view norm: "chebyshev" (largest per-axis
     difference, as the thesis measures it) or "euclidean"."""

@@ -6,13 +6,22 @@ from typing import ClassVar
 import numpy as np
 
 from pybullet_swarm.planning.base import Command, TaskInfo, WorldView
+from pybullet_swarm.planning.params import NoParams
 
 
 class WaypointFollower:
-    """Centralised: every agent flies to the set-point the task shows as active (``TaskView.targets``)."""
+    """Centralised: every agent flies to the set-point the task shows as active (``TaskView.targets``).
+
+    Args:
+        params: none (``NoParams``).
+    """
 
     name: ClassVar[str] = "waypoints"
     centralized: ClassVar[bool] = True
+    Params: ClassVar[type[NoParams]] = NoParams
+
+    def __init__(self, params: NoParams | None = None) -> None:
+        self.params = params if params is not None else NoParams()
 
     def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Nothing to prepare: the set-points come with every tick's view."""

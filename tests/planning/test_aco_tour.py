@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 
 from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.experiment.scenario import load_scenario
 from pybullet_swarm.planning.aco_tour import (
     VIA,
     AcoTour,
+    AcoTourParams,
     CostModel,
     Metric,
     axis_time,
@@ -148,7 +150,7 @@ def _flyable(points, n=3, return_home=False, seed=0, **params):
     rt = TourRuntime(spec, starts, a_max=A)
     kw = rt.task_info()
     info = TaskInfo(arena_size=np.array([4.0, 4.0]), n_agents=n, agent_radius=0.1, v_max=V, **kw)
-    planner = AcoTour(iterations=50, **params)
+    planner = AcoTour(AcoTourParams(iterations=50, **params))
     planner.reset(n, np.random.default_rng(seed), info)
     return rt, planner, starts
 
@@ -219,16 +221,9 @@ def test_same_seed_same_tour_and_legs_different_params_refused():
     starts = np.array([[0.6, 0.2, 0.011], [2.0, 0.2, 0.011], [3.4, 0.2, 0.011]])
     assert np.array_equal(a.tour, b.tour)
     assert [x.tolist() for x in a.plan_legs(starts)] == [x.tolist() for x in b.plan_legs(starts)]
-    with pytest.raises(ConfigError) as err:
-        AcoTour(metric="fastest")
-    assert err.value.field == "planner.params.metric"
-    with pytest.raises(ConfigError) as err:
-        AcoTour(split="round-robin")
-    assert err.value.field == "planner.params.split"
-    with pytest.raises(ConfigError):
-        AcoTour(ants=0)
-    with pytest.raises(ConfigError):
-        AcoTour(safe_altitude=-1.0)
-    with pytest.raises(TypeError):
-        AcoTour(colour="red")
+    for bad in ({"metric": "fastest"}, {"split": "round-robin"}, {"ants": 0}, {"safe_altitude": -1.0},
+                {"colour": "red"}, {"iterations": 10**9}):
+        with pytest.raises(ConfigError) as err:
+            load_scenario("tour", {f"planner.params.{k}": v for k, v in bad.items()})
+        assert err.value.field == f"planner.params.{next(iter(bad))}" and str(err.value).startswith("tour.yaml: ")
     assert default_planner("tour") == "aco_tour"
