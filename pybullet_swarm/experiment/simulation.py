@@ -420,11 +420,14 @@ class Simulation:
         if payload is not None:
             self.controller.set_payload(agent, payload)
 
-    def perceive(self) -> Perception:
+    def perceive(self, *, neighbours: bool | None = None) -> Perception:
         """The swarm's perception snapshot now (one spatial query; neighbour noise drawn when flying on
-        estimates)."""
+        estimates). Neighbours are perceived when asked for, by default when a decentralised planner or
+        an avoidance layer will read them."""
+        if neighbours is None:
+            neighbours = self.agent_planners is not None or self.avoidance_layer is not None
         return self.perception_stage.snapshot(self.time, self.state_array, self.sensed_state_array, self.ranges,
-                                              self.task_view.carrying)
+                                              self.task_view.carrying, neighbours=neighbours)
 
     def world_view(self) -> WorldView:
         """Everything now (for centralised planners; agents as they know themselves)."""
@@ -432,7 +435,7 @@ class Simulation:
 
     def observations(self, perception: Perception | None = None) -> list[Observation]:
         """Each agent's local observation: its row of the perception snapshot and the task objects it sees."""
-        pc = self.perceive() if perception is None else perception
+        pc = self.perceive(neighbours=True) if perception is None else perception
         local = self.task.local_views(self.state_array[:, :3], pc.positions)
         out = []
         t = pc.time_s

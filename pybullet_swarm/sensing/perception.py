@@ -74,7 +74,7 @@ class PerceptionStage:
         self._start = np.zeros(self.n + 1, dtype=np.int64)
 
     def snapshot(self, t: float, true_state: NDArray[np.float64], sensed_state: NDArray[np.float64],
-                 ranges: NDArray[np.float64], carrying: NDArray[np.int64]) -> Perception:
+                 ranges: NDArray[np.float64], carrying: NDArray[np.int64], *, neighbours: bool = True) -> Perception:
         """The snapshot at time ``t`` s.
 
         Args:
@@ -82,9 +82,14 @@ class PerceptionStage:
             sensed_state: (n, 13) what each agent knows of itself (the estimate, or the true rows).
             ranges: (n, r) m, range readings of this tick.
             carrying: (n,) id of the object each agent holds, or -1.
+            neighbours: False when no consumer of this snapshot looks at neighbours (a centralised
+                planner without an avoidance layer): the neighbour arrays are then empty.
         """
         true_pos = true_state[:, :3]
-        i, j, d = neighbour_pairs(true_pos, self.radius)
+        if neighbours:
+            i, j, d = neighbour_pairs(true_pos, self.radius)
+        else:
+            i, j, d = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
         start = self._start.copy()
         np.cumsum(np.bincount(i, minlength=self.n), out=start[1:])
         nb_pos = true_pos[j]
