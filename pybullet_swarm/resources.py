@@ -1,13 +1,13 @@
 """Find bundled data (URDFs with their parameter files, scenarios) from any working directory.
 
-In a source checkout the data live in the top-level ``urdf/`` and ``scenarios/`` folders; an
-installed package carries them as ``pybullet_swarm._urdf`` and ``pybullet_swarm._scenarios``
-(mapped in ``setup.cfg``), so ``pip install .`` works without the checkout.
+The data live in the checkout's top-level ``urdf/`` and ``scenarios/`` folders, which the package
+links as ``pybullet_swarm/urdf`` and ``pybullet_swarm/scenarios``; an installed package carries
+copies of them at the same place. Both are found the same way, with ``importlib.resources``.
 """
 from __future__ import annotations
 
 import functools
-import importlib.util
+from importlib import resources
 from pathlib import Path
 
 _MARKERS = {"urdf": "quad150.yaml", "scenarios": "hover.yaml"}
@@ -16,20 +16,10 @@ _MARKERS = {"urdf": "quad150.yaml", "scenarios": "hover.yaml"}
 @functools.cache
 def data_dir(kind: str) -> Path:
     """Directory of bundled data of ``kind`` ('urdf' or 'scenarios')."""
-    marker = _MARKERS[kind]
-    try:
-        spec = importlib.util.find_spec(f"pybullet_swarm._{kind}")
-    except (ModuleNotFoundError, ValueError):
-        spec = None
-    # a data-only (namespace) package: its directories are the search locations
-    for location in (spec.submodule_search_locations or []) if spec is not None else []:
-        candidate = Path(location)
-        if (candidate / marker).is_file():
-            return candidate
-    candidate = Path(__file__).resolve().parent.parent / kind
-    if (candidate / marker).is_file():
-        return candidate
-    raise FileNotFoundError(f"bundled {kind} data not found (looked for {marker})")
+    candidate = Path(str(resources.files("pybullet_swarm") / kind))
+    if not (candidate / _MARKERS[kind]).is_file():
+        raise FileNotFoundError(f"bundled {kind} data not found in {candidate} (looked for {_MARKERS[kind]})")
+    return candidate
 
 
 def urdf_dir() -> Path:

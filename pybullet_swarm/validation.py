@@ -102,6 +102,13 @@ def _expectation(err: dict[str, Any]) -> str:
     return msg[0].lower() + msg[1:] if msg else "invalid value"
 
 
+def _rule_field(err: Any) -> tuple[str, ...]:
+    """The field a model validator blamed: a ValueError it raised with a ``field`` attribute (e.g.
+    ``planning.params.ParamRuleError``) is reported at that field."""
+    field = getattr((err.get("ctx") or {}).get("error"), "field", None)
+    return (field,) if err.get("type") == "value_error" and isinstance(field, str) and field else ()
+
+
 def from_pydantic(exc: pydantic.ValidationError, *, source: str | None, prefix: str = "",
                   data: Any = None) -> ConfigError:
     """The first error of ``exc`` as a one-line ``ConfigError``.
@@ -112,7 +119,7 @@ def from_pydantic(exc: pydantic.ValidationError, *, source: str | None, prefix: 
     matched the type, the expectations are joined ("must be a valid number or a valid list").
     """
     errors = exc.errors(include_url=False)
-    items = [(_clean_loc(tuple(e.get("loc", ())), data, str(e.get("type", ""))), e) for e in errors]
+    items = [(_clean_loc(tuple(e.get("loc", ())), data, str(e.get("type", ""))) + _rule_field(e), e) for e in errors]
     loc0 = items[0][0]
     group = [(loc, e) for loc, e in items if loc[: len(loc0)] == loc0]
     specific = [(loc, e) for loc, e in group if not _is_type_mismatch(e)]
@@ -129,7 +136,7 @@ def from_pydantic(exc: pydantic.ValidationError, *, source: str | None, prefix: 
     path = _field_path(loc)
     if prefix:
         path = f"{prefix}.{path}" if path else prefix
-    if err.get("type") == "missing":
+    if err.get("type") == "missing" or _rule_field(err):   # a rule's message says what it got
         return ConfigError(expect, source=source, field=path or None)
     return ConfigError(f"{expect}, got {_short(err.get('input'))}", source=source, field=path or None)
 

@@ -18,9 +18,11 @@ from typing import ClassVar
 
 import numpy as np
 import yaml
+from pydantic import Field
 
 import pybullet_swarm
 from pybullet_swarm.planning.base import Command, TaskInfo, WorldView
+from pybullet_swarm.planning.params import Params as PlannerParams
 from pybullet_swarm.planning.registry import register_planner
 
 
@@ -30,8 +32,13 @@ class FixedTargets:
     name: ClassVar[str] = "bench_fixed_targets"
     centralized: ClassVar[bool] = True
 
-    def __init__(self, targets: list[list[float]]) -> None:
-        self.targets = np.asarray(targets, dtype=float)
+    class Params(PlannerParams):
+        """The agents' targets."""
+
+        targets: list[list[float]] = Field(default_factory=list, description="m, one [x, y, z] per agent")
+
+    def __init__(self, params: Params) -> None:
+        self.targets = np.asarray(params.targets, dtype=float)
 
     def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Nothing to prepare."""

@@ -90,28 +90,26 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pybullet_swarm.experiment.scenario import load_scenario, parse_override
 
     overrides: Any = args.overrides
+    planner, avoidance = args.planner, args.avoidance
     if args.config is not None:
         from pybullet_swarm.tuning.outputs import read_overrides_file
 
-        overrides = dict(read_overrides_file(args.config)) | dict(parse_override(o) for o in args.overrides)
-    scenario = load_scenario(args.scenario, overrides)
-    seed = scenario.seed if args.seed is None else args.seed
-    if seed < 0:
-        raise ConfigError(f"must be >= 0, got {seed}", source="--seed")
-    from pybullet_swarm.planning.registry import default_planner
-
-    planner = args.planner or scenario.planner.name or default_planner(scenario.task.kind) or "planner"
-    if args.planner is not None:
-        from pybullet_swarm.experiment.scenario import check_budgets
-
-        check_budgets(scenario, args.planner)
+        config = dict(read_overrides_file(args.config))
+        # the file's planner and avoidance layer are choices, as --planner and --avoidance (which win)
+        file_planner, file_avoidance = config.pop("planner.name", None), config.pop("avoidance", None)
+        planner = planner if planner is not None else file_planner
+        avoidance = avoidance if avoidance is not None else file_avoidance
+        overrides = config | dict(parse_override(o) for o in args.overrides)
+    if args.seed is not None and args.seed < 0:
+        raise ConfigError(f"must be >= 0, got {args.seed}", source="--seed")
+    scenario = load_scenario(args.scenario, overrides, planner=planner, avoidance=avoidance, seed=args.seed)
     if args.gui:
         _check_display()
     from pybullet_swarm.experiment.rundir import check_run_dir
 
-    out = check_run_dir(args.out, source="--out") if args.out is not None else default_run_dir(scenario.name, planner, seed)
-    result = run(scenario, planner=args.planner, avoidance=args.avoidance, seed=seed, out=out, gui=args.gui,
-                 plots=not args.no_plots, video=args.video, quiet=args.quiet)
+    out = check_run_dir(args.out, source="--out") if args.out is not None else \
+        default_run_dir(scenario.name, str(scenario.planner.name), scenario.seed)
+    result = run(scenario, out=out, gui=args.gui, plots=not args.no_plots, video=args.video, quiet=args.quiet)
     if not args.quiet:
         print(f"{scenario.name}: {result.exit_status.value} after {result.metrics['sim_time_s']:.2f} s simulated "
               f"({result.metrics['real_time_factor'] or 0:.1f}x real time)")
@@ -216,7 +214,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     if is_sweep_dir(args.run_dir):
         return _plot_sweep(args)
     from pybullet_swarm.experiment.results import (read_events, read_metrics, read_pheromones, read_scenario_data,
-                                                   read_timeseries)
+                                                   read_timeseries, read_tour)
     from pybullet_swarm.experiment.rundir import check_output_dir
     from pybullet_swarm.plotting.run_plots import plot_run, plot_saved_artifacts
 
@@ -232,6 +230,8 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     events = read_events(args.run_dir / "events.csv")
     if (args.run_dir / "pheromones.npz").is_file():
         read_pheromones(args.run_dir / "pheromones.npz")
+    if (args.run_dir / "tour.json").is_file():
+        read_tour(args.run_dir / "tour.json")
     files = plot_run(series, out, metrics, scenario=scenario, events=events)
     files += plot_saved_artifacts(args.run_dir, out)
     for f in files:
@@ -413,7 +413,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 # --------------------------------------------------------------------- list
 def _add_list(sub: Any) -> None:
-    p = sub.add_parser("list", help="list vehicles, scenarios and planners")
+    p = sub.add_parser("list", help="list vehicles, scenarios, planners and avoidance layers with their parameters")
     p.set_defaults(func=_cmd_list)
 
 
@@ -437,13 +437,31 @@ def _cmd_list(args: argparse.Namespace) -> int:
         except ConfigError:
             desc = "(invalid)"
         print(f"  {name:18s} {desc}")
-    print("planners:")
+    from pybullet_swarm.planning.registry import avoidance_layers, planners
+
+    print("planners (parameters: name, type, default, range, description; set them in planner.params):")
     for name, text in available_planners().items():
         print(f"  {name:18s} {text}")
-    print("avoidance:")
+        _print_params(planners()[name].params)
+    print("avoidance (parameters in avoidance_params):")
     for name, text in available_avoidance().items():
         print(f"  {name:18s} {text}")
+        _print_params(avoidance_layers()[name].params)
     return 0
+
+
+def _print_params(model: Any) -> None:
+    """One line per parameter of a plug-in's model: name, type, default, range, description."""
+    from pybullet_swarm.planning.params import describe
+
+    rows = [(p.name, p.type, "null" if p.default is None else json.dumps(p.default), p.range_text(), p.description)
+            for p in describe(model)]
+    if not rows:
+        print("      (no parameters)")
+        return
+    widths = [max(len(r[i]) for r in rows) for i in range(4)]
+    for r in rows:
+        print("      " + "  ".join(c.ljust(w) for c, w in zip(r[:4], widths)) + "  " + r[4])
 
 
 # --------------------------------------------------------------------- main

@@ -2,18 +2,20 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 import time
 from dataclasses import dataclass
 
 import numpy as np
+import pydantic
 from tqdm import tqdm
 
+from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.memory import check_budget, colony_bytes
 from pybullet_swarm.planning.aco import ACOParams, LocalSearch, Schedule, solve_tsp
 from pybullet_swarm.planning.tsplib import TSPInstance, load_tsplib
+from pybullet_swarm.validation import from_pydantic
 
 _PROG = "pybullet-swarm"
 MAX_RUNS = 1_000_000          # independent runs of one command
@@ -156,18 +158,17 @@ def params_from_args(args: argparse.Namespace) -> ACOParams:
         overrides["local_search"] = _LOCAL_SEARCHES[args.local_search]
     try:
         return ACOParams(**overrides)  # type: ignore[arg-type]
-    except ValueError as exc:  # name the option the user typed, not the field
-        message = str(exc)
-        for option, name in _NUMERIC_OPTIONS:
-            message = message.replace(f"ACOParams.{name}:", f"--{option}:")
-        raise ValueError(message) from None
+    except pydantic.ValidationError as exc:  # name the option the user typed, not the field
+        err = from_pydantic(exc, source=None, data=overrides)
+        option = next((o for o, name in _NUMERIC_OPTIONS if name == err.field), err.field or "option")
+        raise ConfigError(err.detail, source=f"--{option}") from None
 
 
 def solve_runs(instance: TSPInstance, params: ACOParams, *, runs: int, seed: int,
                progress: bool = False) -> RunSummary:
     """Run ``runs`` independent colonies, run i seeded with ``seed + i``."""
     dist = instance.distance_matrix()
-    solve_tsp(dist, dataclasses.replace(params, iterations=1), seed=seed)  # JIT load, untimed
+    solve_tsp(dist, params.model_copy(update={"iterations": 1}), seed=seed)  # JIT load, untimed
     lengths: list[float] = []
     times: list[float] = []
     best_tour: tuple[int, ...] = ()
@@ -184,11 +185,7 @@ def solve_runs(instance: TSPInstance, params: ACOParams, *, runs: int, seed: int
 
 def _params_json(params: ACOParams) -> dict[str, object]:
     """Parameters as JSON values (enums by their value)."""
-    out: dict[str, object] = {}
-    for f in dataclasses.fields(params):
-        value = getattr(params, f.name)
-        out[f.name] = value.value if hasattr(value, "value") else value
-    return out
+    return params.model_dump(mode="json")
 
 
 def _one_line(exc: BaseException) -> str:

@@ -65,6 +65,10 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the ``tune`` subcommand; 0 on success, 130 when interrupted (resumable)."""
+    import importlib.util
+
+    if importlib.util.find_spec("optuna") is None:
+        raise ConfigError("needs the tune extra (Optuna): pip install 'pybullet_swarm[tune]'", source="tune")
     from pybullet_swarm.tuning.objective import DEFAULT_OBJECTIVE
     from pybullet_swarm.tuning.study import TuneSpec, run_tuning
 

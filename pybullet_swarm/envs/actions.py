@@ -38,7 +38,7 @@ class ActionMapper:
         sc = sim.scenario
         self.type = ActionType(config.action_type)
         self.normalized = bool(config.normalize_actions)
-        self.gripper = sim.construction is not None
+        self.gripper = len(sim.info.depot) > 0   # the task has objects to grasp and release
         self.span = float(config.rotor_span)
         self.hover_speed = sim.params.hover_rotor_speed(sc.sim.gravity)    # rad/s
         self.max_speed = float(sim.params.max_rotor_speed)                 # rad/s

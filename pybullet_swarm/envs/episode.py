@@ -27,8 +27,6 @@ from pybullet_swarm.envs.spaces import RANGE_BOUND, ObservationBuilder, Observat
 from pybullet_swarm.experiment.scenario import Scenario
 from pybullet_swarm.experiment.simulation import Simulation
 from pybullet_swarm.planning.base import Action, Command, CommandKind, TaskInfo, WorldView
-from pybullet_swarm.tasks.tour import TourRuntime
-from pybullet_swarm.tasks.waypoints import WaypointsRuntime
 from pybullet_swarm.types import ExitStatus
 
 TERMINAL = frozenset({ExitStatus.COMPLETED, ExitStatus.CRASHED, ExitStatus.DIVERGED})
@@ -74,15 +72,8 @@ class ActionBridge:
 
 
 def _task_done(sim: Simulation) -> bool:
-    """Judge the task now, as the next planner tick will (the built-in tasks judge idempotently)."""
-    t = sim.time
-    if sim.construction is not None:
-        return bool(sim.construction.update(t))
-    if isinstance(sim.task, WaypointsRuntime):
-        return bool(sim.task.update(t, sim.state_array[:, :3]))
-    if isinstance(sim.task, TourRuntime):
-        return bool(sim.task.update(t, sim))
-    return False
+    """Judge the task now, as the next planner tick will (tasks judge idempotently)."""
+    return bool(sim.task.update(sim.time, sim.state_array[:, :3]))
 
 
 class SwarmEpisode:
@@ -136,11 +127,8 @@ class SwarmEpisode:
             sim.set_targets(sim.state_array[:, :3].copy())   # the scenario's planner stays idle
         self._camera: Any = None
         self.rewards = RewardTracker(sim, self.config.rewards)
-        self.waypoints = sim.task if isinstance(sim.task, WaypointsRuntime) else None
         self.targets = self._targets()
         self.rewards.start(self.targets, sim.state_array[:, :3])
-        self.builder.construction = sim.construction
-        self.builder.tour = sim.task if isinstance(sim.task, TourRuntime) else None
         self.done = False
         self.steps = 0
         self.returns = np.zeros(self.n)
@@ -156,9 +144,9 @@ class SwarmEpisode:
 
     # ------------------------------------------------------------------- steps
     def _targets(self) -> NDArray[np.float64] | None:
-        """(n, 3) m, the set-points active now (waypoint tasks), else None."""
-        w = self.waypoints
-        return w.points[:, w.active_index(self.sim.time), :] if w is not None else None
+        """(n, 3) m, the set-points active now (timed set-point tasks), else None."""
+        targets = self.sim.task.view(self.sim.time).targets
+        return targets if len(targets) == self.n else None
 
     def observe(self) -> NDArray[np.float32]:
         """Observation rows (n, dim) of every agent now."""
@@ -197,8 +185,7 @@ class SwarmEpisode:
         t0 = sim.time
         sim.step(self.period_steps)
         self._close_if_due()
-        if sim.construction is not None:
-            sim.construction.read()
+        sim.task.refresh()
         status = sim.exit_status
         self.targets = self._targets()
         outcome = self.rewards.end(sim, sim.time - t0, status is ExitStatus.COMPLETED, self.targets)
@@ -230,10 +217,11 @@ class SwarmEpisode:
         sim = self.sim
         if self._camera is None:   # one camera per episode, framing the flight volume as the run's video does
             height = max(1.0, float(np.max(sim.starts[:, 2])) + 0.5)
-            if isinstance(sim.task, WaypointsRuntime):
-                height = max(height, float(np.max(sim.task.points[:, :, 2])) + 0.3)
-            if sim.construction is not None:
-                height = max(0.6, sim.construction.spec.search_height + 0.2)
+            targets = sim.task.view(sim.time).targets
+            if len(targets):
+                height = max(height, float(np.max(targets[:, 2])) + 0.3)
+            if "search_height" in sim.info.extra:
+                height = max(0.6, float(sim.info.extra["search_height"]) + 0.2)
             self._camera = camera_for_arena(self.scenario.arena.size, height)
         w, h = self.config.render_size
         return render_frame(sim.world, self._camera, (w, h))

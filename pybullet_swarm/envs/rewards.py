@@ -23,17 +23,11 @@ from numpy.typing import NDArray
 from pybullet_swarm.envs.config import RewardWeights
 from pybullet_swarm.metrics.collisions import COLLISION_CLASSES
 from pybullet_swarm.metrics.construction import box_to_goal_distance
-from pybullet_swarm.tasks.tour import TourRuntime
+from pybullet_swarm.planning.base import TaskView
 from pybullet_swarm.types import Event, ExitStatus
 
 _COLLISION_KINDS = frozenset(COLLISION_CLASSES)
 _FAILURE_KINDS = frozenset({ExitStatus.CRASHED.value, ExitStatus.DIVERGED.value})
-
-
-def _same(a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:
-    """Whether ``a`` and ``b`` are the same window of one array (the set-point did not switch)."""
-    return a is b or (a.base is not None and a.base is b.base and a.ctypes.data == b.ctypes.data
-                      and a.strides == b.strides)
 
 
 def _distances(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -74,20 +68,24 @@ class RewardTracker:
         self.w = weights
         self.n = sim.n
         self.agent_of = {f"agent{i}": i for i in range(sim.n)}   # World body names of the agents
-        self.tour = sim.task if isinstance(sim.task, TourRuntime) else None
-        self.construction = sim.construction
-        self.placed = self.construction.boxes_placed if self.construction is not None else 0
-        self.box_distance = self._box_distance()
-        self.visited = self.tour.points_visited if self.tour is not None else 0
+        self.task = sim.task
+        view = sim.task.view(sim.time)
+        self.has_slots = len(view.slots) > 0
+        self.has_points = len(view.points) > 0
+        self.slots_total = len(view.slots)
+        self.points_total = len(view.points)
+        self.placed = int(np.count_nonzero(view.slot_filled >= 0))
+        self.box_distance = self._box_distance(view)
+        self.visited = int(np.count_nonzero(view.points_done))
         self.events_seen = len(sim.events)
         self._goal: NDArray[np.float64] | None = None
         self._d0: NDArray[np.float64] | None = None
 
-    def _box_distance(self) -> float:
-        c = self.construction
-        if c is None or c.B == 0 or c.S == 0:
+    @staticmethod
+    def _box_distance(view: TaskView) -> float:
+        if len(view.objects) == 0 or len(view.slots) == 0:
             return 0.0
-        return float(box_to_goal_distance(c.positions[None, :, :], c.slots)[0])
+        return float(box_to_goal_distance(view.objects[None, :, :], view.slots)[0])
 
     def start(self, targets: NDArray[np.float64] | None, positions: NDArray[np.float64]) -> None:
         """Remember the active set-points (n, 3) m and the agents' distances to them at the episode start."""
@@ -106,17 +104,17 @@ class RewardTracker:
         """
         w = self.w
         shared = -w.time_penalty * dt
-        c = self.construction
-        if c is not None:
-            placed = c.boxes_placed
+        view = self.task.view(sim.time)
+        if self.has_slots:
+            placed = int(np.count_nonzero(view.slot_filled >= 0))
             shared += w.box_placed * (placed - self.placed)
             self.placed = placed
             if w.box_to_goal:
-                d = self._box_distance()
+                d = self._box_distance(view)
                 shared += w.box_to_goal * (self.box_distance - d)
                 self.box_distance = d
-        if self.tour is not None:
-            visited = self.tour.points_visited
+        if self.has_points:
+            visited = int(np.count_nonzero(view.points_done))
             shared += w.point_visited * (visited - self.visited)
             self.visited = visited
         if completed:
@@ -126,7 +124,7 @@ class RewardTracker:
             pos = sim.state_array[:, :3]
             d1 = _distances(self._goal, pos)
             r = shared + w.goal_progress * (self._d0 - d1)
-            goal_distance = d1 if _same(targets, self._goal) else _distances(targets, pos)
+            goal_distance = d1 if np.array_equal(targets, self._goal) else _distances(targets, pos)
             self._goal, self._d0 = targets, goal_distance
         else:
             r = np.full(self.n, shared)
@@ -158,8 +156,8 @@ class RewardTracker:
     def progress(self) -> dict[str, Any]:
         """Task progress as plain data (part of the running metrics)."""
         out: dict[str, Any] = {}
-        if self.construction is not None:
-            out.update(boxes_placed=self.placed, boxes_total=self.construction.S, box_to_goal_m=self.box_distance)
-        if self.tour is not None:
-            out.update(points_visited=self.visited, points_total=self.tour.W)
+        if self.has_slots:
+            out.update(boxes_placed=self.placed, boxes_total=self.slots_total, box_to_goal_m=self.box_distance)
+        if self.has_points:
+            out.update(points_visited=self.visited, points_total=self.points_total)
         return out

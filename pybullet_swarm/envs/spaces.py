@@ -9,13 +9,15 @@ One row per agent, float32, blocks in this order (a block is absent when its siz
 | ``neighbours`` | 7 k | per neighbour within the sensing radius, nearest first: relative position (3) m, relative velocity (3) m/s, present (1) | +-radius; +-20 m/s; [0, 1] |
 | ``boxes`` | 4 kb | per visible free box, nearest first: box centre - position (3) m, present (1) (construction) | +-(view radius + 2 grasp height) |
 | ``slots`` | 4 ks | per visible open slot, nearest first: slot centre - position (3) m, present (1) (construction) | as boxes |
-| ``points`` | 4 kp | per unvisited tour point, nearest first: point - position (3) m, present (1) (tour) | +-``far`` |
+| ``points`` | 4 kp | per point not yet passed or visited, nearest first: point - position (3) m, present (1) (route, tour) | +-``far`` |
 | ``ranges`` | r | range readings of the last planner tick, m (when the agents have range sensors) | [0, max range] |
 
 Own state is what the agent knows of itself (the estimate when the scenario flies on estimated
-state, else the truth); neighbours are chosen and measured from their true positions (the
-estimator's neighbour noise is not drawn, so that observing does not change the run's random
-stream). Absent entries (fewer neighbours than k, ...) are zeros with ``present`` 0. Values outside the
+state, else the truth); neighbours come from the same perception stage as the planners'
+(``pybullet_swarm.sensing.perception``), chosen and measured from their true positions with no
+noise drawn, so that observing does not change the run's random stream. Boxes and slots are the
+task's local views (what each agent sees, relative to where its airframe is); points are the
+task's points not yet passed or visited (route and tour tasks). Absent entries (fewer neighbours than k, ...) are zeros with ``present`` 0. Values outside the
 bounds (an agent that left the arena) are clipped, so every observation lies in its space.
 ``ObservationLayout.slice(name)`` gives a block's columns.
 """
@@ -27,19 +29,14 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
-
-from pybullet_swarm.envs.kernels import clip_rows, fill_neighbours, fill_own
-from pybullet_swarm.tasks.construction import FREE
-from pybullet_swarm.tasks.tour import TourRuntime
-from pybullet_swarm.tasks.waypoints import WaypointsRuntime
+from pybullet_swarm.envs.kernels import clip_rows, fill_own
+from pybullet_swarm.sensing.perception import PerceptionStage
 
 OWN_SIZE = 14
 VELOCITY_BOUND = 10.0         # m/s, own velocity
 RELATIVE_VELOCITY_BOUND = 20.0  # m/s, neighbour velocity relative to the agent
 RATE_BOUND = 50.0             # rad/s, body rates
 RANGE_BOUND = 100.0           # m, range readings
-BRUTE_FORCE_MAX = 64          # agents up to which neighbours are searched exhaustively (compiled)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -121,17 +118,18 @@ class ObservationBuilder:
         self.far = max(3.0 * lx, 3.0 * ly, 2.0 * ceiling + 1.0)   # m, bound of long relative vectors
         self.radius = float(sc.agents.sensing_radius)
         self.k = min(int(neighbours), self.n - 1)
-        self.waypoints = isinstance(sim.task, WaypointsRuntime)
-        self.construction = sim.construction
-        self.tour = sim.task if isinstance(sim.task, TourRuntime) else None
-        self.kb = int(boxes) if self.construction is not None else 0
-        self.ks = int(slots) if self.construction is not None else 0
-        self.kp = int(points) if self.tour is not None else 0
+        self.stage = PerceptionStage(self.n, self.radius)   # no neighbour noise: observing draws nothing
+        task = sim.task.view(sim.time)
+        info = sim.info
+        self.waypoints = len(task.targets) == self.n
+        has_objects = len(task.objects) > 0 and len(task.slots) > 0
+        self.kb = int(boxes) if has_objects else 0
+        self.ks = int(slots) if has_objects else 0
+        self.kp = int(points) if len(task.points) > 0 else 0
         self.r = int(ranges)
         view = 0.0
-        if self.construction is not None:
-            c = self.construction
-            view = float(c.view_radius) + 2.0 * float(c.grasp_height)
+        if has_objects:
+            view = float(info.extra.get("view_radius", 0.0)) + 2.0 * float(info.grasp_height)
         pi = math.pi
         pos_low, pos_high = [-lx, -ly, -1.0], [2.0 * lx, 2.0 * ly, 2.0 * ceiling]
         parts: list[tuple[str, list[float], list[float]]] = [
@@ -164,63 +162,57 @@ class ObservationBuilder:
         self._sl = {name: slice(s, e) for name, s, e in blocks}
         self._goal = self._sl.get("goal", slice(0, 0))
         self._not_carrying = np.zeros(self.n)
-        self._all = np.arange(self.n, dtype=np.int64)[None, :]   # every agent a candidate (small swarms)
 
     def build(self, sim: Any, goal: NDArray[np.float64] | None = None) -> NDArray[np.float32]:
         """Observation rows (n, dim) float32 of every agent now.
 
         Args:
-            sim: the simulation.
-            goal: (n, 3) m, the active set-points (waypoint tasks; computed from the task when None).
+            sim: the simulation (its state arrays, task runtime and last range readings are read).
+            goal: (n, 3) m, the active set-points (timed set-point tasks; taken from the task's view when None).
         """
-        s = getattr(sim, "sensed_state_array", sim.state_array)   # the estimate when the agents fly on it
         n = self.n
-        pos, vel = s[:, :3], s[:, 7:10]
+        task = sim.task.view(sim.time)
+        pc = self.stage.snapshot(sim.time, sim.state_array, sim.sensed_state_array, sim.ranges, task.carrying)
+        pos, vel = pc.positions, pc.velocities
         out = np.empty((n, self.layout.dim))
-        c = self.construction
-        carrying = (c.carrying(n) >= 0).astype(np.float64) if c is not None else self._not_carrying
-        fill_own(out, s, sim.controller.body_rates, carrying, sim.time / sim.time_limit)
+        carrying = (task.carrying >= 0).astype(np.float64)
+        fill_own(out, sim.sensed_state_array, sim.controller.body_rates, carrying, sim.time / sim.time_limit)
         if self.waypoints:
-            if goal is None:
-                goal, _ = sim.task.targets(sim.time)
-            out[:, self._goal] = goal - pos
+            out[:, self._goal] = (task.targets if goal is None else goal) - pos
         if self.k:
-            self._neighbours(out, pos, vel, sim.state_array)
-        if c is not None and (self.kb or self.ks):
-            gh = np.array([0.0, 0.0, c.grasp_height])
+            table = pc.nearest_table(self.k)[:, :self.k]                      # (n, k), nearest first
+            present = table >= 0
+            j = np.where(present, table, 0)
+            true = sim.state_array
+            rel = np.where(present[:, :, None], true[j, :3] - pos[:, None, :], 0.0)
+            rel_v = np.where(present[:, :, None], true[j, 7:10] - vel[:, None, :], 0.0)
+            block = np.concatenate([rel, rel_v, present[:, :, None].astype(float)], axis=2)
+            out[:, self._sl["neighbours"]] = block.reshape(n, -1)
+        if self.kb or self.ks:
+            local = sim.task.local_views(sim.state_array[:, :3], pos)
             if self.kb:
-                rel = c.positions[None, :, :] - pos[:, None, :]               # (n, B, 3) m
-                seen = c.in_view(rel + gh)
-                vec, present = _nearest(rel, seen & (c.state == FREE)[None, :], self.kb)
-                out[:, self._sl["boxes"]] = np.concatenate([vec, present[:, :, None]], axis=2).reshape(n, -1)
+                out[:, self._sl["boxes"]] = _nearest_block([lv.boxes for lv in local], pos, self.kb)
             if self.ks:
-                rel = c.slots[None, :, :] - pos[:, None, :]                   # (n, S, 3) m
-                seen = c.in_view(rel + gh)
-                vec, present = _nearest(rel, seen & c.slot_open[None, :], self.ks)
-                out[:, self._sl["slots"]] = np.concatenate([vec, present[:, :, None]], axis=2).reshape(n, -1)
+                out[:, self._sl["slots"]] = _nearest_block([lv.slots for lv in local], pos, self.ks)
         if self.kp:
-            t = self.tour
-            rel = t.points[None, :, :] - pos[:, None, :]
-            vec, present = _nearest(rel, np.broadcast_to(~t.visited, (n, t.W)), self.kp)
-            out[:, self._sl["points"]] = np.concatenate([vec, present[:, :, None]], axis=2).reshape(n, -1)
+            rel = task.points[None, :, :] - pos[:, None, :]
+            vec, present_p = _nearest(rel, np.broadcast_to(~task.points_done, (n, len(task.points))), self.kp)
+            out[:, self._sl["points"]] = np.concatenate([vec, present_p[:, :, None]], axis=2).reshape(n, -1)
         if self.r:
             out[:, self._sl["ranges"]] = sim.ranges
         clip_rows(out, self._low, self._high)   # non-finite values (a diverged run) become 0
         return out.astype(np.float32)
 
-    def _neighbours(self, out: NDArray[np.float64], own: NDArray[np.float64], own_vel: NDArray[np.float64],
-                    true: NDArray[np.float64]) -> None:
-        """Fill the ``neighbours`` block: the k nearest agents within the sensing radius, nearest first.
 
-        Neighbours are chosen and measured by their true positions (``true`` (n, 13) state rows), as the
-        simulation's sensing does; vectors are relative to what each agent knows of itself (``own``
-        (n, 3) m, ``own_vel`` (n, 3) m/s). Small swarms are searched exhaustively in compiled code,
-        larger ones through a KD-tree.
-        """
-        pos, vel = true[:, :3], true[:, 7:10]
-        if self.n <= BRUTE_FORCE_MAX:
-            cand = self._all
-        else:
-            _, cand = cKDTree(pos).query(pos, k=self.k + 1, distance_upper_bound=self.radius * (1.0 + 1e-12))
-            cand = np.asarray(cand, dtype=np.int64).reshape(self.n, self.k + 1)
-        fill_neighbours(out, self._sl["neighbours"].start, own, own_vel, pos, vel, cand, self.k, self.radius)
+def _nearest_block(seen: list[NDArray[np.float64]], pos: NDArray[np.float64], k: int) -> NDArray[np.float64]:
+    """(n, 4 k) block of the k nearest of each agent's seen objects (per agent (m_i, 3) m): object -
+    position (3) m and a present flag, nearest first; absent entries zero."""
+    n = len(seen)
+    m = max((len(x) for x in seen), default=0)
+    rel = np.zeros((n, m, 3))
+    valid = np.zeros((n, m), dtype=bool)
+    for i, x in enumerate(seen):
+        rel[i, :len(x)] = x - pos[i]
+        valid[i, :len(x)] = True
+    vec, present = _nearest(rel, valid, k)
+    return np.concatenate([vec, present[:, :, None]], axis=2).reshape(n, -1)

@@ -29,7 +29,7 @@ from pybullet_swarm.errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover
     from pybullet_swarm.experiment.results import Row
-    from pybullet_swarm.experiment.sweep import RunSpec
+    from pybullet_swarm.experiment.jobs import RunSpec
 
     Worker = Callable[[RunSpec], Row]
 
@@ -62,7 +62,7 @@ class _Executor:
 
 
 def _default_worker() -> Worker:
-    from pybullet_swarm.experiment.sweep import execute_run
+    from pybullet_swarm.experiment.jobs import execute_run
 
     return execute_run
 
@@ -183,7 +183,7 @@ class LocalExecutor(_Executor):
         executing: when a worker dies, only the runs that were executing at that moment (one per
         worker) are charged an attempt.
         """
-        from pybullet_swarm.experiment.sweep import failure_row
+        from pybullet_swarm.experiment.jobs import failure_row
 
         queue = collections.deque(specs)
         attempts: collections.Counter[str] = collections.Counter()
@@ -259,7 +259,7 @@ class RayExecutor(_Executor):
                 if address is not None:
                     ray.init(address=address, **kwargs)
                 else:
-                    from pybullet_swarm.experiment.sweep import cpu_count
+                    from pybullet_swarm.experiment.jobs import cpu_count
 
                     # address="local": always a new Ray of our own, never a cluster found on this machine
                     ray.init(address="local", num_cpus=workers or cpu_count(), include_dashboard=False, **kwargs)
@@ -276,7 +276,7 @@ class RayExecutor(_Executor):
 
     def imap_unordered(self, specs: Sequence[RunSpec]) -> Iterator[Row]:
         """Submit the specs as Ray tasks (a bounded number in flight) and yield rows as they finish."""
-        from pybullet_swarm.experiment.sweep import failure_row
+        from pybullet_swarm.experiment.jobs import failure_row
 
         ray = self._ray
         worker_ref = ray.put(self.worker)
@@ -336,7 +336,7 @@ def make_executor(kind: ExecutorKind | str = ExecutorKind.LOCAL, *, workers: int
     """
     kind = check_executor(kind, workers=workers, address=address)
     if kind is ExecutorKind.LOCAL:
-        from pybullet_swarm.experiment.sweep import cpu_count
+        from pybullet_swarm.experiment.jobs import cpu_count
 
         return LocalExecutor(workers if workers is not None else cpu_count(), worker=worker, retries=retries)
     return RayExecutor(workers, address=address, worker=worker, retries=retries, quiet=quiet)

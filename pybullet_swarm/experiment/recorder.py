@@ -1,62 +1,12 @@
 """Decimated time series in preallocated arrays."""
 from __future__ import annotations
 
-import dataclasses
-from pathlib import Path
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.control.rotations import quat_to_euler
+from pybullet_swarm.types import TimeSeries
 
-
-@dataclasses.dataclass(frozen=True)
-class TimeSeries:
-    """Recorded time series of a run (float32 to keep runs small).
-
-    Attributes:
-        t: (m,) s.
-        positions: (m, n, 3) m.
-        quaternions: (m, n, 4) (x, y, z, w).
-        velocities: (m, n, 3) m/s.
-        rotor_speeds: (m, n, 4) rad/s.
-        ref_positions: (m, n, 3) m.
-        ref_velocities: (m, n, 3) m/s.
-    """
-
-    t: NDArray[np.float32]
-    positions: NDArray[np.float32]
-    quaternions: NDArray[np.float32]
-    velocities: NDArray[np.float32]
-    rotor_speeds: NDArray[np.float32]
-    ref_positions: NDArray[np.float32]
-    ref_velocities: NDArray[np.float32]
-    extra: dict[str, NDArray[np.float32]] = dataclasses.field(default_factory=dict)
-
-    @property
-    def euler(self) -> NDArray[np.float64]:
-        """Roll, pitch, yaw (m, n, 3) rad."""
-        return quat_to_euler(self.quaternions.astype(float))
-
-    def save(self, path: Path) -> None:
-        """Write to an ``.npz`` file (arrays by name; ``extra`` arrays prefixed with ``extra_``)."""
-        with open(path, "wb") as fh:
-            self.save_to(fh)
-
-    def save_to(self, fh: Any) -> None:
-        """Write the ``.npz`` content to an open binary file."""
-        arrays = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "extra"}
-        arrays.update({f"extra_{k}": v for k, v in self.extra.items()})
-        np.savez_compressed(fh, **arrays)
-
-    @classmethod
-    def load(cls, path: Path) -> TimeSeries:
-        """Read a file written by ``save``."""
-        with np.load(path) as z:
-            names = [f.name for f in dataclasses.fields(cls) if f.name != "extra"]
-            extra = {k[6:]: z[k] for k in z.files if k.startswith("extra_")}
-            return cls(**{k: z[k] for k in names}, extra=extra)
+__all__ = ["Recorder", "TimeSeries"]
 
 
 class Recorder:

@@ -542,6 +542,59 @@ def read_timeseries(path: Path) -> Any:
     return TimeSeries(**{k: arrays[k] for k in _SERIES_SHAPES}, extra=extra)
 
 
+def read_tour(path: Path) -> dict[str, Any]:
+    """The data of ``tour.json`` (see ``TourRuntime.artefacts``), checked for the figure.
+
+    Raises:
+        ConfigError: unreadable or inconsistent: one line naming the file and the field.
+    """
+    import numpy as np
+
+    path = Path(path)
+    text = _read_text(path)
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise ConfigError(f"unreadable: not JSON ({_reason(exc)})", source=str(path)) from None
+
+    def bad(field: str, want: str) -> ConfigError:
+        return ConfigError(f"corrupt: must be {want}", source=str(path), field=field)
+
+    def points(value: Any, field: str, *, empty: bool = False) -> int:
+        try:
+            a = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise bad(field, "a list of [x, y, z] points") from None
+        if a.ndim != 2 or a.shape[1] != 3 or (a.shape[0] == 0 and not empty) or not np.all(np.isfinite(a)):
+            raise bad(field, "a list of finite [x, y, z] points")
+        return int(a.shape[0])
+
+    if not isinstance(data, dict):
+        raise ConfigError("corrupt: must hold a mapping", source=str(path))
+    w = points(data.get("points"), "points")
+    size = data.get("arena_size")
+    if size is not None and not (isinstance(size, list) and len(size) == 2 and all(is_number(v) and v > 0 for v in size)):
+        raise bad("arena_size", "two lengths > 0")
+    radius = data.get("visit_radius")
+    if radius is not None and not is_number(radius):
+        raise bad("visit_radius", "a finite number")
+    by = data.get("visited_by")
+    if by is not None and not (isinstance(by, list) and len(by) == w and
+                               all(isinstance(v, int) and not isinstance(v, bool) and v >= -1 for v in by)):
+        raise bad("visited_by", f"a list of {w} agent indices (-1: not visited)")
+    plan = data.get("plan")
+    if plan is not None:
+        if not isinstance(plan, dict):
+            raise bad("plan", "a mapping")
+        paths = plan.get("paths")
+        if paths is not None:
+            if not isinstance(paths, list):
+                raise bad("plan.paths", "a list of paths")
+            for i, p in enumerate(paths):
+                points(p, f"plan.paths[{i}]", empty=True)
+    return data
+
+
 def read_pheromones(path: Path) -> dict[str, Any]:
     """The arrays of ``pheromones.npz`` (see ``PheromoneGrid.arrays``), checked for the figures.
 

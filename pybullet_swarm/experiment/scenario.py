@@ -8,17 +8,20 @@ import copy
 import dataclasses
 import enum
 import math
+import numbers
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal, Mapping, Sequence
 
 import numpy as np
 import pydantic
-import pydantic_core
 from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.planning.params import NoParams, ParamInfo, ParamRuleError, Params, PlanContext
+from pybullet_swarm.planning.params import field_info as describe_field
 from pybullet_swarm.resources import bundled_scenarios, scenarios_dir
+from pybullet_swarm.tasks.waypoints import WaypointsTask
 from pybullet_swarm.validation import _short, check_plain, parse_yaml, read_yaml, validate
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -123,26 +126,7 @@ class LimitsSection(_Strict):
     acceleration: Limit | LimitVec3 = 1.0      # m/s^2
 
 
-class Waypoint(_Strict):
-    """A timed set-point."""
-
-    t_s: float = Field(ge=0.0, le=1e5)   # s, when it becomes active
-    position: Vec3                        # m, relative to the agent's start when `relative`
-    yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)
-
-
-class WaypointsTask(_Strict):
-    """Every agent follows a timed list of set-points; completed when all hold the last one."""
-
-    kind: Literal["waypoints"]
-    time_limit_s: float = Field(gt=0.0, le=1e5)
-    waypoints: Annotated[list[Waypoint], Field(min_length=1)]
-    relative: bool = True                 # positions are offsets from each agent's start
-    tolerance_m: float = Field(0.05, gt=0.0, le=100.0)
-    hold_s: float = Field(1.0, ge=0.0, le=1e4)
-
-
-TASK_MODELS: dict[str, type[_Strict]] = {"waypoints": WaypointsTask}
+TASK_MODELS: dict[str, type[pydantic.BaseModel]] = {"waypoints": WaypointsTask}
 
 
 class RangeSensing(_Strict):
@@ -236,7 +220,12 @@ class SensingSection(_Strict):
 
 
 class PlannerSection(_Strict):
-    """Which planner issues the agents' commands, and its parameters."""
+    """Which planner issues the agents' commands, and its parameters.
+
+    In a file ``name`` may be left out (the task kind's default planner) and ``params`` may name
+    only some parameters; a loaded scenario holds the resolved name and every parameter with its
+    value (validated against the planner's parameter model).
+    """
 
     name: str | None = None
     params: dict[str, Any] = Field(default_factory=dict)
@@ -264,7 +253,11 @@ class Scenario:
 
     Attributes:
         source: file name the scenario came from (for error messages).
-        data: the resolved scenario as plain data (what ``scenario.yaml`` of a run holds).
+        data: the resolved scenario as plain data (what ``scenario.yaml`` of a run holds): the
+            planner's name, the avoidance layer and every parameter of both with its value.
+        planner: the resolved planner section (name and every parameter, plain data).
+        planner_params: the planner's validated parameter model.
+        avoidance_params: the avoidance layer's validated parameter model.
     """
 
     source: str
@@ -281,6 +274,8 @@ class Scenario:
     collisions: str
     data: Mapping[str, Any]
     sensing: SensingSection = SensingSection()
+    planner_params: Params = NoParams()
+    avoidance_params: Params = NoParams()
 
     def start_positions(self, rest_height: float) -> NDArray[np.float64]:
         """Start positions (n, 3) m; layouts rest on the ground at ``rest_height`` m."""
@@ -305,9 +300,37 @@ class Scenario:
         return np.broadcast_to(np.asarray(self.limits.acceleration, dtype=float), (3,)).copy()
 
     def with_overrides(self, overrides: Mapping[str, Any] | Sequence[str]) -> Scenario:
-        """A new scenario with ``key.path=value`` overrides applied and validated again."""
-        data = apply_overrides(copy.deepcopy(dict(self.data)), overrides, source=self.source)
-        return build_scenario(data, source=self.source)
+        """A new scenario with ``key.path=value`` overrides applied and validated again.
+
+        A scenario holds every parameter of its planner and avoidance layer, so ``planner.name``
+        and ``avoidance`` overrides are taken as choices (``with_choices``): another planner or
+        layer starts from its own defaults.
+        """
+        items = overrides.items() if isinstance(overrides, Mapping) else (
+            parse_override(o, source=self.source) if isinstance(o, str) else tuple(o) for o in overrides)
+        choices: dict[str, Any] = {}
+        rest: dict[str, Any] = {}
+        for key, value in items:
+            if key in ("planner.name", "avoidance") and isinstance(value, str):
+                choices["planner" if key == "planner.name" else "avoidance"] = value
+            else:
+                rest[key] = value
+        return self.with_choices(**choices, overrides=rest)
+
+    def with_choices(self, *, planner: str | None = None, avoidance: str | None = None, seed: int | None = None,
+                     overrides: Mapping[str, Any] | Sequence[str] = ()) -> Scenario:
+        """A new scenario with another planner, avoidance layer or seed (see ``apply_choices``), then
+        ``overrides``, validated again; the same scenario when nothing changes."""
+        seed = None if seed is None else _seed(seed, self.source)
+        if (planner in (None, self.planner.name) and avoidance in (None, self.avoidance) and not overrides
+                and seed in (None, self.seed)):
+            return self
+        if planner in (None, self.planner.name) and avoidance in (None, self.avoidance) and not overrides:
+            assert seed is not None   # only the seed changes: nothing else to validate again
+            return dataclasses.replace(self, seed=seed, data={**self.data, "seed": seed})
+        data = apply_choices(copy.deepcopy(dict(self.data)), planner=planner, avoidance=avoidance, seed=seed,
+                             source=self.source)
+        return build_scenario(apply_overrides(data, overrides, source=self.source), source=self.source)
 
 
 def layout_positions(n: int, layout: str, spacing: float, origin: tuple[float, float], z: float) -> NDArray[np.float64]:
@@ -357,6 +380,81 @@ def apply_overrides(data: dict[str, Any], overrides: Mapping[str, Any] | Sequenc
             node = nxt
         node[parts[-1]] = value
     return data
+
+
+def apply_choices(data: dict[str, Any], *, planner: str | None = None, avoidance: str | None = None,
+                  seed: int | None = None, source: str) -> dict[str, Any]:
+    """Apply a run's choices (``--planner``, ``--avoidance``, ``--seed``) to scenario data before it
+    is validated; returns ``data``.
+
+    Switching to another planner than the one the data name drops the data's ``planner.params``
+    (they were for the other planner); data that name no planner keep theirs (they are for
+    whichever planner runs). Likewise switching to another avoidance layer drops ``avoidance_params``.
+    """
+    if planner is not None:
+        section = data.get("planner")
+        section = {} if section is None else section
+        if not isinstance(section, dict):
+            raise ConfigError(f"must be a mapping of name and params, got {_short(section)}", source=source,
+                              field="planner")
+        if section.get("name") not in (None, planner):
+            section = {k: v for k, v in section.items() if k != "params"}
+        data["planner"] = {**section, "name": planner}
+    if avoidance is not None:
+        if data.get("avoidance", "none") != avoidance:
+            data.pop("avoidance_params", None)
+        data["avoidance"] = avoidance
+    if seed is not None:
+        data["seed"] = seed
+    return data
+
+
+def _seed(seed: Any, source: str) -> int:
+    """A run's seed as an int (numpy integers too), refused outside [0, 2**63 - 1]."""
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral) or not 0 <= seed <= 2**63 - 1:
+        raise ConfigError(f"must be an integer in [0, 2**63 - 1], got {_short(seed)}", source=source, field="seed")
+    return int(seed)
+
+
+def _resolve_plugins(f: _ScenarioFile, task: Any, source: str) -> tuple[str, Params, Params]:
+    """The planner's name and the validated parameter models of the planner and the avoidance layer.
+
+    The planner is ``planner.name`` or the task kind's default; it must solve the task kind.
+    ``planner.params`` and ``avoidance_params`` are validated against the plug-ins' models, then
+    checked against the scenario (``Params.check_for``).
+    """
+    from pybullet_swarm.planning.registry import avoidance_layers, default_planner, planners
+
+    kind = task.kind
+    registry = planners()
+    name = f.planner.name if f.planner.name is not None else default_planner(kind)
+    if name is None:
+        raise ConfigError(f"is required: task kind {kind!r} has no default planner", source=source,
+                          field="planner.name")
+    if name not in registry:
+        raise ConfigError(f"must be one of {', '.join(sorted(registry))}, got {_short(name)}", source=source,
+                          field="planner.name")
+    entry = registry[name]
+    if kind not in entry.tasks:
+        raise ConfigError(f"planner {name!r} does not solve {kind!r} tasks (it solves {', '.join(entry.tasks)})",
+                          source=source, field="planner.name")
+    layers = avoidance_layers()
+    if f.avoidance not in layers:
+        raise ConfigError(f"must be one of {', '.join(sorted(layers))}, got {_short(f.avoidance)}", source=source,
+                          field="avoidance")
+    params = validate(entry.params, f.planner.params, source=source, prefix="planner.params")
+    avoidance = validate(layers[f.avoidance].params, f.avoidance_params, source=source, prefix="avoidance_params")
+    from pybullet_swarm.memory import memory_budget
+
+    context = PlanContext(arena_size=(float(f.arena.size[0]), float(f.arena.size[1])), n_agents=f.agents.count,
+                          time_limit_s=float(task.time_limit_s), planner_hz=f.sim.planner_hz,
+                          range_rays=f.sensing.range.rays, memory_budget=memory_budget())
+    for model, prefix in ((params, "planner.params"), (avoidance, "avoidance_params")):
+        try:
+            model.check_for(context)
+        except ParamRuleError as exc:
+            raise ConfigError(str(exc), source=source, field=f"{prefix}.{exc.field}") from None
+    return name, params, avoidance
 
 
 def _check_rates(sim: SimSection, source: str) -> None:
@@ -527,77 +625,18 @@ def _check_flight(s: Scenario, vehicle: VehicleParams, source: str) -> None:
 
 
 # ----------------------------------------------------------------- memory budget
-# Planner parameters that set array sizes, with the documented defaults used when a scenario
-# leaves them out: planner -> ((parameter, module, class, fallback default), ...).
-_SIZING_PARAMS: dict[str, tuple[tuple[str, str, str, Any], ...]] = {
-    "stigmergy": (("cell_size", "stigmergy", "StigmergyParams", 0.1), ("grid_height", "stigmergy", "StigmergyParams", 1.0),
-                  ("snapshot_s", "stigmergy", "StigmergyParams", 1.0)),
-    "aco_tour": (("ants", "aco", "ACOParams", 10), ("iterations", "aco", "ACOParams", 500),
-                 ("candidates", "aco", "ACOParams", 15)),
-}
-_SIZING_PARAMS["layered_stigmergy"] = _SIZING_PARAMS["stigmergy"]
-_GRID_LAYERS = {"stigmergy": 1, "layered_stigmergy": 2}   # task layer (+ presence layer)
-
-
-def _param_default(module: str, cls_name: str, name: str, fallback: Any) -> Any:
-    """The documented default of a planner parameter (a dataclass or pydantic field), else ``fallback``."""
-    import importlib
-
-    try:
-        cls = getattr(importlib.import_module(f"pybullet_swarm.planning.{module}"), cls_name)
-    except (ImportError, AttributeError):
-        return fallback
-    fields = getattr(cls, "model_fields", None)
-    if isinstance(fields, dict) and name in fields:
-        default = getattr(fields[name], "default", fallback)
-        return fallback if default is pydantic_core.PydanticUndefined else default
-    if dataclasses.is_dataclass(cls):
-        for f in dataclasses.fields(cls):
-            if f.name == name and f.default is not dataclasses.MISSING:
-                return f.default
-    return fallback
-
-
-def _sizing(planner: str, params: Mapping[str, Any]) -> dict[str, float | None]:
-    """The sizing parameters of ``planner``: the scenario's value when it is a usable number, else the default.
-
-    A value of the wrong type or out of range is left to the planner's own validation; the default
-    stands in for it here.
-    """
-    out: dict[str, float | None] = {}
-    for name, module, cls_name, fallback in _SIZING_PARAMS.get(planner, ()):
-        default = _param_default(module, cls_name, name, fallback)
-        value = params.get(name, default)
-        if value is None and default is None:
-            out[name] = None
-            continue
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value >= 0
-        out[name] = float(value) if ok else (None if default is None else float(default))
-    return out
-
-
 def _check_budgets(s: Scenario) -> None:
     """Refuse a scenario whose arrays would not fit the memory budget (``pybullet_swarm.memory``).
 
-    Reads the raw ``planner.params`` of the scenario's planner (its default planner when it names
-    none) with the planners' documented defaults, and the arena, task and swarm sizes.
-    """
-    check_budgets(s)
-
-
-def check_budgets(s: Scenario, planner: str | None = None) -> None:
-    """Refuse a run of ``s`` by ``planner`` (default: the scenario's) whose arrays exceed the memory budget.
-
-    Estimated: the recorder's buffers (time limit x record rate x agents), the pheromone grid of
-    the stigmergy planners (``cell_size``, ``grid_height``, snapshots), the ant colony of
-    ``aco_tour`` (points squared, ``iterations``, ``ants``) and the tour task's per-tick distances
-    (agents x points).
+    Estimated here: the recorder's buffers (time limit x record rate x agents), the tour task's
+    per-tick distances (agents x points) and the ant colony of ``aco_tour`` (points squared,
+    ``iterations``, ``ants``). The plug-ins' own arrays (a pheromone grid, a memory of echoes) are
+    checked by their parameter models (``Params.check_for``) against the same budget.
 
     Raises:
         ConfigError: one line naming the field whose value sets the size, and the bytes it would need.
     """
     from pybullet_swarm import memory
-    from pybullet_swarm.planning.registry import default_planner
 
     src, n = s.source, s.agents.count
     samples = math.ceil(s.task.time_limit_s * s.sim.record_hz) + 2
@@ -605,31 +644,22 @@ def check_budgets(s: Scenario, planner: str | None = None) -> None:
     memory.check_budget(memory.recorder_bytes(samples, n, channels),
                         f"recording {samples} samples of {n} agents (task.time_limit_s x sim.record_hz)",
                         source=src, field="sim.record_hz")
-    name = planner or s.planner.name or default_planner(s.task.kind) or ""
-    params = s.planner.params if s.planner.name in (None, name) else {}
-    size = _sizing(name, params)
-    if name in _GRID_LAYERS and size.get("cell_size"):
-        cell, height = float(size["cell_size"] or 0.1), float(size["grid_height"] or 1.0)
-        nx, ny, nz = (max(1.0, math.ceil(e / cell - 1e-9)) for e in (*s.arena.size, height))
-        snapshots = s.task.time_limit_s / size["snapshot_s"] + 1 if size.get("snapshot_s") else 0.0
-        field = "planner.params.grid_height" if nz > max(nx, ny) and "grid_height" in params else \
-            "planner.params.cell_size"
-        memory.check_budget(memory.grid_bytes(nx * ny * nz, nx * ny, _GRID_LAYERS[name], snapshots),
-                            f"a pheromone grid of {nx:.0f} x {ny:.0f} x {nz:.0f} cells", source=src, field=field)
     points = getattr(s.task, "points", None)
-    if points is not None:
-        w = len(points)
-        memory.check_budget(8.0 * 3 * 4 * n * w, f"the tour task's distances of {n} agents to {w} points",
-                            source=src, field="task.points")
-        if name == "aco_tour":
-            ants, iterations = int(size.get("ants") or 10), int(size.get("iterations") or 500)
-            cand = size.get("candidates")
-            need = max(8.0 * 16 * w * w, memory.colony_bytes(w, ants=ants, iterations=iterations,
-                                                             candidates=None if cand is None else int(cand)))
-            field = "planner.params.iterations" if 8.0 * iterations > 8.0 * 16 * w * w else \
-                "planner.params.ants" if 24.0 * ants * w > 8.0 * 16 * w * w else "task.points"
-            memory.check_budget(need, f"an ant colony on {w} points ({ants} ants, {iterations} iterations)",
-                                source=src, field=field)
+    if points is None:
+        return
+    w = len(points)
+    memory.check_budget(8.0 * 3 * 4 * n * w, f"the tour task's distances of {n} agents to {w} points",
+                        source=src, field="task.points")
+    p = s.planner_params
+    if s.planner.name == "aco_tour" and all(hasattr(p, k) for k in ("ants", "iterations", "candidates")):
+        ants, iterations, cand = int(p.ants), int(p.iterations), p.candidates   # type: ignore[attr-defined]
+        matrices = 8.0 * 16 * w * w   # the (W, W, 3) differences of the cost matrix and their temporaries
+        colony = memory.colony_bytes(w, ants=ants, iterations=iterations,
+                                     candidates=None if cand is None else int(cand))
+        field = "planner.params.iterations" if iterations > 16 * w * w else \
+            "planner.params.ants" if 3 * ants * w > 16 * w * w else "task.points"
+        memory.check_budget(max(matrices, colony), f"an ant colony on {w} points ({ants} ants, {iterations} "
+                            f"iterations)", source=src, field=field)
 
 
 def build_scenario(data: Any, *, source: str) -> Scenario:
@@ -650,11 +680,16 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
     task = validate(models[kind], f.task, source=source, prefix="task")
     _check_rates(f.sim, source)
     _check_sensing(f.sim, f.sensing, source)
+    planner_name, planner_params, avoidance_params = _resolve_plugins(f, task, source)
+    planner = PlannerSection(name=planner_name, params=planner_params.model_dump(mode="json"))
     resolved = f.model_dump(mode="json")
     resolved["task"] = task.model_dump(mode="json")
+    resolved["planner"] = planner.model_dump(mode="json")
+    resolved["avoidance_params"] = avoidance_params.model_dump(mode="json")
     s = Scenario(source=source, name=f.name, description=f.description, seed=f.seed, sim=f.sim, arena=f.arena,
-                 agents=f.agents, limits=f.limits, task=task, planner=f.planner, avoidance=f.avoidance,
-                 collisions=f.collisions, data=resolved, sensing=f.sensing)
+                 agents=f.agents, limits=f.limits, task=task, planner=planner, avoidance=f.avoidance,
+                 collisions=f.collisions, data=resolved, sensing=f.sensing, planner_params=planner_params,
+                 avoidance_params=avoidance_params)
     vehicle = _load_vehicle(s, source)
     with np.errstate(all="ignore"):   # huge finite values may overflow in the geometry: refused, never warned
         _check_agents(s, vehicle, source)
@@ -698,6 +733,39 @@ def check_saved_scenario(data: Any, *, source: str) -> None:
         raise ConfigError(str(exc), source=source, field="agents.vehicle") from None
 
 
+def field_info(scenario: Scenario, key: str) -> ParamInfo | None:
+    """Type, default, range and description of the scenario field ``key`` (a ``--set`` path such as
+    ``limits.velocity``, ``task.time_limit_s``, ``planner.params.fatigue`` or
+    ``avoidance_params.time_horizon``), read from the models; None when ``key`` names no field
+    (or a whole section). ``planner.params`` and ``avoidance_params`` are read from the models of
+    the scenario's planner and avoidance layer."""
+    parts = key.split(".")
+    model: type[pydantic.BaseModel]
+    if parts[:2] == ["planner", "params"]:
+        model, parts = type(scenario.planner_params), parts[2:]
+    elif parts[0] == "avoidance_params":
+        model, parts = type(scenario.avoidance_params), parts[1:]
+    elif parts[0] == "task":
+        model, parts = type(scenario.task), parts[1:]
+    else:
+        model = _ScenarioFile
+    if not parts:
+        return None
+    for part in parts[:-1]:
+        f = model.model_fields.get(part)
+        inner = f.annotation if f is not None else None
+        if not (isinstance(inner, type) and issubclass(inner, pydantic.BaseModel)):
+            return None
+        model = inner
+    f = model.model_fields.get(parts[-1])
+    if f is None or (isinstance(f.annotation, type) and issubclass(f.annotation, pydantic.BaseModel)):
+        return None
+    default = f.get_default(call_default_factory=True)
+    return describe_field(parts[-1], f.annotation, f.metadata,
+                          default=default.value if isinstance(default, enum.Enum) else default,
+                          description=f.description or "")
+
+
 def _is_file(p: Path) -> bool:
     """``p.is_file()``, False also for names the file system refuses (too long, ...)."""
     try:
@@ -723,20 +791,26 @@ def resolve_scenario_path(path_or_name: str | Path) -> Path:
                       f"{', '.join(bundled_scenarios())}", source=str(path_or_name))
 
 
-def load_scenario(path_or_name: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()) -> Scenario:
+def load_scenario(path_or_name: str | Path, overrides: Mapping[str, Any] | Sequence[str] = (), *,
+                  planner: str | None = None, avoidance: str | None = None, seed: int | None = None) -> Scenario:
     """Load, override and validate a scenario by path or bundled name.
 
     Args:
         path_or_name: a YAML file or the name of a bundled scenario (see ``pybullet-swarm list``).
         overrides: ``{'agents.count': 5}`` or ``['agents.count=5']``, applied before validation.
+        planner: run this planner (``--planner``; see ``apply_choices``), applied before ``overrides``.
+        avoidance: run this avoidance layer (``--avoidance``), likewise.
+        seed: the run's seed (``--seed``), likewise.
 
     Raises:
         ConfigError: one line naming the file, the field and what was expected.
     """
     path = resolve_scenario_path(path_or_name)
     data = read_yaml(path)
-    if overrides:
+    if overrides or planner is not None or avoidance is not None or seed is not None:
         if not isinstance(data, dict):
             raise ConfigError(f"must be a mapping of scenario sections, got {type(data).__name__}", source=path.name)
+        data = apply_choices(data, planner=planner, avoidance=avoidance,
+                             seed=None if seed is None else _seed(seed, path.name), source=path.name)
         data = apply_overrides(data, overrides, source=path.name)
     return build_scenario(data, source=path.name)

@@ -20,13 +20,16 @@ from pybullet_swarm.control.reference import ReferenceShaper
 from pybullet_swarm.control.rotations import quat_to_euler
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.recorder import Recorder, TimeSeries
-from pybullet_swarm.experiment.scenario import Scenario, WaypointsTask
-from pybullet_swarm.metrics.flight import flight_metrics
+from pybullet_swarm.experiment.scenario import Scenario
 from pybullet_swarm.metrics.collisions import COLLISION_CLASSES, CollisionClass, ContactTracker
-from pybullet_swarm.planning.base import Action, Command, CommandKind, Observation, TaskInfo, WorldView
-from pybullet_swarm.tasks.construction import PLACED, ConstructionRuntime, ConstructionTask
-from pybullet_swarm.tasks.waypoints import WaypointsRuntime
-from pybullet_swarm.types import Event, ExitStatus, SwarmState
+from pybullet_swarm.metrics.flight import flight_metrics
+from pybullet_swarm.rng import named_rng
+from pybullet_swarm.planning.base import (NOTHING_IN_VIEW, Action, AvoidanceSetup, Command, CommandKind, Observation,
+                                          TaskInfo, TaskView, WorldView)
+from pybullet_swarm.sensing.perception import PerceptionStage
+from pybullet_swarm.tasks import task_runtimes
+from pybullet_swarm.tasks.base import NOT_MINE, TaskContext, TaskRuntime
+from pybullet_swarm.types import Event, ExitStatus, Perception, SwarmState
 from pybullet_swarm.vehicle import VehicleParams, load_vehicle
 from pybullet_swarm.world import BodyKind, World
 
@@ -37,7 +40,8 @@ class RunResult:
 
     Attributes:
         exit_status: how it ended.
-        artifacts: objects that write extra files into a run directory (e.g. a pheromone medium).
+        artifacts: files for the run directory as data by file name (``.json``: plain data, ``.npz``:
+            arrays by name): the planner's medium, the task's plan and state.
         metrics: the metrics written to ``metrics.json`` (plain JSON data).
         events: contact onsets, crashes and task events, in time order.
         timeseries: recorded samples.
@@ -60,36 +64,24 @@ class Simulation:
     Args:
         scenario: a validated scenario.
         seed: seed of the run's random generator (default: the scenario's).
-        planner: planner name (None: the task's own set-points).
-        avoidance: avoidance layer name ('none').
+        planner: planner name (default: the scenario's).
+        avoidance: avoidance layer name (default: the scenario's).
         gui: watch in the Bullet GUI.
         record: keep time series.
+
+    ``planner``, ``avoidance`` and ``seed`` are applied to the scenario and validated with it
+    (``Scenario.with_choices``): ``self.scenario`` names what runs.
     """
 
     def __init__(self, scenario: Scenario, *, seed: int | None = None, planner: str | None = None,
                  avoidance: str | None = None, gui: bool = False, record: bool = True,
                  video: Path | None = None, video_quiet: bool = False) -> None:
+        # the choices are applied to the scenario and validated with it (its data then name them)
+        scenario = scenario.with_choices(planner=planner, avoidance=avoidance, seed=seed)
         self.scenario = scenario
-        self.seed = scenario.seed if seed is None else int(seed)
-        self.rng = np.random.default_rng(self.seed)
-        from pybullet_swarm.planning.registry import avoidance_layers, default_planner, planners
-
-        PLANNERS = planners()
-        kind = scenario.task.kind
-        planner = planner if planner is not None else scenario.planner.name
-        planner = planner or default_planner(kind)
-        if planner not in PLANNERS:
-            raise ConfigError(f"unknown planner {planner!r}; available: {', '.join(PLANNERS)}",
-                              source=scenario.source, field="planner.name")
-        if kind not in PLANNERS[planner][2]:
-            raise ConfigError(f"planner {planner!r} does not solve {kind!r} tasks (it solves "
-                              f"{', '.join(PLANNERS[planner][2])})", source=scenario.source, field="planner.name")
-        avoidance = avoidance if avoidance is not None else scenario.avoidance
-        if avoidance not in avoidance_layers():
-            raise ConfigError(f"unknown avoidance {avoidance!r}; available: {', '.join(avoidance_layers())}",
-                              source=scenario.source, field="avoidance")
-        self.planner_name = planner
-        self.avoidance_name = avoidance
+        self.seed = scenario.seed
+        self.planner_name = str(scenario.planner.name)
+        self.avoidance_name = scenario.avoidance
         s = scenario.sim
         self.physics_hz = s.physics_hz
         self.dt = 1.0 / s.physics_hz
@@ -121,7 +113,7 @@ class Simulation:
         self.starts = sc.start_positions(self.rest_height)
         jitter = sc.agents.start_jitter
         if jitter > 0.0:   # hand placement is never exact; the seed decides how
-            self.starts[:, :2] += self.rng.uniform(-jitter, jitter, size=(n, 2))
+            self.starts[:, :2] += named_rng(self.seed, "start_jitter").uniform(-jitter, jitter, size=(n, 2))
         self.world.add_agents(p.urdf_path, self.starts, mass=p.mass, inertia=p.inertia)
         if sc.collisions == "ghost":
             self.world.set_agent_collisions(False)
@@ -139,18 +131,6 @@ class Simulation:
         self.recorder = Recorder(n, cap) if self.record_enabled else None
         self.ghost = sc.collisions == "ghost"
         self.diameter = float(max(p.collision_size[0], p.collision_size[1]))   # m, agent "diameter"
-        self.task: Any = None
-        self.construction: ConstructionRuntime | None = None
-        if isinstance(sc.task, WaypointsTask):
-            self.task = WaypointsRuntime(sc.task, self.starts)
-        elif isinstance(sc.task, ConstructionTask):
-            self.construction = ConstructionRuntime(sc.task, self.world, agent_half_height=0.5 * p.collision_size[2],
-                                                    agent_radius=p.radius, ghost=sc.collisions == "ghost")
-            self.task = self.construction
-        else:
-            from pybullet_swarm.tasks import TASK_RUNTIMES
-
-            self.task = TASK_RUNTIMES[sc.task.kind](sc.task, self)
         self.max_height = self.starts[:, 2].copy()   # m, highest recorded altitude per agent
         self.contacts = ContactTracker(self._classify, self.dt, debounce_s=0.1)
         self.events: list[Event] = []
@@ -162,14 +142,29 @@ class Simulation:
         self._wall_time = 0.0
         self.range_sensor: Any = None
         self.ranges = np.zeros((n, 0))   # (n, r) m, range readings of the last planner tick
-        if sc.sensing.range.enabled:
+        from pybullet_swarm.planning.registry import avoidance_layers
+
+        av_factory = avoidance_layers()[self.avoidance_name][0]
+        if sc.sensing.range.enabled or getattr(av_factory, "needs_range_sensors", False):
             self.enable_range_sensors()
+        self.position_std = self._expected_position_std()
+        self.task: TaskRuntime = task_runtimes()[sc.task.kind](sc.task, TaskContext(
+            world=self.world, n=n, starts=self.starts.copy(), agent_radius=float(p.radius),
+            collision_size=np.asarray(p.collision_size, dtype=float), arena_size=np.asarray(sc.arena.size, dtype=float),
+            arena_height=sc.arena.height, v_max=sc.velocity_limits(), a_max=sc.acceleration_limits(),
+            ghost=self.ghost, position_std=self.position_std, rng=named_rng(self.seed, "task")))
         self.info = self._task_info()
-        self._make_planner()
         self.estimation: Any = None   # OnboardEstimation when sensing.state is estimated (or run_estimator)
-        self.flying_on_estimate = False
+        self.flying_on_estimate = sc.sensing.state.value == "estimated"
+        self._make_planner()
         if sc.sensing.estimating:
             self._make_estimation()
+        self.perception_stage = PerceptionStage(
+            n, float(sc.agents.sensing_radius), position_std=self.position_std,
+            neighbour_noise=(lambda k: self.estimation.neighbour_noise(k)) if self.flying_on_estimate and n > 1
+            else None)
+        self.task_view: TaskView = self.task.view(0.0)
+        self.perception: Perception | None = None
 
     def enable_range_sensors(self) -> None:
         """Give every agent the fan of range rays of ``sensing.range`` (idempotent; avoidance layers
@@ -180,7 +175,7 @@ class Simulation:
 
         cfg = self.scenario.sensing.range
         fan = RangeFan(fan_angles(cfg.rays, cfg.fov_deg), float(cfg.range_m), float(self.params.radius) + 1e-3)
-        self.range_sensor = RangeSensor(fan, cfg.noise_std_m, self.rng.spawn(1)[0])
+        self.range_sensor = RangeSensor(fan, cfg.noise_std_m, named_rng(self.seed, "range_noise"))
         self.ranges = np.full((self.n, fan.rays), fan.range_m)
 
     def _cast_ranges(self) -> None:
@@ -189,8 +184,8 @@ class Simulation:
         self.ranges = self.range_sensor.read(self.world, s[:, :3], quat_to_euler(s[:, 3:7])[:, 2])
 
     def _make_estimation(self) -> None:
-        """IMU, positioning and the estimator, calibrated at rest; their generator is spawned after the
-        planners' so that runs without estimation draw exactly as before."""
+        """IMU, positioning and the estimator, calibrated at rest; their generators are children of the
+        run's ``estimation`` stream (``pybullet_swarm.rng``), so that no other consumer's draws depend on them."""
         from pybullet_swarm.metrics.estimation import EstimationErrors
         from pybullet_swarm.sensing.estimator import EstimatorParams, OnboardEstimation
         from pybullet_swarm.sensing.imu import ImuNoise
@@ -200,11 +195,10 @@ class Simulation:
         self.estimation = OnboardEstimation(
             self.n, ImuNoise(**cfg.imu.model_dump()), PositioningParams(**cfg.positioning.model_dump()),
             EstimatorParams(**cfg.estimator.model_dump()), control_hz=s.control_hz, gravity=s.gravity,
-            rng=self.rng.spawn(1)[0])
+            rng=named_rng(self.seed, "estimation"))
         self.estimation.start(self.state_array, self.time)
         self.estimation_errors = EstimationErrors()
         self.fix_every = s.physics_hz // cfg.positioning.rate_hz
-        self.flying_on_estimate = cfg.state.value == "estimated"
 
     @property
     def sensed_state_array(self) -> NDArray[np.float64]:
@@ -220,65 +214,65 @@ class Simulation:
             est.control_tick(t, s)
             est.score_tick(self.estimation_errors, s)
 
+    def _expected_position_std(self) -> float:
+        """m, per-axis standard deviation an agent can expect of its own position estimate (0 on true state)."""
+        sc = self.scenario
+        if sc.sensing.state.value != "estimated":
+            return 0.0
+        from pybullet_swarm.sensing.estimator import EstimatorParams, expected_position_std
+        from pybullet_swarm.sensing.positioning import PositioningParams
+
+        return float(expected_position_std(PositioningParams(**sc.sensing.positioning.model_dump()),
+                                           EstimatorParams(**sc.sensing.estimator.model_dump()),
+                                           control_hz=sc.sim.control_hz))
+
     def _task_info(self) -> TaskInfo:
+        """The static layout every agent knows: the arena, limits and what the task publishes."""
         sc, p = self.scenario, self.params
         v = sc.velocity_limits()
-        extra: dict[str, Any] = {}
-        kw: dict[str, Any] = {}
-        if isinstance(self.task, WaypointsRuntime):
-            extra["schedule"] = self.task.targets
-        if self.construction is not None:
-            c = self.construction
-            kw = dict(depot=c.start.copy(), slots=c.slots.copy(), box_size=c.size, grasp_height=c.grasp_height)
-            extra.update(search_height=c.spec.search_height, attach_threshold=c.spec.attach_threshold,
-                         view_radius=c.view_radius, view_norm=c.spec.view_norm)
-            if sc.sensing.state.value == "estimated":   # what an agent can expect of its own position estimate
-                from pybullet_swarm.sensing.estimator import EstimatorParams, expected_position_std
-                from pybullet_swarm.sensing.positioning import PositioningParams
-
-                extra["position_std"] = expected_position_std(
-                    PositioningParams(**sc.sensing.positioning.model_dump()),
-                    EstimatorParams(**sc.sensing.estimator.model_dump()), control_hz=sc.sim.control_hz)
-        elif self.task is not None and hasattr(self.task, "task_info"):
-            kw = dict(self.task.task_info())
-            extra.update(kw.pop("extra", {}))
+        kw = dict(self.task.task_info())
+        extra = dict(kw.pop("extra", {}))
+        if sc.sensing.state.value == "estimated":   # what an agent can expect of its own position estimate
+            extra["position_std"] = self.position_std
         return TaskInfo(arena_size=np.asarray(sc.arena.size, dtype=float), n_agents=self.n, agent_radius=p.radius,
                         v_max=np.full(3, np.inf) if v is None else v, a_max=sc.acceleration_limits(), extra=extra,
                         **kw)
 
+    def _avoidance_setup(self) -> AvoidanceSetup:
+        sc, p = self.scenario, self.params
+        fan = self.range_sensor.fan if self.range_sensor is not None else None
+        return AvoidanceSetup(
+            n=self.n, info=self.info, agent_radius=float(p.radius),
+            collision_size=np.asarray(p.collision_size, dtype=float), v_max=sc.velocity_limits(),
+            a_max=sc.acceleration_limits(), control_dt=1.0 / sc.sim.control_hz, planner_dt=1.0 / sc.sim.planner_hz,
+            sensing_radius=float(sc.agents.sensing_radius),
+            range_angles=np.zeros(0) if fan is None else np.asarray(fan.angles, dtype=float),
+            range_m=0.0 if fan is None else float(fan.range_m), range_offset=0.0 if fan is None else
+            float(fan.start_offset))
+
     def _make_planner(self) -> None:
         from pybullet_swarm.planning.registry import avoidance_layers, planners
 
-        factory = planners()[self.planner_name][0]
-        # A planner may bring a shared medium (e.g. a pheromone grid): ``make_medium(sim) -> medium``.
+        factory = planners()[self.planner_name].factory
+        params = self.scenario.planner_params            # validated when the scenario was loaded
+        # A planner may bring a shared medium (e.g. a pheromone grid): ``make_medium(params, info) -> medium``.
         make_medium = getattr(factory, "make_medium", None)
-        self.medium = make_medium(self) if callable(make_medium) else None
-        av_factory = avoidance_layers()[self.avoidance_name][0]
-        av_params = dict(self.scenario.data.get("avoidance_params", {}) or {})
-        try:
-            self.avoidance_layer = av_factory(self, **av_params) if av_factory is not None else None
-        except ConfigError as exc:
-            raise (exc.with_source(self.scenario.source) if exc.source is None else exc) from None
-        except (TypeError, ValueError) as exc:
-            raise ConfigError(f"bad parameters for avoidance {self.avoidance_name!r}: {exc}",
-                              source=self.scenario.source, field="avoidance_params") from None
-        params = dict(self.scenario.planner.params) if self.scenario.planner.name in (None, self.planner_name) else {}
+        self.medium = make_medium(params, self.info) if callable(make_medium) else None
+        av_factory = avoidance_layers()[self.avoidance_name].factory
+        self.avoidance_layer = (av_factory(self._avoidance_setup(), self.scenario.avoidance_params)
+                                if av_factory is not None else None)
         try:
             if getattr(factory, "centralized", False):
-                self.planner = factory(**params)
-                self.planner.reset(self.n, self.rng, self.info)
+                self.planner = factory(params)
+                self.planner.reset(self.n, named_rng(self.seed, "planner"), self.info)
                 self.agent_planners = None
             else:
                 self.planner = None
-                self.agent_planners = [factory(**params) for _ in range(self.n)]
-                child = self.rng.spawn(self.n)
+                self.agent_planners = [factory(params) for _ in range(self.n)]
                 for i, pl in enumerate(self.agent_planners):
-                    pl.reset(i, child[i], self.info)
-        except ConfigError as exc:
+                    pl.reset(i, named_rng(self.seed, f"planner/{i}"), self.info)
+        except ConfigError as exc:   # what only the task's layout shows (e.g. altitudes that do not rise)
             raise (exc.with_source(self.scenario.source) if exc.source is None else exc) from None
-        except (TypeError, ValueError) as exc:
-            raise ConfigError(f"bad parameters for planner {self.planner_name!r}: {exc}",
-                              source=self.scenario.source, field="planner.params") from None
 
     #: simulated frames per second of a video, and the playback rate (4x faster than real time)
     VIDEO_SIM_HZ = 5
@@ -292,8 +286,8 @@ class Simulation:
                               source=self.scenario.source, field="sim.physics_hz")
         self.video_every = self.physics_hz // self.VIDEO_SIM_HZ
         height = max(1.0, float(np.max(self.starts[:, 2])) + 0.5)
-        if self.construction is not None:
-            height = max(0.6, self.construction.spec.search_height + 0.2)
+        if "search_height" in self.info.extra:
+            height = max(0.6, float(self.info.extra["search_height"]) + 0.2)
         self.camera = camera_for_arena(self.scenario.arena.size, height)
         total = int(self.time_limit * self.VIDEO_SIM_HZ) + 1
         self.video = VideoWriter(path, fps=self.VIDEO_FPS, size=(480, 270), progress_total=total, quiet=quiet)
@@ -324,14 +318,11 @@ class Simulation:
             i = self.agent_index[a]
             airborne = max(self.max_height[i], self.state_array[i, 2]) > self.rest_height + 0.05
             return CollisionClass.AGENT_GROUND if airborne else None
+        owned = self.task.contact_class(self.agent_index[a], b)
+        if owned != NOT_MINE:
+            return None if owned is None else CollisionClass(owned)
         if kb is BodyKind.BOX:
-            c = self.construction
-            if c is None:
-                return CollisionClass.AGENT_BOX
-            box = c.body_to_box[b]
-            if c.carried_by[box] == self.agent_index[a]:
-                return None
-            return CollisionClass.AGENT_STRUCTURE if c.state[box] == PLACED else CollisionClass.AGENT_BOX
+            return CollisionClass.AGENT_BOX
         return CollisionClass.AGENT_OBSTACLE
 
     # ----------------------------------------------------------------- access
@@ -383,27 +374,22 @@ class Simulation:
     # ------------------------------------------------------------------- loop
     def _planner_tick(self) -> None:
         t = self.time
-        done = False
-        if self.construction is not None:
-            done = self.construction.update(t)
-        elif isinstance(self.task, WaypointsRuntime):
-            done = self.task.update(t, self.state_array[:, :3])
-        elif self.task is not None:
-            done = self.task.update(t, self)
-        if done:
+        if self.task.update(t, self.state_array[:, :3]):
             self._finish(ExitStatus.COMPLETED)
             return
         if self.range_sensor is not None:
             self._cast_ranges()
+        self.task_view = self.task.view(t)
         if not self._external:
+            self.perception = perception = self.perceive()
             if self.planner is not None:
-                commands = self.planner.plan_all(self.world_view())
+                commands = self.planner.plan_all(WorldView.of(perception, self.task_view))
             else:
                 assert self.agent_planners is not None
-                obs = self.observations()
+                obs = self.observations(perception)
                 commands = [pl.plan(o, self.medium) for pl, o in zip(self.agent_planners, obs)]
             if self.avoidance_layer is not None:
-                commands = self.avoidance_layer.filter(commands, self)
+                commands = self.avoidance_layer.filter(commands, perception, self.task_view)
             self._apply(commands)
         if self.medium is not None:
             self.medium.step(1.0 / self.scenario.sim.planner_hz)
@@ -425,59 +411,40 @@ class Simulation:
                 sh.target[i] = sh.p[i]
                 sh.velocity_mode[i] = False
             sh.yaw[i] = cmd.yaw
-            if cmd.action and self.construction is not None:
-                body = self.world.agent_bodies[i]
-                if cmd.action == Action.GRASP:
-                    if self.construction.grasp(i, body, self.state_array[i, :3], t) >= 0:
-                        self.controller.set_payload(i, self.construction.spec.box_mass)
-                elif cmd.action == Action.RELEASE:
-                    if self.construction.release(i, body, t) >= 0:
-                        self.controller.set_payload(i, 0.0)
+            if cmd.action:
+                self.act(i, cmd.action, t)
+
+    def act(self, agent: int, action: Action, t: float | None = None) -> None:
+        """Hand an agent's task action to the task now; a changed payload goes to the controller."""
+        payload = self.task.apply(agent, action, self.time if t is None else t, self.state_array[agent, :3])
+        if payload is not None:
+            self.controller.set_payload(agent, payload)
+
+    def perceive(self, *, neighbours: bool | None = None) -> Perception:
+        """The swarm's perception snapshot now (one spatial query; neighbour noise drawn when flying on
+        estimates). Neighbours are perceived when asked for, by default when a decentralised planner or
+        an avoidance layer will read them."""
+        if neighbours is None:
+            neighbours = self.agent_planners is not None or self.avoidance_layer is not None
+        return self.perception_stage.snapshot(self.time, self.state_array, self.sensed_state_array, self.ranges,
+                                              self.task_view.carrying, neighbours=neighbours)
 
     def world_view(self) -> WorldView:
         """Everything now (for centralised planners; agents as they know themselves)."""
-        s = self.sensed_state_array
-        c = self.construction
-        if c is None:
-            empty3 = np.zeros((0, 3))
-            return WorldView(self.time, s[:, :3].copy(), s[:, 7:10].copy(), np.full(self.n, -1), empty3,
-                             np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=bool))
-        return WorldView(self.time, s[:, :3].copy(), s[:, 7:10].copy(), c.carrying(self.n), c.positions.copy(),
-                         c.state.copy(), c.slot_box.copy(), c.slot_open)
+        return WorldView.of(self.perceive(), self.task.view(self.time))
 
-    def observations(self) -> list[Observation]:
-        """Each agent's local observation: own state, neighbours in the sensing radius, visible objects."""
-        from scipy.spatial import cKDTree
-
-        s = self.sensed_state_array
-        pos, vel = s[:, :3], s[:, 7:10]
-        yaw = quat_to_euler(s[:, 3:7])[:, 2]
-        r = self.scenario.agents.sensing_radius
-        true_pos = self.state_array[:, :3]
-        near = cKDTree(true_pos).query_ball_point(true_pos, r) if self.n > 1 else [[0]]
-        noisy = self.flying_on_estimate and self.n > 1   # neighbours: true positions plus positioning noise
-        carrying = self.construction.carrying(self.n) if self.construction is not None else np.full(self.n, -1)
+    def observations(self, perception: Perception | None = None) -> list[Observation]:
+        """Each agent's local observation: its row of the perception snapshot and the task objects it sees."""
+        pc = self.perceive(neighbours=True) if perception is None else perception
+        local = self.task.local_views(self.state_array[:, :3], pc.positions)
         out = []
-        t = self.time
-        no3 = np.zeros((0, 3))
-        noi = np.zeros(0, dtype=np.int64)
+        t = pc.time_s
         for i in range(self.n):
-            nb = np.array([j for j in near[i] if j != i], dtype=np.int64)
-            nb_pos = (true_pos[nb] + self.estimation.neighbour_noise(nb.size)) if noisy else pos[nb].copy()
-            if self.construction is not None and self.flying_on_estimate:
-                # boxes are seen from the airframe (where it truly is), relative to it: in the agent's
-                # own estimated frame; slots are planned coordinates, compared with the estimate as they are
-                boxes, slots = self.construction.visible(true_pos[i])
-                bpos = self.construction.positions[boxes] + (pos[i] - true_pos[i])
-                spos = self.construction.slots[slots]
-            elif self.construction is not None:
-                boxes, slots = self.construction.visible(pos[i])
-                bpos, spos = self.construction.positions[boxes], self.construction.slots[slots]
-            else:
-                boxes, slots, bpos, spos = noi, noi, no3, no3
-            out.append(Observation(i, t, pos[i].copy(), vel[i].copy(), float(yaw[i]), int(carrying[i]), nb,
-                                   nb_pos, vel[nb].copy(), bpos, boxes, spos, slots,
-                                   ranges=self.ranges[i].copy()))
+            nb = pc.neighbours(i)
+            lv = local[i] if local is not None else NOTHING_IN_VIEW
+            out.append(Observation(i, t, pc.positions[i], pc.velocities[i], float(pc.yaws[i]), int(pc.carrying[i]),
+                                   pc.nb_ids[nb], pc.nb_positions[nb], pc.nb_velocities[nb], lv.boxes, lv.box_ids,
+                                   lv.slots, lv.slot_ids, ranges=pc.ranges[i]))
         return out
 
     def _finish(self, status: ExitStatus, agent: int | None = None, detail: str = "") -> None:
@@ -585,9 +552,8 @@ class Simulation:
             s = self.state_array
             self.recorder.record(self.time, s[:, :7], s[:, 7:], self.controller.rotor_speeds, self.shaper.p,
                                  self.shaper.v)
-            if self.construction is not None:
-                self.construction.read()
-                self.recorder.record_extra("box_positions", self.construction.positions)
+            for name, value in self.task.sample().items():
+                self.recorder.record_extra(name, value)
             if self.estimation is not None:
                 for name, value in self.estimation.channels().items():
                     self.recorder.record_extra(name, value)
@@ -617,26 +583,27 @@ class Simulation:
             "agents": self.n,
             "vehicle": self.params.name,
             "crashed_agent": self.crashed_agent,
-            "completion_time_s": self.task.completed_at if self.task is not None else None,
-            **(self.construction.metrics() if self.construction is not None else {}),
+            "completion_time_s": self.task.completed_at,
             "collisions": {c: self.contacts.counts[c] for c in COLLISION_CLASSES},
             "collision_time_s": {c: round(self.contacts.time_s[c], 9) for c in COLLISION_CLASSES},
         }
         if ts is not None and ts.t.size:
             m.update(flight_metrics(ts, self.params.km))
             m.update(self._swarm_metrics(ts))
-        if self.construction is not None:
-            m.update(self._construction_metrics(m))
-        elif self.task is not None and hasattr(self.task, "metrics") and not isinstance(self.task, WaypointsRuntime):
-            m.update(self.task.metrics(self, ts))
-        if self.medium is not None and hasattr(self.medium, "metrics"):
-            m.update(self.medium.metrics())
-        if self.avoidance_layer is not None and hasattr(self.avoidance_layer, "metrics"):
-            m.update(self.avoidance_layer.metrics())
+        m.update(self.task.metrics(ts, self.planner_artefacts()))
+        for part in (self.medium, self.avoidance_layer):
+            report = getattr(part, "metrics", None)
+            if callable(report):
+                m.update(report())
         if self.estimation is not None:
             m["estimation"] = self.estimation_errors.metrics(
                 {"state": self.scenario.sensing.state.value, **self.estimation.summary()})
         return m
+
+    def planner_artefacts(self) -> dict[str, Any]:
+        """What the planner publishes as data (e.g. a tour planner's ``tour_plan``)."""
+        report = getattr(self.planner, "artefacts", None)
+        return dict(report()) if callable(report) else {}
 
     def _swarm_metrics(self, ts: TimeSeries) -> dict[str, Any]:
         from pybullet_swarm.metrics.construction import proximity_metrics, utility_of_space
@@ -646,18 +613,6 @@ class Simulation:
         out["utility_of_space"] = utility_of_space(pos[:, :, :2], self.scenario.arena.size)
         return out
 
-    def _construction_metrics(self, m: dict[str, Any]) -> dict[str, Any]:
-        from pybullet_swarm.metrics.construction import task_lower_bound
-
-        c = self.construction
-        assert c is not None
-        v = self.scenario.velocity_limits()
-        lb = task_lower_bound(self.starts, c.start, c.slots, np.full(3, 1e9) if v is None else v,
-                              grasp_height=c.grasp_height)
-        done = m.get("completion_time_s")
-        return {"task_lower_bound_s": lb["task_lower_bound_s"],
-                "efficiency": (lb["task_lower_bound_s"] / done) if done else None}
-
     def result(self) -> RunResult:
         """The run's result now."""
         empty = Recorder(self.n, 1).series()
@@ -666,16 +621,17 @@ class Simulation:
                          artifacts=self.artifacts())
 
     def artifacts(self) -> dict[str, Any]:
-        """Objects that write their own files into a run directory: ``write(out_dir, plots) -> [Path]``
-        (the planner's medium, the avoidance layer, the task), by name."""
-        found = {"medium": self.medium, "avoidance": self.avoidance_layer, "task": self.task}
-        return {k: v for k, v in found.items() if v is not None and callable(getattr(v, "write", None))}
+        """Files for the run directory as data by file name: the medium's, the task's, the layer's."""
+        out: dict[str, Any] = dict(self.task.artefacts(self.planner_artefacts()))
+        for part in (self.medium, self.avoidance_layer):
+            files = getattr(part, "artefacts", None)
+            if callable(files):
+                out.update(files())
+        return out
 
     def all_events(self) -> list[Event]:
         """Contact, crash and task events in time order."""
-        events = list(self.events)
-        if self.task is not None and hasattr(self.task, "events"):
-            events += self.task.events
+        events = list(self.events) + list(self.task.events)
         return sorted(events, key=lambda e: e.time_s)
 
     def close(self) -> None:

@@ -29,19 +29,19 @@ import copy
 import dataclasses
 import functools
 import itertools
-import os
-import shutil
 import sys
 import time
-import traceback
 from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.results import (MANIFEST, RUNS_CSV, RUNS_PARQUET, SUMMARY_CSV, Row, RunStatus,
-                                               RunsTable, config_hash, metrics_row, one_line, plain_cell,
+                                               RunsTable, config_hash, one_line, plain_cell,
                                                read_metrics, write_parquet)
+from pybullet_swarm.experiment.jobs import RunSpec, cpu_count, execute_run, failure_row, make_row
 from pybullet_swarm.experiment.summary import CIMethod, SummaryRow, format_table, summarize, write_summary
+
+__all__ = ["RunSpec", "Sweep", "SweepResult", "cpu_count", "execute_run", "failure_row", "make_row", "run_sweep"]
 
 Worker = Callable[["RunSpec"], Row]
 
@@ -143,88 +143,6 @@ def _check_key(key: Any, source: str) -> None:
         raise ConfigError(f"expected a key.path, got {key!r}", source=source)
 
 
-@dataclasses.dataclass(frozen=True)
-class RunSpec:
-    """One run of a sweep, self-contained so that a worker on any machine can run it.
-
-    Attributes:
-        run_id: hash of the resolved scenario (without seed), planner, avoidance and seed.
-        planner: resolved planner name.
-        avoidance: resolved avoidance layer name.
-        seed: seed of the run.
-        grid: this run's grid values ``((key, value), ...)``.
-        scenario_data: the resolved scenario (overrides and grid values applied), plain data.
-        source: the scenario file's name (for error messages).
-        run_dir: absolute path of the run directory.
-        plots: draw the run's own figures.
-    """
-
-    run_id: str
-    planner: str
-    avoidance: str
-    seed: int
-    grid: tuple[tuple[str, Any], ...]
-    scenario_data: Mapping[str, Any]
-    source: str
-    run_dir: str
-    plots: bool = False
-
-    @property
-    def rel_dir(self) -> str:
-        """The run directory relative to the sweep directory."""
-        return f"runs/{self.run_id}"
-
-    def identity(self) -> Row:
-        """The identity cells of this run's row: run_id, planner, avoidance, seed, grid values."""
-        row: Row = {"run_id": self.run_id, "planner": self.planner, "avoidance": self.avoidance, "seed": self.seed}
-        row.update({k: plain_cell(v) for k, v in self.grid})
-        return row
-
-
-# -------------------------------------------------------------------- worker
-def make_row(spec: RunSpec, metrics: Mapping[str, Any] | None, *, error: str | None = None,
-             worker_time_s: float | None = None) -> Row:
-    """The ``runs.csv`` row of a run: identity, outcome, flattened scalar metrics."""
-    row = spec.identity()
-    status = RunStatus.ERROR.value if metrics is None else str(metrics.get("exit_status", RunStatus.ERROR.value))
-    row.update({"exit_status": status, "error": None if error is None else one_line(error),
-                "worker_time_s": None if worker_time_s is None else round(float(worker_time_s), 4),
-                "run_dir": spec.rel_dir})
-    if metrics is not None:
-        row.update(metrics_row(metrics))
-    return row
-
-
-def execute_run(spec: RunSpec) -> Row:
-    """Run one spec in this process and write its run directory; returns only its row.
-
-    Anything the run raises becomes a row with ``exit_status = error`` and the message (the
-    traceback goes to ``error.txt`` in the run directory). The time series stays on disk.
-    """
-    from pybullet_swarm.experiment.rundir import atomic_write
-    from pybullet_swarm.experiment.runner import run
-    from pybullet_swarm.experiment.scenario import build_scenario
-
-    t0 = time.perf_counter()
-    run_dir = Path(spec.run_dir)
-    try:
-        if run_dir.exists():        # a run killed part-way: start it again from nothing
-            shutil.rmtree(run_dir)
-        scenario = build_scenario(copy.deepcopy(dict(spec.scenario_data)), source=spec.source)
-        result = run(scenario, planner=spec.planner, avoidance=spec.avoidance, seed=spec.seed, out=run_dir,
-                     plots=spec.plots, quiet=True)
-        return make_row(spec, result.metrics, worker_time_s=time.perf_counter() - t0)
-    except Exception as exc:  # noqa: BLE001 - a failed run is a result, recorded with its error
-        with contextlib.suppress(OSError):
-            atomic_write(run_dir / "error.txt", lambda fh: fh.write(traceback.format_exc()))
-        return make_row(spec, None, error=f"{type(exc).__name__}: {exc}", worker_time_s=time.perf_counter() - t0)
-
-
-def failure_row(spec: RunSpec, message: str) -> Row:
-    """The row of a run whose worker never returned (the process died, or every retry failed)."""
-    return make_row(spec, None, error=message)
-
-
 # ------------------------------------------------------------------ planning
 @dataclasses.dataclass(frozen=True)
 class Plan:
@@ -252,12 +170,50 @@ class Plan:
         return ("planner", "avoidance", *self.sweep.grid_keys)
 
 
-def base_scenario(sweep: Sweep) -> tuple[dict[str, Any], str]:
-    """The sweep's scenario with its overrides applied, validated: ``(resolved data, source)``."""
-    from pybullet_swarm.experiment.scenario import load_scenario
+def _file_data(sweep: Sweep) -> tuple[dict[str, Any], str]:
+    """The sweep's scenario file as plain data (not validated yet) and its name."""
+    from pybullet_swarm.experiment.scenario import resolve_scenario_path
+    from pybullet_swarm.validation import read_yaml
 
-    scenario = load_scenario(sweep.scenario, dict(sweep.overrides))   # type: ignore[arg-type]
-    return dict(scenario.data), scenario.source
+    path = resolve_scenario_path(sweep.scenario)
+    data = read_yaml(path)
+    if not isinstance(data, dict):
+        raise ConfigError(f"must be a mapping of scenario sections, got {type(data).__name__}", source=path.name)
+    return data, path.name
+
+
+def _configuration(raw: Mapping[str, Any], source: str, sweep: Sweep, planner: str | None, avoidance: str | None,
+                   point: tuple[tuple[str, Any], ...] = ()) -> Any:
+    """One configuration's scenario: the planner and avoidance choices, the sweep's overrides and the
+    grid point applied to the file's data, then validated (``Scenario``)."""
+    from pybullet_swarm.experiment.scenario import apply_choices, apply_overrides, build_scenario
+
+    data = apply_choices(copy.deepcopy(dict(raw)), planner=planner, avoidance=avoidance, source=source)
+    data = apply_overrides(data, dict(sweep.overrides), source=source)   # type: ignore[arg-type]
+    if point:
+        data = apply_overrides(data, dict(point), source=source)
+    return build_scenario(data, source=source)
+
+
+_CHOSEN = ("planner", "avoidance", "avoidance_params")   # scenario keys the planner/avoidance choices decide
+
+
+def base_scenario(sweep: Sweep) -> tuple[dict[str, Any], str]:
+    """The sweep's scenario with its overrides applied (first planner and avoidance layer), validated:
+    ``(resolved data, source)``."""
+    raw, source = _file_data(sweep)
+    scenario = _configuration(raw, source, sweep, sweep.planners[0], sweep.avoidance[0])
+    return dict(scenario.data), source
+
+
+def _base_hash(data: Mapping[str, Any], sweep: Sweep) -> str:
+    """Hash of what every run of a sweep shares: the resolved scenario without its seed and without
+    what the planner and avoidance choices decide, plus the ``--set`` overrides of those."""
+    shared = {k: v for k, v in data.items() if k != "seed" and k not in _CHOSEN}
+    chosen = {k: v for k, v in sweep.overrides if k.split(".")[0] in _CHOSEN}   # type: ignore[misc, str-unpack]
+    if chosen:
+        shared["overrides"] = chosen
+    return config_hash(shared)
 
 
 def default_out(sweep: Sweep, root: Path = Path("runs")) -> Path:
@@ -265,7 +221,7 @@ def default_out(sweep: Sweep, root: Path = Path("runs")) -> Path:
     data, _ = base_scenario(sweep)
     from pybullet_swarm.experiment.rundir import safe_name
 
-    return root / f"sweep-{safe_name(str(data.get('name', 'scenario')))}-{config_hash(_without_seed(data), 8)}"
+    return root / f"sweep-{safe_name(str(data.get('name', 'scenario')))}-{_base_hash(data, sweep)[:8]}"
 
 
 def _without_seed(data: Mapping[str, Any]) -> dict[str, Any]:
@@ -275,51 +231,57 @@ def _without_seed(data: Mapping[str, Any]) -> dict[str, Any]:
 def plan_sweep(sweep: Sweep, out: str | Path, *, plots: bool = False) -> Plan:
     """Resolve and validate every configuration of a sweep; list its runs.
 
+    Each configuration (planner x avoidance x grid point) is the scenario file with the planner and
+    avoidance choices applied (``scenario.apply_choices``), then the sweep's overrides, then the
+    grid values, validated: its planner and avoidance parameters are checked against their models.
+
     Raises:
         ConfigError: a grid value, planner or avoidance layer that cannot be used (one line
             naming the configuration), before anything runs.
     """
-    from pybullet_swarm.experiment.scenario import apply_overrides, build_scenario
-    from pybullet_swarm.planning.registry import avoidance_layers, default_planner, planners
+    from pybullet_swarm.planning.registry import avoidance_layers, planners
 
     out = Path(out).resolve()
-    base, source = base_scenario(sweep)
+    raw, source = _file_data(sweep)
     registry, layers = planners(), avoidance_layers()
+    for p in sweep.planners:
+        if p is not None and p not in registry:
+            raise ConfigError(f"unknown planner {p!r}; available: {', '.join(registry)}", source="--planners")
+    for a in sweep.avoidance:
+        if a is not None and a not in layers:
+            raise ConfigError(f"unknown avoidance {a!r}; available: {', '.join(layers)}", source="--avoidance")
     runs: list[RunSpec] = []
     configs: list[tuple[tuple[tuple[str, Any], ...], str, str, dict[str, Any]]] = []
+    base: dict[str, Any] | None = None
     for point in sweep.grid_points():
-        data = apply_overrides(copy.deepcopy(base), dict(point), source=source) if point else copy.deepcopy(base)
-        try:
-            scenario = build_scenario(data, source=source)
-        except ConfigError as exc:
-            where = ", ".join(f"{k}={plain_cell(v)}" for k, v in point)
-            raise ConfigError(f"{exc.detail} (grid point {where})", source=exc.source or source,
-                              field=exc.field) from None
-        kind = scenario.data["task"]["kind"]
         for p, a in itertools.product(sweep.planners, sweep.avoidance):
-            planner = p or scenario.planner.name or default_planner(kind)
-            if planner not in registry:
-                raise ConfigError(f"unknown planner {planner!r}; available: {', '.join(registry)}", source="--planners")
-            if kind not in registry[planner][2]:
-                raise ConfigError(f"planner {planner!r} does not solve {kind!r} tasks (it solves "
-                                  f"{', '.join(registry[planner][2])})", source="--planners")
-            avoidance = a or scenario.avoidance
-            if avoidance not in layers:
-                raise ConfigError(f"unknown avoidance {avoidance!r}; available: {', '.join(layers)}",
-                                  source="--avoidance")
-            configs.append((point, planner, avoidance, dict(scenario.data)))
+            try:
+                scenario = _configuration(raw, source, sweep, p, a, point)
+            except ConfigError as exc:
+                where = ", ".join(f"{k}={plain_cell(v)}" for k, v in point)
+                if exc.field == "planner.name" and p is not None:
+                    raise ConfigError(exc.detail, source="--planners") from None
+                raise ConfigError(f"{exc.detail} (grid point {where})" if point else exc.detail,
+                                  source=exc.source or source, field=exc.field) from None
+            if base is None and not point:
+                base = dict(scenario.data)
+            configs.append((point, str(scenario.planner.name), scenario.avoidance, dict(scenario.data)))
+    if base is None:
+        base, _ = base_scenario(sweep)
     seen: set[str] = set()
     for seed in sweep.seeds:   # type: ignore[union-attr]
         for point, planner, avoidance, data in configs:
+            run_data = {**data, "seed": seed}   # what the run's scenario.yaml holds
             run_id = config_hash({"scenario": _without_seed(data), "planner": planner, "avoidance": avoidance,
                                   "seed": seed})
             if run_id in seen:     # two grid points that resolve to the same scenario
                 continue
             seen.add(run_id)
             runs.append(RunSpec(run_id=run_id, planner=planner, avoidance=avoidance, seed=seed, grid=point,
-                                scenario_data=data, source=source, run_dir=str(out / "runs" / run_id), plots=plots))
+                                scenario_data=run_data, source=source, run_dir=str(out / "runs" / run_id),
+                                plots=plots))
     return Plan(sweep=sweep, out=out, source=source, scenario_name=str(base.get("name", "scenario")),
-                base_hash=config_hash(_without_seed(base)), runs=tuple(runs))
+                base_hash=_base_hash(base, sweep), runs=tuple(runs))
 
 
 # ------------------------------------------------------------------ manifest
@@ -577,11 +539,3 @@ def _progress(total: int, quiet: bool) -> Iterator[Any]:
         yield _Bar()
     finally:
         bar.close()
-
-
-def cpu_count() -> int:
-    """Cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:   # not Linux
-        return os.cpu_count() or 1

@@ -6,7 +6,7 @@ from typing import Any
 import numpy as np
 
 from pybullet_swarm.control.rotations import quat_to_matrix
-from pybullet_swarm.experiment.recorder import TimeSeries
+from pybullet_swarm.types import TimeSeries
 
 
 def path_lengths(positions: np.ndarray) -> np.ndarray:

@@ -6,11 +6,11 @@ def available_planners() -> dict[str, str]:
     """Planner names with a one-line description."""
     from pybullet_swarm.planning.registry import planners
 
-    return {name: f"{desc} [tasks: {', '.join(kinds)}]" for name, (_, desc, kinds) in planners().items()}
+    return {name: f"{e.description} [tasks: {', '.join(e.tasks)}]" for name, e in planners().items()}
 
 
 def available_avoidance() -> dict[str, str]:
     """Avoidance layer names with a one-line description."""
     from pybullet_swarm.planning.registry import avoidance_layers
 
-    return {name: desc for name, (_, desc) in avoidance_layers().items()}
+    return {name: e.description for name, e in avoidance_layers().items()}

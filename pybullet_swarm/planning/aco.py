@@ -27,6 +27,9 @@ from enum import Enum
 import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from pydantic import Field
+
+from pybullet_swarm.planning.params import Params
 
 __all__ = [
     "ACOParams",
@@ -69,74 +72,36 @@ _LS_CODE = {LocalSearch.NONE: 0, LocalSearch.TWO_OPT: 1, LocalSearch.TWO_OPT_OR_
 _OR_OPT_NEIGHBOURS = 10  # insertion points tried per segment end; more rarely pays
 
 
-@dataclass(frozen=True)
-class ACOParams:
+class ACOParams(Params):
     """Settings of an ant colony; refused at construction when out of range.
 
     The defaults (ACS, q0 = 0.9, 10 ants, 500 iterations, 15 candidates, 2-opt and Or-opt on
     every ant) found the optimum of TSPLIB eil51, berlin52, st70, eil76, pr76, rat99 and kroA100
-    in 10 of 10 seeded runs each, in well under a second per run.
-
-    Attributes:
-        variant: AS or ACS pheromone rules.
-        alpha: pheromone exponent A (the schedule's nominal value).
-        beta: heuristic exponent B on eta = 1 / distance (the schedule's nominal value).
-        rho: evaporation fraction per iteration in [0, 1]; for ACS also the weight of the
-            best-so-far deposit.
-        ants: number of ants per iteration.
-        iterations: number of iterations n.
-        q0: probability in [0, 1] of taking the best-looking edge instead of sampling
-            (pseudo-random proportional rule); 0 gives the random proportional rule of AS.
-        xi: ACS local update rate in [0, 1] (unused by AS).
-        schedule: constant or linear alpha/beta schedule.
-        local_search: improvement applied to every ant's tour.
-        candidates: length of the nearest-neighbour list ants choose from first; None lets
-            every unvisited city compete.
-        ls_neighbours: length of the nearest-neighbour lists that drive the local search.
-        tau0: initial pheromone; None uses ants / L_nn (AS) or 1 / (n L_nn) (ACS), L_nn the
-            nearest-neighbour tour length.
+    in 10 of 10 seeded runs each, in well under a second per run. ``tau0`` null uses ants / L_nn
+    (AS) or 1 / (n L_nn) (ACS), L_nn the nearest-neighbour tour length.
     """
 
-    variant: Variant = Variant.ACS
-    alpha: float = 1.0
-    beta: float = 2.0
-    rho: float = 0.1
-    ants: int = 10
-    iterations: int = 500
-    q0: float = 0.9
-    xi: float = 0.1
-    schedule: Schedule = Schedule.CONSTANT
-    local_search: LocalSearch = LocalSearch.TWO_OPT_OR_OPT
-    candidates: int | None = 15
-    ls_neighbours: int = 20
-    tau0: float | None = None
-
-    def __post_init__(self) -> None:
-        for name, enum in (("variant", Variant), ("schedule", Schedule),
-                           ("local_search", LocalSearch)):
-            value = getattr(self, name)
-            if not isinstance(value, enum):
-                try:
-                    object.__setattr__(self, name, enum(value))
-                except ValueError:
-                    choices = ", ".join(repr(m.value) for m in enum)
-                    raise ValueError(f"ACOParams.{name}: expected one of {choices}, got {value!r}"
-                                     ) from None
-        for name, high in (("alpha", None), ("beta", None), ("rho", 1.0), ("q0", 1.0),
-                           ("xi", 1.0)):
-            _check_real(f"ACOParams.{name}", getattr(self, name), low=0.0, high=high)
-            object.__setattr__(self, name, float(getattr(self, name)))  # one numba signature
-        for name in ("ants", "iterations", "ls_neighbours"):
-            _check_int(f"ACOParams.{name}", getattr(self, name), low=1)
-            object.__setattr__(self, name, int(getattr(self, name)))
-        if self.candidates is not None:
-            _check_int("ACOParams.candidates", self.candidates, low=1)
-            object.__setattr__(self, "candidates", int(self.candidates))
-        if self.tau0 is not None:
-            _check_real("ACOParams.tau0", self.tau0, low=0.0)
-            if self.tau0 == 0.0:
-                raise ValueError("ACOParams.tau0: expected a number > 0 or None, got 0")
-            object.__setattr__(self, "tau0", float(self.tau0))
+    variant: Variant = Field(Variant.ACS, strict=False, description="pheromone rules: as (Ant System) or acs "
+                                                                    "(Ant Colony System)")
+    alpha: float = Field(1.0, ge=0.0, le=100.0, description="pheromone exponent A (the schedule's nominal value)")
+    beta: float = Field(2.0, ge=0.0, le=100.0,
+                        description="heuristic exponent B on 1 / distance (the schedule's nominal value)")
+    rho: float = Field(0.1, ge=0.0, le=1.0, description="evaporation fraction per iteration (ACS: also the weight of "
+                                                        "the best-so-far deposit)")
+    ants: int = Field(10, ge=1, le=1000, description="ants per iteration")
+    iterations: int = Field(500, ge=1, le=100_000, description="iterations of the colony")
+    q0: float = Field(0.9, ge=0.0, le=1.0,
+                      description="probability of taking the best-looking edge instead of sampling (0: as AS)")
+    xi: float = Field(0.1, ge=0.0, le=1.0, description="ACS local update rate (unused by AS)")
+    schedule: Schedule = Field(Schedule.CONSTANT, strict=False,
+                               description="alpha/beta over the iterations: constant, linear or linear-no-factor")
+    local_search: LocalSearch = Field(LocalSearch.TWO_OPT_OR_OPT, strict=False,
+                                      description="improvement of every ant's tour: none, 2opt or 2opt+oropt")
+    candidates: int | None = Field(15, ge=1, le=1000,
+                                   description="nearest-neighbour list ants choose from first (null: every city)")
+    ls_neighbours: int = Field(20, ge=1, le=1000, description="nearest-neighbour lists that drive the local search")
+    tau0: float | None = Field(None, gt=0.0, le=1e30, description="initial pheromone (null: from the nearest-"
+                                                                  "neighbour tour)")
 
 
 @dataclass(frozen=True)
@@ -314,16 +279,6 @@ class _Colony:
             a, b = best_tour, np.roll(best_tour, -1)
             self.tau[a, b] = (1.0 - rho) * self.tau[a, b] + rho / max(best_len, self.eps)
             self.tau[b, a] = self.tau[a, b]
-
-
-def _check_real(name: str, value: object, *, low: float, high: float | None = None) -> None:
-    """Refuse a parameter that is not a finite real in [low, high]."""
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    ok = ok and math.isfinite(float(value)) and float(value) >= low  # type: ignore[arg-type]
-    ok = ok and (high is None or float(value) <= high)  # type: ignore[arg-type]
-    if not ok:
-        bounds = f"in [{low:g}, {high:g}]" if high is not None else f">= {low:g}"
-        raise ValueError(f"{name}: expected a finite number {bounds}, got {value!r}")
 
 
 def _check_int(name: str, value: object, *, low: int) -> None:

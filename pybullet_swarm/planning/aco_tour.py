@@ -30,11 +30,12 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field
 from scipy.optimize import linear_sum_assignment
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.aco import ACOParams, solve_tsp
-from pybullet_swarm.planning.base import Command, TaskInfo, WorldView
+from pybullet_swarm.planning.base import Command, TaskInfo, TourPlan, WorldView
 
 VIA = -1    # waypoint tag: a climb/descent point, not an inspection point
 HOME = -2   # waypoint tag: the agent's home point
@@ -273,35 +274,39 @@ def split_tour(tour: NDArray[np.int64], point_cost: NDArray[np.float64], approac
     return out, worst
 
 
+class AcoTourParams(ACOParams):
+    """Parameters of the ``aco_tour`` planner: the tour's cost and split, and the colony's settings
+    (those of :class:`~pybullet_swarm.planning.aco.ACOParams`)."""
+
+    metric: Metric = Field(Metric.TIME, strict=False,
+                           description="what the colony and the split minimise: time (rest-to-rest flight time "
+                                       "under the per-axis limits) or length (Euclidean)")
+    split: Split = Field(Split.CONTIGUOUS, strict=False,
+                         description="how agents share the tour: contiguous (one leg of the tour each)")
+    safe_altitude: float = Field(0.3, ge=0.0, le=1e4,
+                                 description="m, horizontal moves happen at or above it (take-off climbs to it first)")
+    via_tolerance: float = Field(0.05, ge=1e-6, le=10.0,
+                                 description="m, distance at which a climb/descent point counts as reached")
+
+
 class AcoTour:
     """Centralised tour planner: ACO order, contiguous legs per agent, fly them point by point.
 
     Args:
-        metric: 'time' (rest-to-rest flight time under the per-axis limits; default) or 'length'
-            (Euclidean), for the colony and the split.
-        split: how agents share the tour; 'contiguous' (one leg of the tour each).
-        safe_altitude: m, horizontal moves happen at or above it (take-off climbs to it first).
-        via_tolerance: m, distance at which a climb/descent point counts as reached.
-        **aco: fields of :class:`~pybullet_swarm.planning.aco.ACOParams` (variant, alpha, beta,
-            rho, ants, iterations, q0, xi, schedule, local_search, candidates, ls_neighbours, tau0).
+        params: validated ``AcoTourParams`` (default: the defaults).
     """
 
     name: ClassVar[str] = "aco_tour"
     centralized: ClassVar[bool] = True
+    Params: ClassVar[type[AcoTourParams]] = AcoTourParams
 
-    def __init__(self, *, metric: str = "time", split: str = "contiguous", safe_altitude: float = 0.3,
-                 via_tolerance: float = 0.05, **aco: Any) -> None:
-        self.metric = _enum(Metric, metric, "metric")
-        self.split = _enum(Split, split, "split")
-        for field, value, low in (("safe_altitude", safe_altitude, 0.0), ("via_tolerance", via_tolerance, 1e-6)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < low:
-                raise ConfigError(f"must be a finite number >= {low:g}, got {value!r}", field=f"planner.params.{field}")
-        self.safe_altitude = float(safe_altitude)
-        self.via_tolerance = float(via_tolerance)
-        try:
-            self.aco = ACOParams(**aco)
-        except ValueError as exc:
-            raise ConfigError(str(exc), field="planner.params") from None
+    def __init__(self, params: AcoTourParams | None = None) -> None:
+        self.params = params if params is not None else AcoTourParams()
+        self.metric = self.params.metric
+        self.split = self.params.split
+        self.safe_altitude = float(self.params.safe_altitude)
+        self.via_tolerance = float(self.params.via_tolerance)
+        self.aco = ACOParams(**{k: getattr(self.params, k) for k in ACOParams.model_fields})
 
     def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Order the points of ``info.route`` with the colony (legs are cut at the first tick)."""
@@ -311,7 +316,8 @@ class AcoTour:
         self.n = n
         self.points = pts                                           # (W, 3) m
         self.radius = float(info.extra.get("visit_radius", 0.1))    # m
-        self.board = info.extra.get("tour_board")
+        self.plan: TourPlan | None = None                           # published once the legs are cut
+        self.points_done = np.zeros(len(pts), dtype=bool)           # what the task counts as visited
         self.return_home = bool(info.extra.get("return_home", False))
         self.homes = info.extra.get("homes")                        # (n, 3) m or None
         self.costs = CostModel(self.metric, self.safe_altitude, info.v_max, info.extra.get("a_max"))
@@ -342,9 +348,11 @@ class AcoTour:
         if self.costs.time_defined:
             self.planned_makespan = max(float(self.costs.segment(np.diff(p, axis=0), Metric.TIME).sum())
                                         for p in paths)
-        if self.board is not None and hasattr(self.board, "publish"):
-            self.board.publish(legs=self.legs, paths=paths, tour=self.tour, planned_time_s=self.planned_makespan,
-                               metric=self.costs.metric.value)
+        self.plan = TourPlan(np.asarray(self.tour, dtype=np.int64).reshape(-1),
+                             tuple(np.asarray(leg, dtype=np.int64).reshape(-1) for leg in self.legs),
+                             tuple(np.asarray(p, dtype=float).reshape(-1, 3) for p in paths),
+                             None if self.planned_makespan is None else float(self.planned_makespan),
+                             self.costs.metric.value)
         return self.legs
 
     def _route(self, start: NDArray[np.float64], leg: NDArray[np.int64],
@@ -367,7 +375,7 @@ class AcoTour:
             return False   # hold it; the task judges completion
         if tag == VIA:
             return bool(np.linalg.norm(p - target) <= self.via_tolerance)
-        counted = self.board is not None and bool(self.board.visited[tag])
+        counted = bool(self.points_done[tag])
         if counted or np.linalg.norm(p - target) <= self.radius:
             self.done[tag] = True
         return bool(self.done[tag])
@@ -382,18 +390,17 @@ class AcoTour:
 
     def plan_all(self, view: WorldView) -> list[Command]:
         """One position command per agent."""
+        if view.task is not None and view.task.points_done.shape == self.points_done.shape:
+            self.points_done = view.task.points_done
         if self.starts is None:
             self.starts = view.positions.copy()
             self.plan_legs(self.starts)
         return [self._command(i, view.positions[i], self.starts[i]) for i in range(self.n)]
 
 
-def _enum(kind: type[enum.Enum], value: Any, field: str) -> Any:
-    try:
-        return kind(value)
-    except ValueError:
-        choices = ", ".join(repr(m.value) for m in kind)
-        raise ConfigError(f"must be one of {choices}, got {value!r}", field=f"planner.params.{field}") from None
+    def artefacts(self) -> dict[str, Any]:
+        """The published plan (``tour_plan``: legs, paths, planned time), once the legs are cut."""
+        return {} if self.plan is None else {"tour_plan": self.plan}
 
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402

@@ -14,6 +14,8 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from pybullet_swarm.types import Perception
+
 
 class Action(enum.IntEnum):
     """What an agent asks the task to do with a box."""
@@ -29,16 +31,6 @@ class CommandKind(enum.IntEnum):
     POSITION = 0   # fly to this position, m
     VELOCITY = 1   # fly with this velocity, m/s
     HOLD = 2       # keep the current reference
-
-
-def params_from_mapping(cls: Any, data: dict[str, Any], section: str, owner: str) -> Any:
-    """Dataclass ``cls`` built from the scenario mapping ``data``; a name that is not one of its fields
-    is refused with a ValueError naming ``section.name`` and ``owner`` (e.g. "the orca layer")."""
-    known = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(data) - known)
-    if unknown:
-        raise ValueError(f"{section}.{unknown[0]}: unknown parameter of {owner} (known: {', '.join(sorted(known))})")
-    return cls(**data)
 
 
 def view_distance(rel: NDArray[np.float64], norm: str) -> NDArray[np.float64]:
@@ -152,6 +144,70 @@ class Observation:
     ranges: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(0))
 
 
+def _empty3() -> NDArray[np.float64]:
+    return np.zeros((0, 3))
+
+
+def _empty_ids() -> NDArray[np.int64]:
+    return np.zeros(0, dtype=np.int64)
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskView:
+    """What the task shows at one planner tick: public progress of the task (world frame, SI units).
+
+    Every task fills what it has and leaves the rest empty. Decentralised planners see objects only
+    through their ``Observation``; the whole view goes to centralised baselines, avoidance layers
+    (which need to know who carries what) and the learning environments.
+
+    Attributes:
+        time_s: simulated time, s.
+        carrying: (n,) id of the object each agent holds, or -1.
+        objects: (B, 3) m, the task's movable objects now (boxes).
+        object_state: (B,) 0 free, 1 carried, 2 placed.
+        slots: (S, 3) m, goal slot centres.
+        slot_filled: (S,) object in each slot, or -1.
+        slot_open: (S,) True when a slot is empty and can be filled now.
+        targets: (n, 3) m, each agent's active set-point (timed set-point tasks), else (0, 3).
+        target_yaws: (n,) rad, with ``targets``.
+        points: (W, 3) m, points to pass or visit (routes, tours), else (0, 3).
+        points_done: (W,) True once a point counts as passed or visited.
+    """
+
+    time_s: float
+    carrying: NDArray[np.int64]
+    objects: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
+    object_state: NDArray[np.int64] = dataclasses.field(default_factory=_empty_ids)
+    slots: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
+    slot_filled: NDArray[np.int64] = dataclasses.field(default_factory=_empty_ids)
+    slot_open: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=bool))
+    targets: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
+    target_yaws: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(0))
+    points: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
+    points_done: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+
+@dataclasses.dataclass(frozen=True)
+class LocalView:
+    """The task objects one agent sees now (within its view), in the agent's own frame of reference.
+
+    Attributes:
+        boxes: (b, 3) m, free objects in view.
+        box_ids: (b,) their ids.
+        slots: (s, 3) m, open slots in view.
+        slot_ids: (s,) their ids.
+    """
+
+    boxes: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
+    box_ids: NDArray[np.int64] = dataclasses.field(default_factory=_empty_ids)
+    slots: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
+    slot_ids: NDArray[np.int64] = dataclasses.field(default_factory=_empty_ids)
+
+
+#: an agent that sees no task object
+NOTHING_IN_VIEW = LocalView()
+
+
 @dataclasses.dataclass(frozen=True)
 class WorldView:
     """Everything, for centralised planners only.
@@ -165,6 +221,7 @@ class WorldView:
         box_state: (B,) 0 free, 1 carried, 2 placed.
         slot_filled: (S,) box id in each slot, or -1.
         slot_open: (S,) True when a slot is empty and supported.
+        task: the task's whole view (set-points, points done ...), None when built by hand.
     """
 
     time_s: float
@@ -175,6 +232,99 @@ class WorldView:
     box_state: NDArray[np.int64]
     slot_filled: NDArray[np.int64]
     slot_open: NDArray[np.bool_]
+    task: TaskView | None = None
+
+    @staticmethod
+    def of(perception: Perception, task: TaskView) -> WorldView:
+        """The view of a centralised planner from the swarm's ``Perception`` and the task's view."""
+        return WorldView(task.time_s, perception.positions, perception.velocities, task.carrying, task.objects,
+                         task.object_state, task.slot_filled, task.slot_open, task)
+
+
+@dataclasses.dataclass(frozen=True)
+class AvoidanceSetup:
+    """What an avoidance layer is told once, before a run (static: no access to the simulation).
+
+    Attributes:
+        n: number of agents.
+        info: the task's static layout (boxes, slots, agent radius, limits, extras).
+        agent_radius: m, radius of the circle enclosing an airframe.
+        collision_size: (3,) m, the airframe's collision box.
+        v_max: (3,) m/s per-axis velocity limit, or None when references are not shaped.
+        a_max: (3,) m/s^2 per-axis acceleration limit.
+        control_dt: s, period of the position loop and reference shaper.
+        planner_dt: s, period of the planner ticks (and of ``filter`` calls).
+        sensing_radius: m, neighbours within it are perceived.
+        range_angles: (r,) rad, bearings of the range rays in the body frame (empty without rays).
+        range_m: m, longest range reading.
+        range_offset: m, rays start this far from the agent centre.
+    """
+
+    n: int
+    info: TaskInfo
+    agent_radius: float
+    collision_size: NDArray[np.float64]
+    v_max: NDArray[np.float64] | None
+    a_max: NDArray[np.float64]
+    control_dt: float
+    planner_dt: float
+    sensing_radius: float
+    range_angles: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(0))
+    range_m: float = 0.0
+    range_offset: float = 0.0
+
+
+@runtime_checkable
+class AvoidanceLayer(Protocol):
+    """A local avoidance layer between the planners and the flight controllers.
+
+    Built once as ``Layer(setup, **params)``; a layer that reads range sensors declares
+    ``needs_range_sensors = True`` and the clock gives every agent its fan of rays.
+    """
+
+    needs_range_sensors: ClassVar[bool]
+
+    def filter(self, commands: list[Command], perception: Perception, task: TaskView) -> list[Command]:
+        """Safe commands for this planner tick, from the perception snapshot and the task's view only."""
+
+    def metrics(self) -> dict[str, Any]:
+        """The layer's counters of the run (merged into metrics.json)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class TourPlan:
+    """The order in which a planner means to visit the points, as a planner publishes it (``artefacts()["tour_plan"]``).
+
+    Attributes:
+        tour: (W,) point indices of the closed tour the legs were cut from (empty if none).
+        legs: per agent, (m_i,) point indices in flight order.
+        paths: per agent, (p_i, 3) m, the planned polyline from the agent's start through its
+            via points (climbs to a safe altitude) and its points (and home, if required).
+        planned_time_s: s, the planner's estimate of the slowest agent's flight time, or None.
+        metric: what the planner optimised ('time', 'length', ...).
+    """
+
+    tour: NDArray[np.int64]
+    legs: tuple[NDArray[np.int64], ...]
+    paths: tuple[NDArray[np.float64], ...]
+    planned_time_s: float | None = None
+    metric: str = ""
+
+    @property
+    def path_lengths_m(self) -> NDArray[np.float64]:
+        """(n,) m, Euclidean length of each planned path."""
+        return np.array([polyline_length(p) for p in self.paths])
+
+    @property
+    def length_m(self) -> float:
+        """m, total Euclidean length of the planned paths (approaches included)."""
+        return float(self.path_lengths_m.sum())
+
+
+def polyline_length(path: NDArray[np.float64]) -> float:
+    """Length m of a polyline (p, 3) m."""
+    p = np.asarray(path, dtype=float).reshape(-1, 3)
+    return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) if len(p) > 1 else 0.0
 
 
 @runtime_checkable

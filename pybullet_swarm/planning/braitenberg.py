@@ -61,18 +61,18 @@ take over keeps its planner's command untouched.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any, ClassVar
 
 import numpy as np
+import pydantic
 from numpy.typing import NDArray
+from pydantic import Field
 
-from pybullet_swarm.planning.base import Command, CommandKind, params_from_mapping
+from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, TaskView
 from pybullet_swarm.planning.orca import preferred_velocities
-
-if TYPE_CHECKING:  # pragma: no cover
-    from pybullet_swarm.experiment.simulation import Simulation
+from pybullet_swarm.planning.params import ParamRuleError, Params, PlanContext, check_memory
+from pybullet_swarm.types import Perception
 
 
 def lateral_weight(phi: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -105,72 +105,59 @@ def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
-@dataclasses.dataclass(frozen=True)
-class BraitenbergParams:
+
+
+class BraitenbergParams(Params):
     """Parameters of the braitenberg layer (scenario ``avoidance_params``).
 
-    Attributes:
-        weight_lateral: sideways push per unit of summed activation, in units of the horizontal
-            velocity limit.
-        weight_forward: braking (ahead) or pushing (behind) per unit of summed activation, same units.
-        on_threshold: activation above which the layer takes over.
-        off_threshold: the layer hands back when every watched activation is below this.
-        watch_deg: deg, rays within this bearing of the heading are watched for the thresholds.
-        front_deg: deg, the cone in which a symmetric obstacle is looked for.
-        symmetry_threshold: front activation above which a symmetric reading is corrected.
-        symmetry_ratio: a lateral sum below this fraction of the front activation is symmetric.
-        symmetry_step: growth of the correction per planner tick, in units of the limit.
-        symmetry_max: cap of the correction, in units of the limit.
-        max_reverse: fastest backing away along the heading, in units of the limit: braking
-            stops an agent but does not throw it back into the agents following it.
-        arrive_time: s, a POSITION command's preferred velocity is (target - p) / arrive_time.
-        reaction_time: s, a reading is shortened by the distance flown in this time at the
-            closing speed (planner tick plus the controller's lag) and by the braking distance
-            at the acceleration limit (0: raw readings).
-        memory_s: s, an obstacle echo is remembered this long (0: no memory).
-        clear_width: m, a remembered point is dropped when a ray passes freely this close to it.
-        neighbour_margin: m, an echo this close to the airframe (radius: the rays' start
-            offset) of a sensed neighbour is that neighbour.
-        neighbour_range_m: m, range over which a neighbour's echo weighs (0: ignored; the
-            ray length: like an obstacle's).
+    Weights, corrections and the reverse speed are in units of the horizontal velocity limit;
+    activations (1 - reading / range) lie in [0, 1].
     """
 
-    weight_lateral: float = 3.0
-    weight_forward: float = 2.0
-    on_threshold: float = 0.3
-    off_threshold: float = 0.15
-    watch_deg: float = 100.0
-    front_deg: float = 50.0
-    symmetry_threshold: float = 0.3
-    symmetry_ratio: float = 0.25
-    symmetry_step: float = 0.25
-    symmetry_max: float = 1.0
-    max_reverse: float = 0.3
-    arrive_time: float = 0.5
-    reaction_time: float = 0.3
-    memory_s: float = 2.0
-    clear_width: float = 0.02
-    neighbour_margin: float = 0.05
-    neighbour_range_m: float = 0.2
+    weight_lateral: float = Field(3.0, ge=0.0, le=100.0, description="sideways push per unit of summed activation")
+    weight_forward: float = Field(2.0, ge=0.0, le=100.0,
+                                  description="braking (ahead) or pushing (behind) per unit of summed activation")
+    on_threshold: float = Field(0.3, ge=0.0, le=1.0, description="activation above which the layer takes over")
+    off_threshold: float = Field(0.15, ge=0.0, le=1.0,
+                                 description="the layer hands back when every watched activation is below this "
+                                             "(<= on_threshold)")
+    watch_deg: float = Field(100.0, ge=0.0, le=180.0,
+                             description="deg, rays within this bearing of the heading are watched for the thresholds")
+    front_deg: float = Field(50.0, ge=0.0, le=180.0,
+                             description="deg, the cone in which a symmetric obstacle is looked for")
+    symmetry_threshold: float = Field(0.3, ge=0.0, le=1.0,
+                                      description="front activation above which a symmetric reading is corrected")
+    symmetry_ratio: float = Field(0.25, ge=0.0, le=10.0,
+                                  description="a lateral sum below this fraction of the front activation is symmetric")
+    symmetry_step: float = Field(0.25, ge=0.0, le=10.0, description="growth of the symmetry correction per planner tick")
+    symmetry_max: float = Field(1.0, ge=0.0, le=10.0, description="cap of the symmetry correction")
+    max_reverse: float = Field(0.3, ge=0.0, le=10.0, description="fastest backing away along the heading")
+    arrive_time: float = Field(0.5, gt=0.0, le=60.0,
+                               description="s, a POSITION command's preferred velocity is (target - p) / arrive_time")
+    reaction_time: float = Field(0.3, ge=0.0, le=10.0,
+                                 description="s, readings are shortened by the distance flown in this time at the "
+                                             "closing speed and the braking distance (0: raw readings)")
+    memory_s: float = Field(2.0, ge=0.0, le=60.0, description="s, an obstacle echo is remembered this long (0: none)")
+    clear_width: float = Field(0.02, ge=0.0, le=1.0,
+                               description="m, a remembered point is dropped when a ray passes freely this close")
+    neighbour_margin: float = Field(0.05, ge=0.0, le=1.0,
+                                    description="m, an echo this close to a sensed neighbour's airframe is that "
+                                                "neighbour")
+    neighbour_range_m: float = Field(0.2, ge=0.0, le=100.0,
+                                     description="m, range over which a neighbour's echo weighs (0: ignored)")
 
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-            if not ok or value < 0:
-                raise ValueError(f"avoidance_params.{f.name} must be a number >= 0, got {value!r}")
-        if self.arrive_time <= 0:
-            raise ValueError(f"avoidance_params.arrive_time must be > 0, got {self.arrive_time!r}")
-        if not 0.0 <= self.off_threshold <= self.on_threshold <= 1.0:
-            raise ValueError(f"avoidance_params: need 0 <= off_threshold <= on_threshold <= 1, got "
-                             f"{self.off_threshold!r} and {self.on_threshold!r}")
-        if self.watch_deg > 180.0 or self.front_deg > 180.0:
-            raise ValueError("avoidance_params.watch_deg and front_deg must be <= 180")
+    @pydantic.model_validator(mode="after")
+    def _hysteresis(self) -> BraitenbergParams:
+        if self.off_threshold > self.on_threshold:
+            raise ParamRuleError("off_threshold", f"must be <= on_threshold ({self.on_threshold:g}), "
+                                                  f"got {self.off_threshold:g}")
+        return self
 
-    @classmethod
-    def from_mapping(cls, data: dict[str, Any]) -> BraitenbergParams:
-        """Parameters from ``avoidance_params``; unknown names are refused with ValueError."""
-        return params_from_mapping(cls, data, "avoidance_params", "the braitenberg layer")
+    def check_for(self, context: PlanContext) -> None:
+        """Refuse a memory of echoes larger than the memory budget."""
+        ticks = math.ceil(self.memory_s * context.planner_hz - 1e-9)
+        check_memory("memory_s", 17.0 * context.n_agents * ticks * context.range_rays, context.memory_budget,
+                     f"a memory of {ticks} ticks of {context.range_rays} echoes for {context.n_agents} agents")
 
 
 class Braitenberg:
@@ -385,43 +372,45 @@ class Braitenberg:
 class BraitenbergLayer:
     """The ``--avoidance braitenberg`` layer: each agent avoids what its own range sensors see.
 
-    Turns the range sensors on (``sensing.range`` of the scenario: 8 horizontal rays of 0.5 m by
-    default). Every planner tick it reads each agent's own observation (range readings, position,
-    velocity, yaw, sensed neighbours) and replaces the command of each agent it takes over by a
-    VELOCITY command with the same yaw and action.
+    Needs the range sensors (``sensing.range`` of the scenario: 8 horizontal rays of 0.5 m by
+    default; the clock turns them on for this layer). Every planner tick it reads each agent's own
+    row of the perception snapshot (range readings, position, velocity, yaw, sensed neighbours) and
+    replaces the command of each agent it takes over by a VELOCITY command with the same yaw and action.
 
     Args:
-        sim: the simulation.
-        **params: ``BraitenbergParams`` fields (scenario ``avoidance_params``).
+        setup: what the layer is told before the run (ray fan, limits, planner period).
+        params: validated ``BraitenbergParams`` (scenario ``avoidance_params``; default: the defaults).
     """
 
-    def __init__(self, sim: Simulation, **params: Any) -> None:
-        self.params = BraitenbergParams.from_mapping(params)
-        sim.enable_range_sensors()
-        fan = sim.range_sensor.fan
-        self.v_max = sim.scenario.velocity_limits()
-        acc = sim.scenario.acceleration_limits()
-        self.rule = Braitenberg(self.params, fan.angles, fan.range_m, self.v_max, sim.n, offset=fan.start_offset,
-                                decel=float(min(acc[0], acc[1])), dt=1.0 / sim.scenario.sim.planner_hz)
-        self.n = sim.n
+    Params: ClassVar[type[BraitenbergParams]] = BraitenbergParams
+    needs_range_sensors: ClassVar[bool] = True
+
+    def __init__(self, setup: AvoidanceSetup, params: BraitenbergParams | None = None) -> None:
+        self.params = params if params is not None else BraitenbergParams()
+        if setup.range_angles.size == 0:
+            raise ValueError("the braitenberg layer needs range sensors (sensing.range)")
+        self.v_max = setup.v_max
+        acc = setup.a_max
+        self.rule = Braitenberg(self.params, setup.range_angles, setup.range_m, self.v_max, setup.n,
+                                offset=setup.range_offset, decel=float(min(acc[0], acc[1])), dt=setup.planner_dt)
+        self.n = setup.n
         self._ticks = 0
         self._active_ticks = 0
         self._switches = 0
 
-    def filter(self, commands: list[Command], sim: Simulation) -> list[Command]:
+    def filter(self, commands: list[Command], perception: Perception, task: TaskView) -> list[Command]:
         """Commands for this planner tick (``action`` and ``yaw`` of each command are kept)."""
-        obs = sim.observations()   # each agent's own readings and state
         n = self.n
-        pos = np.array([o.position for o in obs], dtype=float).reshape(n, 3)
-        vel = np.array([o.velocity for o in obs], dtype=float).reshape(n, 3)
-        yaws = np.array([o.yaw for o in obs], dtype=float)
-        ranges = np.array([o.ranges for o in obs], dtype=float).reshape(n, -1)
-        k = max((len(o.neighbour_ids) for o in obs), default=0)
+        pos, vel, yaws, ranges = perception.positions, perception.velocities, perception.yaws, perception.ranges
+        counts = np.diff(perception.nb_start)
+        k = int(counts.max()) if counts.size else 0
         nb_pos = np.full((n, k, 3), np.nan)
         nb_vel = np.full((n, k, 3), np.nan)
-        for i, o in enumerate(obs):
-            nb_pos[i, :len(o.neighbour_ids)] = o.neighbour_positions
-            nb_vel[i, :len(o.neighbour_ids)] = o.neighbour_velocities
+        if perception.nb_ids.size:
+            owner = np.repeat(np.arange(n), counts)
+            col = np.arange(owner.size) - np.repeat(perception.nb_start[:-1], counts)
+            nb_pos[owner, col] = perception.nb_positions
+            nb_vel[owner, col] = perception.nb_velocities
         kinds = np.fromiter((int(c.kind) for c in commands), dtype=np.int64, count=n)
         vectors = np.array([c.vector for c in commands], dtype=float).reshape(n, 3)
         pref = preferred_velocities(kinds, vectors, pos, arrive_time=self.params.arrive_time, v_max=None)

@@ -26,18 +26,19 @@ controller.
 """
 from __future__ import annotations
 
-import dataclasses
 import enum
 import math
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
+import pydantic
 from numpy.typing import NDArray
+from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
-from pybullet_swarm.planning.base import Command, Observation, TaskInfo, params_from_mapping
-from pybullet_swarm.planning.reynolds import (RouteFollower, _positive, migration, scale_to_limits, separation,
-                                              switch_radius_from)
+from pybullet_swarm.planning.base import Command, Observation, TaskInfo
+from pybullet_swarm.planning.params import ParamRuleError, Params, PlanContext
+from pybullet_swarm.planning.reynolds import RouteFollower, migration, scale_to_limits, separation, switch_radius_from
 
 
 class Graph(str, enum.Enum):
@@ -114,60 +115,67 @@ def laplacian_velocities(L: NDArray[np.float64], positions: NDArray[np.float64],
     return -gain * (np.asarray(L, dtype=float) @ (np.asarray(positions, dtype=float) - np.asarray(slots, dtype=float)))
 
 
-@dataclasses.dataclass(frozen=True)
-class LaplacianParams:
-    """Parameters of the ``laplacian`` planner (scenario ``planner.params``).
+MAX_GRAPH = 2000
+"""Largest explicit adjacency matrix (rows), as many as agents a scenario may have."""
+Matrix = Annotated[list[Annotated[list[Annotated[float, Field(ge=0.0, le=1e6)]], Field(max_length=MAX_GRAPH)]],
+                   Field(min_length=1, max_length=MAX_GRAPH)]
 
-    Attributes:
-        graph: ``star``, ``ring``, ``complete`` or an n x n symmetric adjacency matrix.
-        gain: 1/s, k in v = -k L (x - b).
-        migration_speed: m/s (None: 0.7 x the horizontal limit).
-        altitude: m, flight altitude (None: each waypoint's z).
-        altitude_gain: 1/s.
-        separation_radius: m, formation mates closer than this repel.
-        w_separation: m^2/s, separation weight (0: the pure Laplacian controller).
-        switch_radius: m, move on when the estimated reference point is this close to the waypoint
-            (None: 0.75 x the task's pass_radius).
-        slow_radius: m, slow down within this distance of the last waypoint.
-        takeoff_height: m, below this an agent climbs vertically before it moves sideways.
-    """
 
-    graph: Any = "star"
-    gain: float = 0.8
-    migration_speed: float | None = None
-    altitude: float | None = None
-    altitude_gain: float = 1.0
-    separation_radius: float = 0.4
-    w_separation: float = 0.12
-    switch_radius: float | None = None
-    slow_radius: float = 0.5
-    takeoff_height: float = 0.3
+class LaplacianParams(Params):
+    """Parameters of the ``laplacian`` planner (scenario ``planner.params``)."""
 
-    def __post_init__(self) -> None:
-        _positive("gain", self.gain, allow_zero=False)
-        for name in ("altitude_gain", "separation_radius", "w_separation", "slow_radius", "takeoff_height"):
-            _positive(name, getattr(self, name))
-        if self.migration_speed is not None:
-            _positive("migration_speed", self.migration_speed)
-        if self.altitude is not None:
-            _positive("altitude", self.altitude, allow_zero=False)
-        if self.switch_radius is not None:
-            _positive("switch_radius", self.switch_radius, allow_zero=False)
+    graph: Literal["star", "ring", "complete"] | Matrix = Field(
+        "star", description="communication graph: star (around agent 0), ring, complete, or an n x n symmetric "
+                            "adjacency matrix")
+    gain: float = Field(0.8, gt=0.0, le=100.0, description="1/s, k in v = -k L (x - b)")
+    migration_speed: float | None = Field(None, ge=0.0, le=100.0,
+                                          description="m/s, migration speed (null: 0.7 x the horizontal limit)")
+    altitude: float | None = Field(None, gt=0.0, le=1e4, description="m, flight altitude (null: each waypoint's z)")
+    altitude_gain: float = Field(1.0, ge=0.0, le=100.0, description="1/s, pull to the flight altitude")
+    separation_radius: float = Field(0.4, ge=0.0, le=1e4, description="m, formation mates closer than this repel")
+    w_separation: float = Field(0.12, ge=0.0, le=100.0,
+                                description="m^2/s, separation weight (0: the pure Laplacian controller)")
+    switch_radius: float | None = Field(None, gt=0.0, le=1e4,
+                                        description="m, move on when the estimated reference point is this close to "
+                                                    "the waypoint (null: 0.75 x the task's pass_radius)")
+    slow_radius: float = Field(0.5, ge=0.0, le=1e4, description="m, slow down within this distance of the last waypoint")
+    takeoff_height: float = Field(0.3, ge=0.0, le=1e4,
+                                  description="m, below this an agent climbs vertically before it moves sideways")
 
-    @classmethod
-    def from_mapping(cls, data: dict[str, Any]) -> LaplacianParams:
-        """Parameters from ``planner.params``; unknown names are refused with ValueError."""
-        return params_from_mapping(cls, data, "planner.params", "the laplacian planner")
+    @pydantic.model_validator(mode="after")
+    def _graph(self) -> LaplacianParams:
+        if not isinstance(self.graph, str):
+            rows = len(self.graph)
+            short = next((len(r) for r in self.graph if len(r) != rows), None)
+            if short is not None:
+                raise ParamRuleError("graph", f"must be a square n x n matrix, got {rows} rows and a row of {short}")
+            try:
+                adjacency(self.graph, len(self.graph))
+            except ValueError as exc:
+                raise ParamRuleError("graph", str(exc).removeprefix("planner.params.graph ")) from None
+        return self
+
+    def check_for(self, context: PlanContext) -> None:
+        """An explicit adjacency matrix has one row per agent."""
+        if not isinstance(self.graph, str) and len(self.graph) != context.n_agents:
+            n = context.n_agents
+            raise ParamRuleError("graph", f"must be a {n} x {n} adjacency matrix (agents.count = {n}), "
+                                          f"got {len(self.graph)} rows")
 
 
 class LaplacianPlanner:
-    """Decentralised Laplacian formation keeping with migration along ``TaskInfo.route``."""
+    """Decentralised Laplacian formation keeping with migration along ``TaskInfo.route``.
+
+    Args:
+        params: validated ``LaplacianParams`` (default: the defaults).
+    """
 
     name: ClassVar[str] = "laplacian"
     centralized: ClassVar[bool] = False
+    Params: ClassVar[type[LaplacianParams]] = LaplacianParams
 
-    def __init__(self, **params: Any) -> None:
-        self.params = LaplacianParams.from_mapping(params)
+    def __init__(self, params: LaplacianParams | None = None) -> None:
+        self.params = params if params is not None else LaplacianParams()
 
     def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Start a run as agent ``agent_id``: build the graph and read the slots."""

@@ -100,21 +100,20 @@ Public pieces: ``orca_plane`` (one half-space), ``solve_velocity`` (one LP), ``o
 """
 from __future__ import annotations
 
-import dataclasses
 import enum
 import math
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any, ClassVar
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field
 from scipy.spatial import cKDTree
 
-from pybullet_swarm.planning.base import Command, CommandKind, params_from_mapping
-
-if TYPE_CHECKING:  # pragma: no cover
-    from pybullet_swarm.experiment.simulation import Simulation
+from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, TaskView
+from pybullet_swarm.planning.params import Params
+from pybullet_swarm.types import Perception
 
 #: flags returned per agent by ``orca_velocities``
 FLAG_INFEASIBLE = 1   # the ORCA planes had no common velocity: least-violating velocity used
@@ -1037,94 +1036,48 @@ def bounding_boxes(quaternions: NDArray[np.float64], half_extent: NDArray[np.flo
 
 
 # ----------------------------------------------------------------------------- parameters
-@dataclasses.dataclass(frozen=True)
-class OrcaParams:
-    """Parameters of the ORCA layer (scenario field ``avoidance_params``).
+class OrcaParams(Params):
+    """Parameters of the ORCA layer (scenario field ``avoidance_params``); see the module notes."""
 
-    Attributes:
-        shape: ``box`` (attitude-aware bounding boxes of airframe and load) or ``sphere``.
-        time_horizon: s, collisions predicted later than this are ignored.
-        safety_margin: m, added on every side of each agent's shape (default 0.015 for boxes,
-            0.03 for spheres).
-        lag_margin_s: s, a pair's shapes also grow by this times their closing speed (per axis for
-            boxes): the ground covered while the airframes catch up with a new velocity.
-        vertical_cost: boxes: a vertical change of velocity counts this many times a horizontal
-            one when the way out of a velocity obstacle is chosen (> 0; < 1 favours passing over).
-        climb_over: when the way out of a pair on a collision course is vertical and the lower
-            agent flies level, the upper agent takes the whole change; a stalled agent higher than
-            the one in its way climbs past it (see the module notes).
-        max_neighbours: the nearest this many sensed neighbours give planes.
-        recovery_time: s, shapes that already overlap are separated over this time.
-        responsibility: share of each pair's avoidance an agent takes (0.5: reciprocal).
-        arrive_time: s, POSITION targets are approached at distance / arrive_time per axis.
-        capture_radius: m, within this distance of a POSITION/HOLD target the command passes
-            through unchanged when the clearance test holds.
-        clearance_margin: m, box clearance the passthrough requires.
-        clearance_lookahead: s, a neighbour's box is swept along its velocity for this long.
-        floor_height: m, below this avoidance never pushes an agent downwards.
-        column_radius: m, below ``floor_height`` an agent within this horizontal distance of its
-            target (a vertical leg) is never moved sideways by avoidance (0: off).
-        right_bias: fraction of the preferred speed added sideways to a stalled agent's preferred velocity.
-        stuck_fraction: an agent whose progress along its preferred velocity is below this
-            fraction of the preferred speed counts as stalled.
-        max_speed: m/s, radius of the speed sphere (default: the corner of the velocity-limit
-            box, or 1 m/s without limits).
-        uncertainty_sigmas: when the agents fly on estimates (``TaskInfo.extra["position_std"]``,
-            the per-axis standard deviation of an agent's position estimate), each shape also
-            grows by this many standard deviations of a pair's relative position error, shared
-            between the two: ``uncertainty_sigmas * sqrt(2) * std / 2``.
-    """
-
-    shape: Shape = Shape.BOX
-    time_horizon: float = 1.5
-    safety_margin: float | None = None
-    lag_margin_s: float = 0.4
-    vertical_cost: float = 0.75
-    max_neighbours: int = 10
-    recovery_time: float = 0.5
-    responsibility: float = 0.5
-    arrive_time: float = 0.5
-    capture_radius: float = 0.05
-    clearance_margin: float = 0.02
-    clearance_lookahead: float = 0.3
-    floor_height: float = 0.5
-    column_radius: float = 0.03
-    right_bias: float = 0.5
-    stuck_fraction: float = 0.25
-    max_speed: float | None = None
-    uncertainty_sigmas: float = 2.0
-    climb_over: bool = True
-
-    def __post_init__(self) -> None:
-        if isinstance(self.shape, str):
-            try:
-                object.__setattr__(self, "shape", Shape(self.shape))
-            except ValueError:
-                raise ValueError(f"avoidance_params.shape must be one of {[s.value for s in Shape]}, "
-                                 f"got {self.shape!r}") from None
-        if not isinstance(self.shape, Shape):
-            raise ValueError(f"avoidance_params.shape must be one of {[s.value for s in Shape]}, got {self.shape!r}")
-        for name in ("time_horizon", "recovery_time", "arrive_time"):
-            _check_number(name, getattr(self, name), strict=True)
-        for name in ("lag_margin_s", "capture_radius", "clearance_margin", "clearance_lookahead", "floor_height",
-                     "column_radius", "right_bias"):
-            _check_number(name, getattr(self, name), strict=False)
-        _check_number("vertical_cost", self.vertical_cost, strict=True)
-        if not isinstance(self.climb_over, bool):
-            raise ValueError(f"avoidance_params.climb_over must be true or false, got {self.climb_over!r}")
-        if self.safety_margin is not None:
-            _check_number("safety_margin", self.safety_margin, strict=False)
-        if self.max_speed is not None:
-            _check_number("max_speed", self.max_speed, strict=True)
-        if isinstance(self.max_neighbours, bool) or not isinstance(self.max_neighbours, int) or self.max_neighbours < 1:
-            raise ValueError(f"avoidance_params.max_neighbours must be an integer >= 1, got {self.max_neighbours!r}")
-        _check_number("responsibility", self.responsibility, strict=True)
-        if self.responsibility > 1.0:
-            raise ValueError(f"avoidance_params.responsibility must be in (0, 1], got {self.responsibility!r}")
-        _check_number("stuck_fraction", self.stuck_fraction, strict=False)
-        _check_number("uncertainty_sigmas", self.uncertainty_sigmas, strict=False)
-        if self.stuck_fraction >= 1.0:
-            raise ValueError(f"avoidance_params.stuck_fraction must be in [0, 1), got {self.stuck_fraction!r}")
+    shape: Shape = Field(Shape.BOX, strict=False,
+                         description="box (attitude-aware bounding boxes of airframe and load) or sphere")
+    time_horizon: float = Field(1.5, gt=0.0, le=60.0, description="s, collisions predicted later than this are ignored")
+    safety_margin: float | None = Field(None, ge=0.0, le=1.0,
+                                        description="m, added on every side of each shape (null: 0.015 for boxes, "
+                                                    "0.03 for spheres)")
+    lag_margin_s: float = Field(0.4, ge=0.0, le=10.0,
+                                description="s, a pair's shapes also grow by this times their closing speed")
+    vertical_cost: float = Field(0.75, gt=0.0, le=100.0,
+                                 description="boxes: weight of a vertical change of velocity against a horizontal one "
+                                             "(< 1 favours passing over)")
+    max_neighbours: int = Field(10, ge=1, le=100, description="the nearest this many sensed neighbours give planes")
+    recovery_time: float = Field(0.5, gt=0.0, le=60.0, description="s, shapes that already overlap separate over this")
+    responsibility: float = Field(0.5, gt=0.0, le=1.0,
+                                  description="share of each pair's avoidance an agent takes (0.5: reciprocal)")
+    arrive_time: float = Field(0.5, gt=0.0, le=60.0,
+                               description="s, POSITION targets are approached at distance / arrive_time per axis")
+    capture_radius: float = Field(0.05, ge=0.0, le=10.0,
+                                  description="m, within this of a POSITION/HOLD target the command passes through "
+                                              "when the clearance test holds")
+    clearance_margin: float = Field(0.02, ge=0.0, le=1.0, description="m, box clearance the passthrough requires")
+    clearance_lookahead: float = Field(0.3, ge=0.0, le=10.0,
+                                       description="s, a neighbour's box is swept along its velocity for this long")
+    floor_height: float = Field(0.5, ge=0.0, le=100.0, description="m, below this avoidance never pushes an agent down")
+    column_radius: float = Field(0.03, ge=0.0, le=10.0,
+                                 description="m, below floor_height an agent this close to its target (horizontally) "
+                                             "is never moved sideways (0: off)")
+    right_bias: float = Field(0.5, ge=0.0, le=10.0,
+                              description="fraction of the preferred speed added sideways to a stalled agent")
+    stuck_fraction: float = Field(0.25, ge=0.0, lt=1.0,
+                                  description="progress below this fraction of the preferred speed counts as stalled")
+    max_speed: float | None = Field(None, gt=0.0, le=100.0,
+                                    description="m/s, radius of the speed sphere (null: the corner of the velocity-"
+                                                "limit box, or 1 m/s without limits)")
+    uncertainty_sigmas: float = Field(2.0, ge=0.0, le=10.0,
+                                      description="flying on estimates, shapes grow by this many standard deviations "
+                                                  "of a pair's relative position error")
+    climb_over: bool = Field(True, description="the upper agent of a pair takes the whole of a vertical way out when "
+                                               "the lower one flies level")
 
     @property
     def margin(self) -> float:
@@ -1132,17 +1085,6 @@ class OrcaParams:
         if self.safety_margin is not None:
             return float(self.safety_margin)
         return 0.015 if self.shape is Shape.BOX else 0.03
-
-    @classmethod
-    def from_mapping(cls, data: dict[str, Any]) -> OrcaParams:
-        """Parameters from ``avoidance_params``; unknown names are refused with ValueError."""
-        return params_from_mapping(cls, data, "avoidance_params", "the orca layer")
-
-
-def _check_number(name: str, value: Any, *, strict: bool) -> None:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-    if not ok or value < 0 or (strict and value == 0):
-        raise ValueError(f"avoidance_params.{name} must be a number {'>' if strict else '>='} 0, got {value!r}")
 
 
 # ----------------------------------------------------------------------------- the layer
@@ -1162,34 +1104,35 @@ def _warm_up() -> None:
 class OrcaLayer:
     """The ``--avoidance orca`` layer: turns every planner's commands into safe ones.
 
-    Each planner tick, per agent: neighbours within the sensing radius (k-d tree over the sensed
-    positions, as ``Simulation.observations``), shapes from sensed attitude and load, one LP; a
+    Each planner tick, per agent: the nearest neighbours within the sensing radius (from the swarm's
+    perception snapshot), shapes from sensed attitude and load, one LP; a
     command is kept when it is safe as it is (or a precise final approach is clear), else replaced
     by a VELOCITY command with the same ``action`` and ``yaw``.
 
     Args:
-        sim: the simulation (read for the vehicle, the limits, the sensing radius, the task and,
-            every tick, the sensed state of the swarm).
-        **params: ``OrcaParams`` fields (scenario ``avoidance_params``).
+        setup: what the layer is told before the run (vehicle, limits, rates, sensing radius, task layout).
+        params: validated ``OrcaParams`` (scenario ``avoidance_params``; default: the defaults).
     """
 
-    def __init__(self, sim: Simulation, **params: Any) -> None:
-        self.params = OrcaParams.from_mapping(params)
-        std = float(sim.info.extra.get("position_std", 0.0))      # m, per-axis, flying on estimates
+    Params: ClassVar[type[OrcaParams]] = OrcaParams
+    needs_range_sensors: ClassVar[bool] = False
+
+    def __init__(self, setup: AvoidanceSetup, params: OrcaParams | None = None) -> None:
+        self.params = params if params is not None else OrcaParams()
+        info = setup.info
+        std = float(info.extra.get("position_std", 0.0))      # m, per-axis, flying on estimates
         if std > 0.0:
             grow = self.params.uncertainty_sigmas * math.sqrt(2.0) * std / 2.0
-            self.params = dataclasses.replace(self.params, safety_margin=self.params.margin + grow)
-        self.n = sim.n
-        self.v_max = sim.scenario.velocity_limits()            # (3,) m/s or None
-        self.a_max = sim.scenario.acceleration_limits()        # (3,) m/s^2
-        self.control_dt = 1.0 / sim.scenario.sim.control_hz     # s, the shaper's tick
-        self.sensing_radius = float(sim.scenario.agents.sensing_radius)
-        vp = sim.params
-        self.r_agent = float(vp.radius)                         # m, airframe enclosing radius
-        self.half_extent = 0.5 * np.asarray(vp.collision_size, dtype=float)   # (3,) m
-        c = sim.construction
-        self.box_size = float(c.size) if c is not None else 0.0
-        self.box_drop = float(c.grasp_height) if c is not None else 0.0        # m, box centre below agent
+            self.params = self.params.model_copy(update={"safety_margin": self.params.margin + grow})
+        self.n = setup.n
+        self.v_max = setup.v_max                                # (3,) m/s or None
+        self.a_max = setup.a_max                                # (3,) m/s^2
+        self.control_dt = setup.control_dt                      # s, the shaper's tick
+        self.sensing_radius = setup.sensing_radius
+        self.r_agent = float(setup.agent_radius)                # m, airframe enclosing radius
+        self.half_extent = 0.5 * np.asarray(setup.collision_size, dtype=float)   # (3,) m
+        self.box_size = float(info.box_size)                    # m, 0 when the task has no boxes
+        self.box_drop = float(info.grasp_height)                # m, box centre below agent
         # sphere around the agent centre enclosing airframe and hanging box
         self.r_carry = max(self.r_agent, math.hypot(math.sqrt(2.0) * 0.5 * self.box_size,
                                                     self.box_drop + 0.5 * self.box_size))
@@ -1203,16 +1146,14 @@ class OrcaLayer:
         self._time_total = 0.0
         self._time_max = 0.0
 
-    def filter(self, commands: list[Command], sim: Simulation) -> list[Command]:
+    def filter(self, commands: list[Command], perception: Perception, task: TaskView) -> list[Command]:
         """Safe commands for this planner tick (``action`` and ``yaw`` of each command are kept)."""
         t0 = time.perf_counter()
         p = self.params
         n = self.n
-        state = getattr(sim, "sensed_state_array", sim.state_array)   # sensed (estimated) state, as observations
-        pos = np.ascontiguousarray(state[:, :3])
-        vel = np.ascontiguousarray(state[:, 7:10])
-        c = sim.construction
-        carrying = (c.carrying(n) >= 0) if c is not None else np.zeros(n, dtype=bool)
+        pos = np.ascontiguousarray(perception.positions)     # sensed (estimated) own states
+        vel = np.ascontiguousarray(perception.velocities)
+        carrying = task.carrying >= 0
         kinds = np.fromiter((int(cmd.kind) for cmd in commands), dtype=np.int64, count=n)
         vectors = np.array([cmd.vector for cmd in commands], dtype=float).reshape(n, 3)
         hold = kinds == int(CommandKind.HOLD)
@@ -1222,8 +1163,8 @@ class OrcaLayer:
         pref = preferred_velocities(kinds, vectors, pos, arrive_time=p.arrive_time, v_max=self.v_max,
                                     max_speed=p.max_speed)
         v_cmd = commanded_velocities(kinds, vectors, pos, v_max=self.v_max, a_max=self.a_max, dt=self.control_dt)
-        nbr = neighbour_table(pos, self.sensing_radius, p.max_neighbours)
-        centre, half = bounding_boxes(np.ascontiguousarray(state[:, 3:7]), self.half_extent, carrying,
+        nbr = perception.nearest_table(p.max_neighbours)
+        centre, half = bounding_boxes(np.ascontiguousarray(perception.quaternions), self.half_extent, carrying,
                                       self.box_size, self.box_drop)
         radii = np.where(carrying, self.r_carry, self.r_agent)
         # bounds around what the command itself asks for (per axis it covers the preferred velocity)

@@ -16,9 +16,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
-import os
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -320,20 +318,10 @@ class PheromoneGrid:
             out[f"{name}_mass"] = np.array(self.mass[name], dtype=float)
         return out
 
-    def write(self, out_dir: Path, plots: bool) -> list[Path]:
-        """Save ``pheromones.npz`` (see ``arrays``) into ``out_dir`` and, with ``plots``, the maps of
-        every layer and their activity over time into ``out_dir/plots``; returns the files written."""
-        out_dir = Path(out_dir)
-        out_dir.mkdir(parents=True, exist_ok=True)
-        path = out_dir / "pheromones.npz"
-        tmp = out_dir / f".pheromones.{os.getpid()}.tmp.npz"
+    def artefacts(self) -> dict[str, Any]:
+        """``pheromones.npz``: the arrays of ``arrays`` plus ``persistent``, the layers that neither
+        evaporate nor fatigue (``pybullet-swarm plot`` draws the maps from this file)."""
         arrays = self.arrays()
-        np.savez_compressed(tmp, **arrays)
-        tmp.replace(path)
-        written = [path]
-        if plots:
-            from pybullet_swarm.plotting.pheromone_plots import plot_pheromones
-
-            lasting = [n for n, s in self.specs.items() if s.fatigue == 0 and s.evaporation == 0]
-            written += plot_pheromones(arrays, out_dir / "plots", persistent=lasting)
-        return written
+        lasting = [n for n, s in self.specs.items() if s.fatigue == 0 and s.evaporation == 0]
+        arrays["persistent"] = np.array(lasting, dtype=str)
+        return {"pheromones.npz": arrays}

@@ -1,17 +1,38 @@
-"""Planners, avoidance layers and their registration by name.
+"""Planners, avoidance layers and their registration by name, with their parameter models.
 
-Planner modules register themselves with ``register_planner`` when imported; ``_load`` imports
-the known modules once (a module that is not there yet is skipped).
+Planner modules register themselves with ``register_planner`` when imported; ``load`` imports
+the known modules once (a module that is not there yet is skipped). Each entry records the
+plug-in's parameter model (a ``planning.params.Params`` subclass): the scenario validates
+``planner.params`` and ``avoidance_params`` against it at load, and the plug-in is built from
+the validated instance: ``factory(params)`` for a planner, ``factory(sim, params)`` for a layer.
 """
 from __future__ import annotations
 
 import importlib
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
-#: name -> (factory(**params), description, task kinds it solves)
-PLANNERS: dict[str, tuple[Callable[..., Any], str, tuple[str, ...]]] = {}
-#: name -> (factory(sim, **params), description)
-AVOIDANCE_LAYERS: dict[str, tuple[Callable[..., Any] | None, str]] = {"none": (None, "no local avoidance (default)")}
+from pybullet_swarm.planning.params import NoParams, Params
+
+
+class PlannerEntry(NamedTuple):
+    """A registered planner."""
+
+    factory: Callable[..., Any]    # factory(params) -> planner
+    description: str
+    tasks: tuple[str, ...]         # task kinds it solves
+    params: type[Params]           # its parameter model
+
+
+class AvoidanceEntry(NamedTuple):
+    """A registered avoidance layer (``factory`` None: no layer)."""
+
+    factory: Callable[..., Any] | None   # factory(sim, params) -> layer
+    description: str
+    params: type[Params]
+
+
+PLANNERS: dict[str, PlannerEntry] = {}
+AVOIDANCE_LAYERS: dict[str, AvoidanceEntry] = {"none": AvoidanceEntry(None, "no local avoidance (default)", NoParams)}
 #: task kind -> default planner
 DEFAULT_PLANNER: dict[str, str] = {}
 
@@ -19,17 +40,35 @@ _MODULES = ("waypoints", "shortest_path", "stigmergy", "orca", "aco_tour", "reyn
 _loaded = False
 
 
+def _model(factory: Callable[..., Any] | None, params: type[Params] | None, name: str) -> type[Params]:
+    model = params if params is not None else getattr(factory, "Params", NoParams)
+    if not (isinstance(model, type) and issubclass(model, Params)):
+        raise TypeError(f"{name}: the parameter model must be a subclass of planning.params.Params, got {model!r}")
+    return model
+
+
 def register_planner(name: str, factory: Callable[..., Any], description: str, tasks: tuple[str, ...],
-                     *, default_for: tuple[str, ...] = ()) -> None:
-    """Make a planner available by name (to ``--planner`` and ``pybullet-swarm list``)."""
-    PLANNERS[name] = (factory, description, tasks)
+                     *, default_for: tuple[str, ...] = (), params: type[Params] | None = None) -> None:
+    """Make a planner available by name (to ``--planner`` and ``pybullet-swarm list``).
+
+    Args:
+        name: the planner's name.
+        factory: ``factory(params) -> planner``, given a validated instance of ``params``.
+        description: one line.
+        tasks: task kinds it solves.
+        default_for: task kinds whose default planner it is.
+        params: its parameter model (default: ``factory.Params``, else no parameters).
+    """
+    PLANNERS[name] = PlannerEntry(factory, description, tuple(tasks), _model(factory, params, name))
     for kind in default_for:
         DEFAULT_PLANNER[kind] = name
 
 
-def register_avoidance(name: str, factory: Callable[..., Any], description: str) -> None:
-    """Make a local avoidance layer available by name (to ``--avoidance``)."""
-    AVOIDANCE_LAYERS[name] = (factory, description)
+def register_avoidance(name: str, factory: Callable[..., Any], description: str, *,
+                       params: type[Params] | None = None) -> None:
+    """Make a local avoidance layer available by name (to ``--avoidance``); ``factory(sim, params)``
+    gets a validated instance of ``params`` (default: ``factory.Params``)."""
+    AVOIDANCE_LAYERS[name] = AvoidanceEntry(factory, description, _model(factory, params, name))
 
 
 def load() -> None:
@@ -46,13 +85,13 @@ def load() -> None:
                 raise
 
 
-def planners() -> dict[str, tuple[Callable[..., Any], str, tuple[str, ...]]]:
+def planners() -> dict[str, PlannerEntry]:
     """Every registered planner."""
     load()
     return PLANNERS
 
 
-def avoidance_layers() -> dict[str, tuple[Callable[..., Any] | None, str]]:
+def avoidance_layers() -> dict[str, AvoidanceEntry]:
     """Every registered avoidance layer."""
     load()
     return AVOIDANCE_LAYERS

@@ -23,14 +23,16 @@ swarm's centroid against ``pass_radius``) has counted it when the flock turns.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar
 
 import numpy as np
+import pydantic
 from numpy.typing import NDArray
+from pydantic import Field
 
-from pybullet_swarm.planning.base import Command, Observation, TaskInfo, params_from_mapping
+from pybullet_swarm.planning.base import Command, Observation, TaskInfo
+from pybullet_swarm.planning.params import ParamRuleError, Params
 
 
 def separation(position: NDArray[np.float64], neighbours: NDArray[np.float64], radius: float) -> NDArray[np.float64]:
@@ -81,62 +83,35 @@ def scale_to_limits(v: NDArray[np.float64], v_max: NDArray[np.float64]) -> NDArr
     return v * float(np.min(ratio))
 
 
-def _positive(name: str, value: Any, *, allow_zero: bool = True) -> float:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-    if not ok or value < 0 or (not allow_zero and value == 0):
-        raise ValueError(f"planner.params.{name} must be a number {'>=' if allow_zero else '>'} 0, got {value!r}")
-    return float(value)
+Altitude = Annotated[float, Field(gt=0.0, le=1e4)]
 
 
-@dataclasses.dataclass(frozen=True)
-class ReynoldsParams:
-    """Parameters of the ``reynolds`` planner (scenario ``planner.params``).
+class ReynoldsParams(Params):
+    """Parameters of the ``reynolds`` planner (scenario ``planner.params``)."""
 
-    Attributes:
-        radius: m, neighbourhood radius of separation, alignment and cohesion.
-        separation_radius: m, only neighbours closer than this repel.
-        w_separation: m^2/s, separation weight.
-        w_alignment: alignment weight (dimensionless).
-        w_cohesion: 1/s, cohesion weight.
-        migration_speed: m/s, speed of the migratory urge (None: 0.8 x the horizontal limit).
-        altitude_band: [lo, hi] m, the flock flies between these altitudes.
-        altitude_gain: 1/s, pull back into the band.
-        switch_radius: m, move on to the next waypoint when the local centroid is this close
-            (None: 0.75 x the task's pass_radius).
-        slow_radius: m, slow down within this distance of the last waypoint.
-    """
+    radius: float = Field(1.0, gt=0.0, le=1e4,
+                          description="m, neighbourhood radius of separation, alignment and cohesion")
+    separation_radius: float = Field(0.6, ge=0.0, le=1e4, description="m, only neighbours closer than this repel")
+    w_separation: float = Field(0.15, ge=0.0, le=100.0, description="m^2/s, separation weight")
+    w_alignment: float = Field(0.5, ge=0.0, le=100.0, description="alignment weight (dimensionless)")
+    w_cohesion: float = Field(0.2, ge=0.0, le=100.0, description="1/s, cohesion weight")
+    migration_speed: float | None = Field(None, ge=0.0, le=100.0,
+                                          description="m/s, speed of the migratory urge (null: 0.8 x the horizontal "
+                                                      "limit)")
+    altitude_band: Annotated[list[Altitude], Field(min_length=2, max_length=2)] = Field(
+        default_factory=lambda: [0.8, 1.2], description="[lo, hi] m, the flock flies between these altitudes")
+    altitude_gain: float = Field(1.0, ge=0.0, le=100.0, description="1/s, pull back into the altitude band")
+    switch_radius: float | None = Field(None, gt=0.0, le=1e4,
+                                        description="m, move on to the next waypoint when the local centroid is this "
+                                                    "close (null: 0.75 x the task's pass_radius)")
+    slow_radius: float = Field(0.5, ge=0.0, le=1e4, description="m, slow down within this distance of the last waypoint")
 
-    radius: float = 1.0
-    separation_radius: float = 0.6
-    w_separation: float = 0.15
-    w_alignment: float = 0.5
-    w_cohesion: float = 0.2
-    migration_speed: float | None = None
-    altitude_band: tuple[float, float] = (0.8, 1.2)
-    altitude_gain: float = 1.0
-    switch_radius: float | None = None
-    slow_radius: float = 0.5
-
-    def __post_init__(self) -> None:
-        _positive("radius", self.radius, allow_zero=False)
-        _positive("separation_radius", self.separation_radius)
-        for name in ("w_separation", "w_alignment", "w_cohesion", "altitude_gain", "slow_radius"):
-            _positive(name, getattr(self, name))
-        if self.migration_speed is not None:
-            _positive("migration_speed", self.migration_speed)
-        if self.switch_radius is not None:
-            _positive("switch_radius", self.switch_radius, allow_zero=False)
-        band = self.altitude_band
-        if (not isinstance(band, (list, tuple)) or len(band) != 2
-                or not all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in band)
-                or not 0.0 < band[0] <= band[1]):
-            raise ValueError(f"planner.params.altitude_band must be [lo, hi] m with 0 < lo <= hi, got {band!r}")
-        object.__setattr__(self, "altitude_band", (float(band[0]), float(band[1])))
-
-    @classmethod
-    def from_mapping(cls, data: dict[str, Any]) -> ReynoldsParams:
-        """Parameters from ``planner.params``; unknown names are refused with ValueError."""
-        return params_from_mapping(cls, data, "planner.params", "the reynolds planner")
+    @pydantic.model_validator(mode="after")
+    def _band(self) -> ReynoldsParams:
+        lo, hi = self.altitude_band
+        if lo > hi:
+            raise ParamRuleError("altitude_band", f"must be [lo, hi] m with lo <= hi, got [{lo:g}, {hi:g}]")
+        return self
 
 
 class RouteFollower:
@@ -174,13 +149,18 @@ def switch_radius_from(info: TaskInfo, value: float | None) -> float:
 
 
 class ReynoldsPlanner:
-    """Decentralised Reynolds flocking with a migratory urge along ``TaskInfo.route``."""
+    """Decentralised Reynolds flocking with a migratory urge along ``TaskInfo.route``.
+
+    Args:
+        params: validated ``ReynoldsParams`` (default: the defaults).
+    """
 
     name: ClassVar[str] = "reynolds"
     centralized: ClassVar[bool] = False
+    Params: ClassVar[type[ReynoldsParams]] = ReynoldsParams
 
-    def __init__(self, **params: Any) -> None:
-        self.params = ReynoldsParams.from_mapping(params)
+    def __init__(self, params: ReynoldsParams | None = None) -> None:
+        self.params = params if params is not None else ReynoldsParams()
 
     def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Start a run as agent ``agent_id``."""
@@ -200,7 +180,7 @@ class ReynoldsPlanner:
         near = np.sum(d * d, axis=1) <= p.radius * p.radius
         nb_p, nb_v = obs.neighbour_positions[near], obs.neighbour_velocities[near]
         v = np.zeros(3)
-        v[2] = altitude_hold(float(pos[2]), p.altitude_band, p.altitude_gain)
+        v[2] = altitude_hold(float(pos[2]), (p.altitude_band[0], p.altitude_band[1]), p.altitude_gain)
         if pos[2] < 0.5 * p.altitude_band[0]:   # taking off: climb first
             return scale_to_limits(v, self.v_max)
         v += p.w_separation * separation(pos, nb_p, p.separation_radius)

@@ -24,8 +24,10 @@ import enum
 from typing import ClassVar
 
 import numpy as np
+from pydantic import Field
 
 from pybullet_swarm.planning.base import Action, Command, TaskInfo, WorldView
+from pybullet_swarm.planning.params import Params
 
 CLEARANCE_SIGMAS = 3.0
 """Least release clearance, in standard deviations of an agent's own position estimate."""
@@ -50,25 +52,35 @@ class Phase(enum.IntEnum):
     DONE = 7
 
 
+class ShortestPathParams(Params):
+    """Parameters of the ``shortest_path`` baseline (scenario ``planner.params``)."""
+
+    arrive_tol: float = Field(0.01, gt=0.0, le=1.0,
+                              description="m, horizontal distance at which a waypoint counts as reached")
+    release_clearance: float = Field(0.004, ge=0.0, le=0.5, description="m, how far above its slot a box is let go")
+    altitude_step: float = Field(0.2, ge=0.0, le=10.0,
+                                 description="m, agent i cruises at search_height + i * altitude_step")
+    release_tol: float = Field(0.005, gt=0.0, le=0.5,
+                               description="m, per-axis error of a held box within which it is let go on estimates")
+
+
 class ShortestPath:
     """Centralised straight-line delivery in structure order.
 
     Args:
-        arrive_tol: m, horizontal distance at which a waypoint counts as reached.
-        release_clearance: m, how far above its slot a box is let go.
+        params: validated ``ShortestPathParams`` (default: the defaults).
     """
 
     name: ClassVar[str] = "shortest_path"
     centralized: ClassVar[bool] = True
+    Params: ClassVar[type[ShortestPathParams]] = ShortestPathParams
 
-    def __init__(self, arrive_tol: float = 0.01, release_clearance: float = 0.004, altitude_step: float = 0.2,
-                 release_tol: float = 0.005) -> None:
-        if arrive_tol <= 0 or release_clearance < 0 or altitude_step < 0:
-            raise ValueError("arrive_tol must be > 0, release_clearance and altitude_step >= 0")
-        self.arrive_tol = float(arrive_tol)
-        self.release_clearance = float(release_clearance)
-        self.altitude_step = float(altitude_step)
-        self.release_tol = float(release_tol)
+    def __init__(self, params: ShortestPathParams | None = None) -> None:
+        self.params = params if params is not None else ShortestPathParams()
+        self.arrive_tol = self.params.arrive_tol
+        self.release_clearance = self.params.release_clearance
+        self.altitude_step = self.params.altitude_step
+        self.release_tol = self.params.release_tol
 
     def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Order the slots bottom layer first and clear the assignments."""

@@ -62,13 +62,16 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from pydantic import Field
+
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import Action, Command, CommandKind, Observation, TaskInfo, view_distance
+from pybullet_swarm.planning.params import Params, PlanContext, check_memory
 from pybullet_swarm.planning.pheromone_grid import DepositRule, LayerSpec, PheromoneGrid
 
 
@@ -137,104 +140,79 @@ def _field_error(name: str, message: str) -> ConfigError:
     return ConfigError(message, field=f"planner.params.{name}")
 
 
-@dataclasses.dataclass(frozen=True)
-class StigmergyParams:
+
+
+class StigmergyParams(Params):
     """Parameters of the 3-D stigmergy planner (defaults: thesis Tables 5.1 and 5.2).
 
-    Attributes:
-        cell_size: m, edge of a pheromone cell (thesis: 10 cm, a 30 x 10 x 10 grid).
-        grid_height: m, top of the pheromone grid.
-        box_pheromone: value set in the agent's cell when it grasps a box (> 0).
-        goal_pheromone: value set in the agent's cell when it places a box (< 0).
-        trail_pheromone: value set in every empty cell an agent passes while looking for a box (>= 0).
-        fatigue: value units per second by which the task layer fades (thesis: 0).
-        local_radius: m, half-width of the square of a local random search point (thesis: 20 cm).
-        distance_scale: m; when given, nearer pheromone cells appear stronger (value / (1 + d / scale)),
-            otherwise the strongest cell wins.
-        ties: ``random`` or ``nearest``: which of equally strong cells (e.g. every found box's +1) wins.
-        floor_altitude: m, flying altitude over the open floor (default: level with the middle of
-            the structure's grasp points, so that slots of every layer are in view from beside it,
-            raised if a carried box would not clear a box lying on the floor).
-        look_altitude: m, flying altitude over the depot (default: half the view range above a
-            box's grasp point, raised if a carried box would not clear the depot's boxes).
-        cruise_altitude: m, flying altitude over the structure (default: the task's search height,
-            raised if a carried box would not clear the finished structure).
-        arrive_tol: m, horizontal distance at which a search point counts as reached.
-        structure_margin: m, keep-out zone around the structure beyond one agent radius.
-        release_clearance: m, height of the box above its slot when it is let go.
-        release_tol: m, per-axis position error within which the box is let go.
-        release_dwell_s: s, how long the position must have stayed within ``release_tol`` before the box
-            is let go (default: 0 on the true state, 0.5 s when the agent flies on an estimate).
-        snapshot_s: s, period of the pheromone snapshots kept for the figures.
+    The floor, depot and cruise altitudes default (null) to values derived from the task layout
+    (see ``FlightGeometry.from_task``); ``release_dwell_s`` defaults to 0 on the true state and
+    0.5 s when the agent flies on an estimate.
     """
 
-    cell_size: float = 0.1
-    grid_height: float = 1.0
-    box_pheromone: float = 1.0
-    goal_pheromone: float = -1.0
-    trail_pheromone: float = 0.2
-    fatigue: float = 0.0
-    local_radius: float = 0.2
-    distance_scale: float | None = None
-    ties: TieBreak = TieBreak.RANDOM
-    floor_altitude: float | None = None
-    look_altitude: float | None = None
-    cruise_altitude: float | None = None
-    arrive_tol: float = 0.05
-    structure_margin: float = 0.02
-    release_clearance: float = 0.004
-    release_tol: float = 0.005
-    release_dwell_s: float | None = None
-    snapshot_s: float = 1.0
+    cell_size: float = Field(0.1, ge=0.01, le=1.0,
+                             description="m, edge of a pheromone cell (thesis: 10 cm, a 30 x 10 x 10 grid)")
+    grid_height: float = Field(1.0, gt=0.0, le=20.0, description="m, top of the pheromone grid")
+    box_pheromone: float = Field(1.0, gt=0.0, le=1e3, description="value set in the agent's cell when it grasps a box")
+    goal_pheromone: float = Field(-1.0, ge=-1e3, lt=0.0,
+                                  description="value set in the agent's cell when it places a box")
+    trail_pheromone: float = Field(0.2, ge=0.0, le=1e3,
+                                   description="value set in every empty cell an agent passes while looking for a box")
+    fatigue: float = Field(0.0, ge=0.0, le=1e3, description="value units per second by which the task layer fades")
+    local_radius: float = Field(0.2, gt=0.0, le=100.0,
+                                description="m, half-width of the square of a local random search point")
+    distance_scale: float | None = Field(None, gt=0.0, le=1e3,
+                                         description="m, nearer pheromone cells appear stronger (value / (1 + d / "
+                                                     "scale)); null: the strongest cell wins")
+    ties: TieBreak = Field(TieBreak.RANDOM, strict=False,
+                           description="which of equally strong cells wins: random or nearest")
+    floor_altitude: float | None = Field(None, gt=0.0, le=100.0,
+                                         description="m, flying altitude over the open floor (null: from the layout)")
+    look_altitude: float | None = Field(None, gt=0.0, le=100.0,
+                                        description="m, flying altitude over the depot (null: from the layout)")
+    cruise_altitude: float | None = Field(None, gt=0.0, le=100.0,
+                                          description="m, flying altitude over the structure (null: from the task)")
+    arrive_tol: float = Field(0.05, gt=0.0, le=10.0,
+                              description="m, horizontal distance at which a search point counts as reached")
+    structure_margin: float = Field(0.02, ge=0.0, le=1.0,
+                                    description="m, keep-out zone around the structure beyond one agent radius")
+    release_clearance: float = Field(0.004, ge=0.0, le=0.5,
+                                     description="m, height of the box above its slot when it is let go")
+    release_tol: float = Field(0.005, gt=0.0, le=0.5,
+                               description="m, per-axis position error within which the box is let go")
+    release_dwell_s: float | None = Field(None, ge=0.0, le=60.0,
+                                          description="s, time within release_tol before the box is let go "
+                                                      "(null: 0, or 0.5 s flying on an estimate)")
+    snapshot_s: float = Field(1.0, ge=0.0, le=1e4,
+                              description="s, period of the pheromone snapshots kept for the figures (0: none)")
 
-    def __post_init__(self) -> None:
-        for name in ("cell_size", "grid_height", "local_radius", "arrive_tol", "release_tol"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise _field_error(name, f"must be a number > 0, got {v!r}")
-        for name in ("trail_pheromone", "fatigue", "structure_margin", "release_clearance", "snapshot_s"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise _field_error(name, f"must be a number >= 0, got {v!r}")
-        if not (isinstance(self.box_pheromone, (int, float)) and self.box_pheromone > 0):
-            raise _field_error("box_pheromone",
-                               f"must be > 0 (boxes are the positive pheromone), got {self.box_pheromone!r}")
-        if not (isinstance(self.goal_pheromone, (int, float)) and self.goal_pheromone < 0):
-            raise _field_error("goal_pheromone",
-                               f"must be < 0 (goals are the negative pheromone), got {self.goal_pheromone!r}")
-        try:
-            object.__setattr__(self, "ties", TieBreak(self.ties))
-        except ValueError:
-            raise _field_error("ties", f"must be one of {[t.value for t in TieBreak]}, got {self.ties!r}") from None
-        for name in ("distance_scale", "floor_altitude", "look_altitude", "cruise_altitude", "release_dwell_s"):
-            v = getattr(self, name)
-            least = 0.0 if name == "release_dwell_s" else None
-            ok = isinstance(v, (int, float)) and math.isfinite(v) and (v >= 0 if least is not None else v > 0)
-            if v is not None and not ok:
-                raise _field_error(name, f"must be null or a number {'>=' if least is not None else '>'} 0, got {v!r}")
+    #: pheromone layers of the grid (sizes its memory)
+    LAYERS: ClassVar[int] = 1
+
+    def check_for(self, context: PlanContext) -> None:
+        """Refuse a pheromone grid (with its snapshots) larger than the memory budget."""
+        nx, ny = (max(1, math.ceil(x / self.cell_size - 1e-9)) for x in context.arena_size)
+        nz = max(1, math.ceil(self.grid_height / self.cell_size - 1e-9))
+        need = self.LAYERS * 16.0 * nx * ny * nz          # values (float64) and sources (int64) per cell
+        if self.snapshot_s > 0.0:
+            period = max(self.snapshot_s, 1.0 / context.planner_hz)
+            need += self.LAYERS * 4.0 * nx * ny * (math.floor(context.time_limit_s / period) + 1)
+        check_memory("cell_size", need, context.memory_budget,
+                     f"a pheromone grid of {nx} x {ny} x {nz} cells ({self.LAYERS} layer(s), with its snapshots)")
 
 
-@dataclasses.dataclass(frozen=True)
 class LayeredStigmergyParams(StigmergyParams):
     """Parameters of the layered stigmergy planner: those of 3-D stigmergy plus the presence layer
-    (defaults: thesis Table 6.1).
+    (defaults: thesis Table 6.1)."""
 
-    Attributes:
-        presence_pheromone: value an agent sets in its cell every tick (> 0).
-        presence_fatigue: value units per second by which presence marks fade (> 0; 2/s erases a 2 in 1 s).
-        lookahead: m, how far along its way an agent checks for other agents' marks.
-    """
+    presence_pheromone: float = Field(2.0, gt=0.0, le=1e3, description="value an agent sets in its cell every tick")
+    presence_fatigue: float = Field(2.0, gt=0.0, le=1e3,
+                                    description="value units per second by which presence marks fade (2/s erases a "
+                                                "2 in 1 s)")
+    lookahead: float = Field(0.2, gt=0.0, le=2.0,
+                             description="m, how far along its way an agent checks for other agents' marks")
 
-    presence_pheromone: float = 2.0
-    presence_fatigue: float = 2.0
-    lookahead: float = 0.2
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        for name in ("presence_pheromone", "presence_fatigue", "lookahead"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise _field_error(name, f"must be a number > 0, got {v!r}")
+    LAYERS: ClassVar[int] = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -414,15 +392,17 @@ class Stigmergy:
     """3-D stigmergy (thesis chapter 5): one instance per agent, the pheromone grid shared.
 
     Args:
-        **params: fields of ``StigmergyParams``.
+        params: validated ``StigmergyParams`` (default: the defaults).
     """
 
     name: ClassVar[str] = "stigmergy"
     centralized: ClassVar[bool] = False
     Params: ClassVar[type[StigmergyParams]] = StigmergyParams
 
-    def __init__(self, **params: Any) -> None:
-        self.params = self.Params(**params)
+    def __init__(self, params: StigmergyParams | None = None) -> None:
+        self.params = params if params is not None else self.Params()
+        if not isinstance(self.params, self.Params):
+            raise TypeError(f"{self.name}: expected {self.Params.__name__}, got {type(self.params).__name__}")
 
     # ------------------------------------------------------------- the medium
     @classmethod
@@ -431,20 +411,10 @@ class Stigmergy:
         return [LayerSpec(Layer.TASK.value, fatigue=p.fatigue)]
 
     @classmethod
-    def make_medium(cls, sim: Any) -> PheromoneGrid:
-        """The pheromone grid shared by the agents of a simulation (the planner's parameters come
-        from the scenario's ``planner.params``)."""
-        sc = sim.scenario
-        raw = dict(sc.planner.params) if sc.planner.name in (None, sim.planner_name) else {}
-        try:
-            p = cls.Params(**raw)
-        except TypeError as exc:
-            raise ConfigError(f"bad parameters for planner {cls.name!r}: {exc}", source=sc.source,
-                              field="planner.params") from None
-        except ConfigError as exc:
-            raise exc.with_source(sc.source) from None
-        return PheromoneGrid(sim.info.arena_size, cls.layer_specs(p), cell=p.cell_size, height=p.grid_height,
-                             snapshot_s=p.snapshot_s)
+    def make_medium(cls, params: StigmergyParams, info: TaskInfo) -> PheromoneGrid:
+        """The pheromone grid shared by the agents of a run, from the planner's validated parameters."""
+        return PheromoneGrid(info.arena_size, cls.layer_specs(params), cell=params.cell_size,
+                             height=params.grid_height, snapshot_s=params.snapshot_s)
 
     # ------------------------------------------------------------- protocol
     def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
@@ -831,7 +801,7 @@ class LayeredStigmergy(Stigmergy):
     """Layered stigmergy (thesis chapter 6): 3-D stigmergy plus a fading presence layer that agents avoid.
 
     Args:
-        **params: fields of ``LayeredStigmergyParams``.
+        params: validated ``LayeredStigmergyParams`` (default: the defaults).
     """
 
     name: ClassVar[str] = "layered_stigmergy"

@@ -1,28 +1,38 @@
 """The default planner of waypoint tasks: every agent follows the task's timed set-points."""
 from __future__ import annotations
 
-from typing import Callable, ClassVar
+from typing import ClassVar
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pybullet_swarm.planning.base import Command, TaskInfo, WorldView
+from pybullet_swarm.planning.params import NoParams
 
 
 class WaypointFollower:
-    """Centralised: reads the task's schedule (``info.extra['schedule']``: t -> (targets (n, 3), yaws (n,)))."""
+    """Centralised: every agent flies to the set-point the task shows as active (``TaskView.targets``).
+
+    Args:
+        params: none (``NoParams``).
+    """
 
     name: ClassVar[str] = "waypoints"
     centralized: ClassVar[bool] = True
+    Params: ClassVar[type[NoParams]] = NoParams
+
+    def __init__(self, params: NoParams | None = None) -> None:
+        self.params = params if params is not None else NoParams()
 
     def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
-        """Keep the task's schedule."""
-        self.schedule: Callable[[float], tuple[NDArray[np.float64], NDArray[np.float64]]] = info.extra["schedule"]
+        """Nothing to prepare: the set-points come with every tick's view."""
+        self.n = n
 
     def plan_all(self, view: WorldView) -> list[Command]:
-        """Each agent's active set-point."""
-        targets, yaws = self.schedule(view.time_s)
-        return [Command.goto(targets[i], yaw=float(yaws[i])) for i in range(len(targets))]
+        """Each agent's active set-point (holding position when the task shows none)."""
+        task = view.task
+        if task is None or len(task.targets) != self.n:
+            return [Command.hold() for _ in range(self.n)]
+        return [Command.goto(task.targets[i], yaw=float(task.target_yaws[i])) for i in range(self.n)]
 
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402

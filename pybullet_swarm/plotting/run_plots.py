@@ -9,7 +9,8 @@ from matplotlib.figure import Figure
 
 from pybullet_swarm.plotting.common import save_figure
 
-from pybullet_swarm.experiment.recorder import TimeSeries
+from pybullet_swarm.control.rotations import quat_to_euler
+from pybullet_swarm.types import TimeSeries
 
 MAX_AGENTS_DRAWN = 10
 
@@ -40,7 +41,7 @@ def plot_positions(ts: TimeSeries, path: Path) -> Path:
 
 def plot_attitude(ts: TimeSeries, path: Path) -> Path:
     """Roll, pitch and yaw over time."""
-    rpy = np.degrees(ts.euler)
+    rpy = np.degrees(quat_to_euler(ts.quaternions.astype(float)))
     fig = Figure(figsize=(9, 7), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
     for k, (ax, name) in enumerate(zip(axes, ("roll", "pitch", "yaw"))):
@@ -91,7 +92,7 @@ def plot_run(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any] | None = Non
     if "est_kalman_position" in ts.extra:   # the run's onboard estimation (sensing.state estimated)
         from pybullet_swarm.plotting.estimation_plots import plot_estimation
 
-        files += plot_estimation(ts.t, ts.positions, ts.euler[..., 2], ts.extra, out_dir,
+        files += plot_estimation(ts.t, ts.positions, quat_to_euler(ts.quaternions.astype(float))[..., 2], ts.extra, out_dir,
                                  (metrics or {}).get("estimation"))
     return files
 
@@ -103,12 +104,19 @@ def plot_saved_artifacts(run_dir: Path, out_dir: Path) -> list[Path]:
     if pher.is_file():
         from pybullet_swarm.plotting.pheromone_plots import plot_pheromones
 
-        from pybullet_swarm.experiment.results import read_pheromones
-
-        arrays = read_pheromones(pher)
+        with np.load(pher) as z:
+            arrays = {k: z[k] for k in z.files}
         names = [str(n) for n in np.asarray(arrays["layers"]).ravel()]
-        lasting = [n for n in names if n == "task"]
+        if "persistent" in arrays:
+            lasting = [str(n) for n in np.asarray(arrays.pop("persistent")).ravel()]
+        else:   # written before the file named them
+            lasting = [n for n in names if n == "task"]
         files += plot_pheromones(arrays, out_dir, persistent=lasting)
+    tour = Path(run_dir) / "tour.json"
+    if tour.is_file():
+        from pybullet_swarm.plotting.tour_plots import plot_saved_tour
+
+        files.append(plot_saved_tour(tour, Path(run_dir) / "timeseries.npz", out_dir / "tour.png"))
     return files
 
 

@@ -98,3 +98,17 @@ def plot_tour(points: ArrayLike, path: Path | str, *, arena_size: ArrayLike | No
     radius = f", visit radius {visit_radius:g} m" if visit_radius is not None else ""
     fig.suptitle(f"tour: {visited} of {len(pts)} points visited{radius}")
     return _save(fig, Path(path))
+
+
+def plot_saved_tour(tour_json: Path | str, timeseries: Path | str | None, path: Path | str) -> Path:
+    """``plot_tour`` from a run's ``tour.json`` (and its flown paths from ``timeseries.npz``, when present)."""
+    import json
+
+    data = json.loads(Path(tour_json).read_text())
+    flown = None
+    if timeseries is not None and Path(timeseries).is_file():
+        with np.load(timeseries) as z:
+            flown = z["positions"].astype(float) if "positions" in z.files else None
+    plan = data.get("plan") or {}
+    return plot_tour(data["points"], path, arena_size=data.get("arena_size"), planned=plan.get("paths"),
+                     flown=flown, visited_by=data.get("visited_by"), visit_radius=data.get("visit_radius"))

@@ -10,7 +10,7 @@ slot is filled and the structure has stood still for ``settle_s``.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import pydantic
@@ -18,13 +18,13 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
-from pybullet_swarm.planning.base import view_distance
-from pybullet_swarm.tasks import TASK_MODELS
-from pybullet_swarm.types import Event
-
-if TYPE_CHECKING:  # pragma: no cover
-    from pybullet_swarm.experiment.scenario import Scenario
-    from pybullet_swarm.world import World
+from pybullet_swarm.metrics.collisions import CollisionClass
+from pybullet_swarm.metrics.construction import task_lower_bound
+from pybullet_swarm.planning.base import Action, LocalView, TaskView, view_distance
+from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
+from pybullet_swarm.tasks.base import NOT_MINE, ScenarioLike, TaskBase, TaskContext
+from pybullet_swarm.types import Event, TimeSeries
+from pybullet_swarm.world import BodyKind, World
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
@@ -62,7 +62,7 @@ class ConstructionTask(pydantic.BaseModel):
     # "euclidean" (a ball)
     view_norm: Literal["chebyshev", "euclidean"] = "chebyshev"
 
-    def check(self, scenario: Scenario, source: str) -> None:
+    def check(self, scenario: ScenarioLike, source: str) -> None:
         """Refuse boxes outside the arena, overlapping boxes or slots, and unsupported slots."""
         h = 0.5 * self.box_size
         lx, ly = scenario.arena.size
@@ -95,7 +95,6 @@ class ConstructionTask(pydantic.BaseModel):
                 raise ConfigError("box starts inside a goal slot", source=source, field=f"task.boxes[{i}]")
 
 
-TASK_MODELS["construction"] = ConstructionTask
 
 
 def _first_overlap(pts: NDArray[np.float64], size: float) -> tuple[int, int]:
@@ -156,7 +155,7 @@ def _box_tilt_and_yaw_error(q: NDArray[np.float64]) -> tuple[NDArray[np.float64]
     return tilt, np.abs(yaw)
 
 
-class ConstructionRuntime:
+class ConstructionRuntime(TaskBase):
     """Bodies, grasps and placements of a construction run.
 
     Args:
@@ -164,13 +163,20 @@ class ConstructionRuntime:
         world: the World to build the boxes in.
         agent_half_height: m, half the airframe's height (for the grasp point).
         agent_radius: m.
+        ghost: carried boxes pass through other agents, as the agents do.
+        starts: (n, 3) m, the agents' start positions (for the task's lower bound).
+        v_max: (3,) m/s per-axis velocity limit (None: unlimited), for the lower bound.
+        position_std: m, per-axis standard deviation of an agent's own position estimate (0 on true state).
     """
 
     def __init__(self, spec: ConstructionTask, world: World, *, agent_half_height: float, agent_radius: float,
-                 ghost: bool = False) -> None:
-        from pybullet_swarm.world import BodyKind
-
+                 ghost: bool = False, starts: NDArray[np.float64] | None = None,
+                 v_max: NDArray[np.float64] | None = None, position_std: float = 0.0) -> None:
         self.spec = spec
+        self.agent_starts = np.zeros((0, 3)) if starts is None else np.asarray(starts, dtype=float)
+        self.n = len(self.agent_starts)
+        self.v_max = v_max
+        self.position_std = float(position_std)
         self.world = world
         self.ghost = ghost   # carried boxes pass through other agents, as the agents do
         self.size = spec.box_size
@@ -196,6 +202,13 @@ class ConstructionRuntime:
         self.events: list[Event] = []
         self.grasps = 0
         self.releases = 0
+
+    @classmethod
+    def build(cls, spec: ConstructionTask, ctx: TaskContext) -> ConstructionRuntime:
+        """The runtime factory registered in ``TASK_RUNTIMES``."""
+        return cls(spec, ctx.world, agent_half_height=0.5 * float(ctx.collision_size[2]),
+                   agent_radius=ctx.agent_radius, ghost=ctx.ghost, starts=ctx.starts, v_max=ctx.v_max,
+                   position_std=ctx.position_std)
 
     # ------------------------------------------------------------ bookkeeping
     def read(self) -> None:
@@ -304,8 +317,9 @@ class ConstructionRuntime:
         return out
 
     # ---------------------------------------------------------------- progress
-    def update(self, t: float) -> bool:
-        """Read the boxes, update the slots and check completion at time ``t``; True once completed."""
+    def update(self, t: float, positions: NDArray[np.float64] | None = None) -> bool:
+        """Read the boxes, update the slots and check completion at time ``t``; True once completed
+        (the agents' ``positions`` are not needed)."""
         self.read()
         self._update_slots(t)
         if self.completed_at is not None:
@@ -332,7 +346,80 @@ class ConstructionRuntime:
         grasp point, so that an agent holding station over a box sees it)."""
         return view_distance(rel, self.spec.view_norm) <= self.view_radius + self.grasp_height
 
-    def metrics(self) -> dict[str, Any]:
-        """Task metrics of the run so far."""
-        return {"boxes_placed": self.boxes_placed, "boxes_total": self.S, "grasps": self.grasps,
-                "releases": self.releases}
+    # ---------------------------------------------------------------- protocol
+    def task_info(self) -> dict[str, Any]:
+        """Depot, slots, box size and grasp height; view and search settings as extras."""
+        extra: dict[str, Any] = {"search_height": self.spec.search_height,
+                                 "attach_threshold": self.spec.attach_threshold,
+                                 "view_radius": self.view_radius, "view_norm": self.spec.view_norm}
+        return {"depot": self.start.copy(), "slots": self.slots.copy(), "box_size": self.size,
+                "grasp_height": self.grasp_height, "extra": extra}
+
+    def view(self, t: float) -> TaskView:
+        """Boxes, their states, slots and who carries what."""
+        return TaskView(t, self.carrying(self.n), objects=self.positions.copy(), object_state=self.state.copy(),
+                        slots=self.slots, slot_filled=self.slot_box.copy(), slot_open=self.slot_open)
+
+    def local_views(self, true_positions: NDArray[np.float64],
+                    sensed_positions: NDArray[np.float64]) -> list[LocalView]:
+        """Free boxes and open slots in each agent's view (measured from where the airframe truly is).
+
+        Boxes are seen relative to the airframe, so they appear in the agent's own (possibly
+        estimated) frame; slots are planned coordinates and are given as they are.
+        """
+        n = len(true_positions)
+        gh = np.array([0.0, 0.0, self.grasp_height])
+        seen_b = (self.state == FREE)[None, :] & self.in_view(self.grasp_points()[None, :, :] - true_positions[:, None, :])
+        seen_s = self.slot_open[None, :] & self.in_view((self.slots + gh)[None, :, :] - true_positions[:, None, :])
+        shift = sensed_positions - true_positions
+        out = []
+        for i in range(n):
+            boxes = np.flatnonzero(seen_b[i])
+            slots = np.flatnonzero(seen_s[i])
+            out.append(LocalView(self.positions[boxes] + shift[i], boxes, self.slots[slots], slots))
+        return out
+
+    def apply(self, agent: int, action: Action, t: float, position: NDArray[np.float64]) -> float | None:
+        """GRASP the free box at the agent's grasp point, or RELEASE the one it holds; returns the new
+        payload mass kg when it changed."""
+        body = self.world.agent_bodies[agent]
+        if action == Action.GRASP:
+            return self.spec.box_mass if self.grasp(agent, body, position, t) >= 0 else None
+        if action == Action.RELEASE:
+            return 0.0 if self.release(agent, body, t) >= 0 else None
+        return None
+
+    def contact_class(self, agent: int, body: int) -> str | None:
+        """A box touched by an agent: ``agent_structure`` when placed, ``agent_box`` when free or carried
+        by another agent, nothing for the agent's own load."""
+        box = self.body_to_box.get(body)
+        if box is None:
+            return NOT_MINE
+        if self.carried_by[box] == agent:
+            return None
+        return (CollisionClass.AGENT_STRUCTURE if self.state[box] == PLACED else CollisionClass.AGENT_BOX).value
+
+    def refresh(self) -> None:
+        """Read the boxes' poses now."""
+        self.read()
+
+    def sample(self) -> dict[str, NDArray[np.float64]]:
+        """Box positions (B, 3) m now."""
+        self.read()
+        return {"box_positions": self.positions}
+
+    def metrics(self, series: TimeSeries | None = None, planner_artefacts: dict[str, Any] | None = None
+                ) -> dict[str, Any]:
+        """Boxes placed, grasps, releases, the task's lower bound and the efficiency of the run."""
+        out: dict[str, Any] = {"boxes_placed": self.boxes_placed, "boxes_total": self.S, "grasps": self.grasps,
+                               "releases": self.releases}
+        if self.n:
+            v = np.full(3, 1e9) if self.v_max is None else self.v_max
+            lb = task_lower_bound(self.agent_starts, self.start, self.slots, v, grasp_height=self.grasp_height)
+            out["task_lower_bound_s"] = lb["task_lower_bound_s"]
+            out["efficiency"] = (lb["task_lower_bound_s"] / self.completed_at) if self.completed_at else None
+        return out
+
+
+TASK_MODELS["construction"] = ConstructionTask
+TASK_RUNTIMES["construction"] = ConstructionRuntime.build

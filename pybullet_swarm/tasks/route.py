@@ -22,7 +22,7 @@ simulation's ``collisions.agent_obstacle`` and ``collisions.agent_agent``.
 from __future__ import annotations
 
 import enum
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import pydantic
@@ -31,13 +31,10 @@ from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.flocking import route_fitness_series, time_average
+from pybullet_swarm.planning.base import TaskView
 from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
-from pybullet_swarm.types import Event
-
-if TYPE_CHECKING:  # pragma: no cover
-    from pybullet_swarm.experiment.recorder import TimeSeries
-    from pybullet_swarm.experiment.scenario import Scenario
-    from pybullet_swarm.experiment.simulation import Simulation
+from pybullet_swarm.tasks.base import ScenarioLike, TaskBase, TaskContext
+from pybullet_swarm.types import Event, TimeSeries
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
@@ -94,7 +91,7 @@ class RouteTask(_Model):
     criterion: Literal["centroid", "every_agent"] = "centroid"
     formation: FormationSpec | None = None
 
-    def check(self, scenario: Scenario, source: str) -> None:
+    def check(self, scenario: ScenarioLike, source: str) -> None:
         """Refuse waypoints outside the arena, too low or inside an obstacle, and formations that do
         not have one slot per agent or put two agents in one place."""
         from pybullet_swarm.vehicle import load_vehicle
@@ -135,7 +132,7 @@ class RouteTask(_Model):
                                       source=source, field="task.formation.slots")
 
 
-class RouteRuntime:
+class RouteRuntime(TaskBase):
     """Which waypoint was passed and when; completion; fitness metrics.
 
     Args:
@@ -160,9 +157,9 @@ class RouteRuntime:
         self.events: list[Event] = []
 
     @classmethod
-    def from_simulation(cls, spec: RouteTask, sim: Simulation) -> RouteRuntime:
+    def build(cls, spec: RouteTask, ctx: TaskContext) -> RouteRuntime:
         """The runtime factory registered in ``TASK_RUNTIMES``."""
-        return cls(spec, sim.n, sim.scenario.velocity_limits())
+        return cls(spec, ctx.n, ctx.v_max)
 
     def task_info(self) -> dict[str, Any]:
         """Keyword arguments of ``TaskInfo``: the waypoints as ``route``; pass radius and slots as extras."""
@@ -195,9 +192,14 @@ class RouteRuntime:
             self.events.append(Event(t, "route_complete", "", "", f"{self.W} waypoints passed"))
         return self.completed_at is not None
 
-    def update(self, t: float, sim: Simulation) -> bool:
-        """Planner-tick update from the simulation's true state; True once completed."""
-        return self.observe(t, sim.state_array[:, :3])
+    def update(self, t: float, positions: NDArray[np.float64]) -> bool:
+        """Planner-tick update from the agents' true positions (n, 3) m; True once completed."""
+        return self.observe(t, positions)
+
+    def view(self, t: float) -> TaskView:
+        """The waypoints and which of them the swarm has passed."""
+        return TaskView(t, np.full(self.n, -1, dtype=np.int64), points=self.route,
+                        points_done=np.arange(self.W) < self.next)
 
     def series(self, ts: TimeSeries) -> dict[str, Any]:
         """Per-step fitness series of a recorded run (see ``route_fitness_series``)."""
@@ -211,7 +213,8 @@ class RouteRuntime:
         vc = np.abs(np.asarray(ts.velocities, dtype=float).mean(axis=1))
         return np.maximum(vc.max(axis=0), 1e-9) if vc.size else np.ones(3)
 
-    def metrics(self, sim: Any = None, timeseries: TimeSeries | None = None) -> dict[str, Any]:
+    def metrics(self, timeseries: TimeSeries | None = None, planner_artefacts: dict[str, Any] | None = None
+                ) -> dict[str, Any]:
         """Route and fitness metrics (plain JSON data)."""
         out: dict[str, Any] = {
             "route_time_s": self.completed_at,
@@ -240,4 +243,4 @@ class RouteRuntime:
 
 
 TASK_MODELS["route"] = RouteTask
-TASK_RUNTIMES["route"] = RouteRuntime.from_simulation
+TASK_RUNTIMES["route"] = RouteRuntime.build

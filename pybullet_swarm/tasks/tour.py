@@ -15,9 +15,7 @@ duck typing; the planning layer does not import this module.
 """
 from __future__ import annotations
 
-import dataclasses
-from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import pydantic
@@ -25,13 +23,11 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.planning.base import TaskView, TourPlan
 from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
-from pybullet_swarm.types import Event
+from pybullet_swarm.tasks.base import ScenarioLike, TaskBase, TaskContext
+from pybullet_swarm.types import Event, TimeSeries
 
-if TYPE_CHECKING:  # pragma: no cover
-    from pybullet_swarm.experiment.recorder import Recorder, TimeSeries
-    from pybullet_swarm.experiment.scenario import Scenario
-    from pybullet_swarm.experiment.simulation import Simulation
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
@@ -57,7 +53,7 @@ class TourTask(pydantic.BaseModel):
     return_home: bool = False
     home_height: float = Field(0.3, gt=0.0, le=1e3)                          # m
 
-    def check(self, scenario: Scenario, source: str) -> None:
+    def check(self, scenario: ScenarioLike, source: str) -> None:
         """Refuse points outside the arena or below the airframe's rest height, and points so
         close together that one visit would count for both."""
         from pybullet_swarm.vehicle import load_vehicle
@@ -105,70 +101,6 @@ def _first_close_pair(pts: NDArray[np.float64], radius: float) -> tuple[int, int
     return int(j), int(k)
 
 
-@dataclasses.dataclass(frozen=True)
-class TourPlan:
-    """The order in which a planner means to visit the points, as published on the board.
-
-    Attributes:
-        tour: (W,) point indices of the closed tour the legs were cut from (empty if none).
-        legs: per agent, (m_i,) point indices in flight order.
-        paths: per agent, (p_i, 3) m, the planned polyline from the agent's start through its
-            via points (climbs to a safe altitude) and its points (and home, if required).
-        planned_time_s: s, the planner's estimate of the slowest agent's flight time, or None.
-        metric: what the planner optimised ('time', 'length', ...).
-    """
-
-    tour: NDArray[np.int64]
-    legs: tuple[NDArray[np.int64], ...]
-    paths: tuple[NDArray[np.float64], ...]
-    planned_time_s: float | None = None
-    metric: str = ""
-
-    @property
-    def path_lengths_m(self) -> NDArray[np.float64]:
-        """(n,) m, Euclidean length of each planned path."""
-        return np.array([polyline_length(p) for p in self.paths])
-
-    @property
-    def length_m(self) -> float:
-        """m, total Euclidean length of the planned paths (approaches included)."""
-        return float(self.path_lengths_m.sum())
-
-
-def polyline_length(path: NDArray[np.float64]) -> float:
-    """Length m of a polyline (p, 3) m."""
-    p = np.asarray(path, dtype=float).reshape(-1, 3)
-    return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) if len(p) > 1 else 0.0
-
-
-class TourBoard:
-    """Mailbox between the tour runtime and a planner (shared through ``TaskInfo.extra``).
-
-    Args:
-        visited: (W,) the runtime's visited flags; the board keeps a read-only view.
-    """
-
-    def __init__(self, visited: NDArray[np.bool_]) -> None:
-        view = visited.view()
-        view.flags.writeable = False
-        self.visited = view            # (W,) True once the task counted the point
-        self.plan: TourPlan | None = None
-
-    def publish(self, *, legs: list[NDArray[np.int64]] | tuple[NDArray[np.int64], ...],
-                paths: list[NDArray[np.float64]] | tuple[NDArray[np.float64], ...],
-                tour: NDArray[np.int64] | None = None, planned_time_s: float | None = None,
-                metric: str = "") -> None:
-        """Record the plan: legs (per agent, point indices in flight order), paths (per agent,
-        (p_i, 3) m planned polylines from the start), the closed tour they came from, the
-        planner's estimate of the makespan s, and the metric it optimised."""
-        legs_t = tuple(np.asarray(leg, dtype=np.int64).reshape(-1) for leg in legs)
-        paths_t = tuple(np.asarray(p, dtype=float).reshape(-1, 3) for p in paths)
-        if len(legs_t) != len(paths_t):
-            raise ValueError(f"legs, paths: one of each per agent, got {len(legs_t)} and {len(paths_t)}")
-        t = np.zeros(0, dtype=np.int64) if tour is None else np.asarray(tour, dtype=np.int64).reshape(-1)
-        self.plan = TourPlan(t, legs_t, paths_t, None if planned_time_s is None else float(planned_time_s), metric)
-
-
 def segment_point_distances(a: NDArray[np.float64], b: NDArray[np.float64],
                             points: NDArray[np.float64]) -> NDArray[np.float64]:
     """Distances (n, W) m from points (W, 3) m to the segments from a (n, 3) to b (n, 3) m."""
@@ -180,7 +112,7 @@ def segment_point_distances(a: NDArray[np.float64], b: NDArray[np.float64],
     return np.linalg.norm(w - s[:, :, None] * d, axis=2)
 
 
-class TourRuntime:
+class TourRuntime(TaskBase):
     """Which point was visited, by whom and when; completion; tour metrics and figures.
 
     Args:
@@ -191,7 +123,7 @@ class TourRuntime:
     """
 
     def __init__(self, spec: TourTask, starts: NDArray[np.float64], *, a_max: NDArray[np.float64] | None = None,
-                 recorder: Recorder | None = None, arena_size: tuple[float, float] | None = None) -> None:
+                 arena_size: tuple[float, float] | None = None) -> None:
         self.spec = spec
         self.points = np.asarray(spec.points, dtype=float)          # (W, 3) m
         self.W = len(self.points)
@@ -202,25 +134,22 @@ class TourRuntime:
         self.visited = np.zeros(self.W, dtype=bool)
         self.visited_by = np.full(self.W, -1, dtype=np.int64)      # agent that visited each point
         self.visited_at = np.full(self.W, np.nan)                   # s
-        self.board = TourBoard(self.visited)
         self.a_max = None if a_max is None else np.asarray(a_max, dtype=float).reshape(3)
         self.arena_size = arena_size
         self.completed_at: float | None = None
         self.events: list[Event] = []
-        self._recorder = recorder
         self._prev: NDArray[np.float64] | None = None
 
     @classmethod
-    def from_simulation(cls, spec: TourTask, sim: Simulation) -> TourRuntime:
+    def build(cls, spec: TourTask, ctx: TaskContext) -> TourRuntime:
         """The runtime factory registered in ``TASK_RUNTIMES``."""
-        lx, ly = sim.scenario.arena.size
-        return cls(spec, sim.starts, a_max=sim.scenario.acceleration_limits(), recorder=sim.recorder,
-                   arena_size=(float(lx), float(ly)))
+        lx, ly = (float(v) for v in ctx.arena_size)
+        return cls(spec, ctx.starts, a_max=ctx.a_max, arena_size=(lx, ly))
 
     # -------------------------------------------------------------- protocol
     def task_info(self) -> dict[str, Any]:
         """Keyword arguments of ``TaskInfo``: the points as ``route`` and the tour's extras."""
-        extra: dict[str, Any] = {"tour_board": self.board, "visit_radius": self.spec.visit_radius,
+        extra: dict[str, Any] = {"visit_radius": self.spec.visit_radius,
                                  "return_home": self.spec.return_home, "homes": self.homes.copy()}
         if self.a_max is not None:
             extra["a_max"] = self.a_max.copy()
@@ -254,18 +183,25 @@ class TourRuntime:
         self.events.append(Event(t, "tour_complete", "", "", f"{self.W} points visited"))
         return True
 
-    def update(self, t: float, sim: Simulation) -> bool:
-        """Planner-tick update from the simulation's true state; True once completed."""
-        return self.observe(t, sim.state_array[:, :3])
+    def update(self, t: float, positions: NDArray[np.float64]) -> bool:
+        """Planner-tick update from the agents' true positions (n, 3) m; True once completed."""
+        return self.observe(t, positions)
+
+    def view(self, t: float) -> TaskView:
+        """The points and which of them were visited."""
+        return TaskView(t, np.full(self.n, -1, dtype=np.int64), points=self.points,
+                        points_done=self.visited.copy())
 
     @property
     def points_visited(self) -> int:
         """Number of points visited so far."""
         return int(np.count_nonzero(self.visited))
 
-    def metrics(self, sim: Any = None, timeseries: TimeSeries | None = None) -> dict[str, Any]:
-        """Tour metrics (plain JSON data): visits, planned and flown lengths, completion time."""
-        plan = self.board.plan
+    def metrics(self, timeseries: TimeSeries | None = None, planner_artefacts: dict[str, Any] | None = None
+                ) -> dict[str, Any]:
+        """Tour metrics (plain JSON data): visits, planned (the planner's published ``tour_plan``) and
+        flown lengths, completion time."""
+        plan = _plan_of(planner_artefacts)
         flown = None
         flown_per_agent = None
         if timeseries is not None and timeseries.t.size > 1:
@@ -290,9 +226,9 @@ class TourRuntime:
             "flown_length_per_agent_m": flown_per_agent,
         }
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self, planner_artefacts: dict[str, Any] | None = None) -> dict[str, Any]:
         """Points, plan and visits as plain JSON data (what ``tour.json`` holds)."""
-        plan = self.board.plan
+        plan = _plan_of(planner_artefacts)
         return {
             "points": self.points.tolist(),
             "visit_radius": self.spec.visit_radius,
@@ -309,25 +245,17 @@ class TourRuntime:
             },
         }
 
-    def write(self, out_dir: Path, plots: bool = True) -> list[Path]:
-        """Write ``tour.json`` and, with ``plots``, ``plots/tour.png`` (top and side views)."""
-        from pybullet_swarm.experiment.rundir import write_json
+    def artefacts(self, planner_artefacts: dict[str, Any]) -> dict[str, Any]:
+        """``tour.json``: points, plan and visits (``pybullet-swarm plot`` draws ``plots/tour.png`` from it)."""
+        out = self.summary(planner_artefacts)
+        out["arena_size"] = list(self.arena_size) if self.arena_size is not None else None
+        return {"tour.json": out}
 
-        out_dir = Path(out_dir)
-        files = [out_dir / "tour.json"]
-        write_json(files[0], self.summary())
-        if plots:
-            from pybullet_swarm.plotting.tour_plots import plot_tour
 
-            flown = None
-            if self._recorder is not None:
-                flown = self._recorder.series().positions.astype(float)
-            plan = self.board.plan
-            files.append(plot_tour(self.points, out_dir / "plots" / "tour.png",
-                                   arena_size=self.arena_size, planned=None if plan is None else plan.paths,
-                                   flown=flown, visited_by=self.visited_by, visit_radius=self.spec.visit_radius))
-        return files
+def _plan_of(planner_artefacts: dict[str, Any] | None) -> TourPlan | None:
+    plan = (planner_artefacts or {}).get("tour_plan")
+    return plan if isinstance(plan, TourPlan) else None
 
 
 TASK_MODELS["tour"] = TourTask
-TASK_RUNTIMES["tour"] = TourRuntime.from_simulation
+TASK_RUNTIMES["tour"] = TourRuntime.build

@@ -1,13 +1,45 @@
 """The waypoints task: every agent follows a timed list of set-points."""
 from __future__ import annotations
 
+from typing import Annotated, Any, Literal
+
 import numpy as np
+import pydantic
 from numpy.typing import NDArray
+from pydantic import Field
 
-from pybullet_swarm.experiment.scenario import WaypointsTask
+from pybullet_swarm.planning.base import TaskView
+from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
+from pybullet_swarm.tasks.base import TaskBase, TaskContext
+from pybullet_swarm.types import Event, TimeSeries
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
 
-class WaypointsRuntime:
+class _Strict(pydantic.BaseModel):
+    model_config = pydantic.ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
+
+
+class Waypoint(_Strict):
+    """A timed set-point."""
+
+    t_s: float = Field(ge=0.0, le=1e5)   # s, when it becomes active
+    position: Vec3                        # m, relative to the agent's start when `relative`
+    yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)
+
+
+class WaypointsTask(_Strict):
+    """Every agent follows a timed list of set-points; completed when all hold the last one."""
+
+    kind: Literal["waypoints"]
+    time_limit_s: float = Field(gt=0.0, le=1e5)
+    waypoints: Annotated[list[Waypoint], Field(min_length=1)]
+    relative: bool = True                 # positions are offsets from each agent's start
+    tolerance_m: float = Field(0.05, gt=0.0, le=100.0)
+    hold_s: float = Field(1.0, ge=0.0, le=1e4)
+
+
+class WaypointsRuntime(TaskBase):
     """Runtime of a ``waypoints`` task: active set-point per agent and completion.
 
     Completion: after the last set-point became active, every agent stayed within
@@ -23,6 +55,12 @@ class WaypointsRuntime:
         self.yaws = np.radians([w.yaw_deg for w in spec.waypoints])
         self._held_since: float | None = None
         self.completed_at: float | None = None
+        self.events: list[Event] = []
+
+    @classmethod
+    def build(cls, spec: WaypointsTask, ctx: TaskContext) -> WaypointsRuntime:
+        """The runtime factory registered in ``TASK_RUNTIMES``."""
+        return cls(spec, ctx.starts)
 
     def active_index(self, t: float) -> int:
         """Index of the set-point active at time ``t`` s."""
@@ -49,3 +87,16 @@ class WaypointsRuntime:
         else:
             self._held_since = None
         return False
+
+    def view(self, t: float) -> TaskView:
+        """The active set-points and yaws."""
+        targets, yaws = self.targets(t)
+        return TaskView(t, np.full(self.n, -1, dtype=np.int64), targets=targets.copy(), target_yaws=yaws)
+
+    def metrics(self, series: TimeSeries | None, planner_artefacts: dict[str, Any]) -> dict[str, Any]:
+        """Nothing beyond the completion time and the flight metrics."""
+        return {}
+
+
+TASK_MODELS["waypoints"] = WaypointsTask
+TASK_RUNTIMES["waypoints"] = WaypointsRuntime.build

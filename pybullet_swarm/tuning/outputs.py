@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import yaml
 
@@ -18,8 +18,7 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.results import RunsTable, format_cell, plain_cell
 from pybullet_swarm.experiment.rundir import atomic_write, write_json
 
-if TYPE_CHECKING:  # pragma: no cover
-    from pybullet_swarm.tuning.study import TuneSpec
+from pybullet_swarm.tuning.spec import TuneSpec
 
 TRIALS_CSV = "trials.csv"
 BEST_YAML = "best.yaml"

@@ -3,9 +3,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.planning.params import ParamInfo
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,4 +103,31 @@ def check_params(params: Sequence[ParamSpec]) -> tuple[ParamSpec, ...]:
     return params
 
 
-__all__ = ["ParamSpec", "check_params", "parse_param"]
+def check_ranges(params: Sequence[ParamSpec], lookup: Callable[[str], ParamInfo | None]) -> None:
+    """Refuse ranges the parameter models do not allow: a key that names no number, a range that
+    leaves the field's range, an integer field without ``:int``.
+
+    Args:
+        params: the search space.
+        lookup: key -> the field's type and range (``experiment.scenario.field_info`` of the study's
+            resolved scenario), None when the key names no field.
+
+    Raises:
+        ConfigError: one line naming ``--param`` and the key.
+    """
+    for p in params:
+        info = lookup(p.key)
+        if info is None:
+            raise ConfigError("names no field of the scenario, of the planner's parameters or of the avoidance "
+                              "layer's parameters", source="--param", field=p.key)
+        if not info.numeric:
+            raise ConfigError(f"is not a number ({info.type}) and cannot be tuned", source="--param", field=p.key)
+        if info.integer and not p.integer:
+            raise ConfigError(f"is an integer: give its range with :int, e.g. {p.key}={math.ceil(p.low)}:"
+                              f"{math.floor(p.high)}:int", source="--param", field=p.key)
+        if not (info.contains(p.low) and info.contains(p.high)):
+            raise ConfigError(f"the range {p.low:g}:{p.high:g} leaves the parameter's range {info.range_text()}",
+                              source="--param", field=p.key)
+
+
+__all__ = ["ParamSpec", "check_params", "check_ranges", "parse_param"]

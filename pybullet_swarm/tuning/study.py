@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import enum
 import math
 import sys
 import threading
@@ -37,11 +36,10 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.rundir import exclusive_directory
-from pybullet_swarm.experiment.results import RUNS_CSV, Row, RunsTable, RunStatus, config_hash, read_metrics
-from pybullet_swarm.tuning.objective import (DEFAULT_OBJECTIVE, DEFAULT_PENALTY, MissingMetric, Objective,
-                                             check_names, is_completed, parse_objectives, score_run,
-                                             split_expressions)
-from pybullet_swarm.tuning.space import ParamSpec, check_params, parse_param
+from pybullet_swarm.experiment.results import RUNS_CSV, Row, RunsTable, RunStatus, read_metrics
+from pybullet_swarm.tuning.objective import (MissingMetric, check_names, is_completed, score_run)
+from pybullet_swarm.tuning.space import ParamSpec, check_ranges
+from pybullet_swarm.tuning.spec import SamplerKind, TuneSpec
 
 if TYPE_CHECKING:  # pragma: no cover
     from pybullet_swarm.experiment.sweep import RunSpec
@@ -55,112 +53,6 @@ GRACE_PERIOD_S = 120
 """s without a heartbeat after which another tuner fails a trial and queues its parameters again."""
 SPEC_ATTR = "pybullet_swarm.tune"
 """Study user attribute holding what the study tunes (compared when a study is resumed)."""
-
-
-class SamplerKind(str, enum.Enum):
-    """Optuna samplers a study can use."""
-
-    TPE = "tpe"          # tree-structured Parzen estimator (single and multi-objective)
-    NSGA2 = "nsga2"      # NSGA-II genetic algorithm (multi-objective; single too)
-    CMAES = "cmaes"      # covariance matrix adaptation evolution strategy (single objective)
-    RANDOM = "random"    # uniform random search (the baseline of the others)
-
-
-@dataclasses.dataclass(frozen=True)
-class TuneSpec:
-    """What a study tunes and how trials are scored.
-
-    Args:
-        scenario: scenario YAML file or bundled name.
-        params: the search space: ``ParamSpec`` or ``key.path=low:high[:log][:int]`` texts.
-        planner: planner name (None: the scenario's).
-        avoidance: avoidance layer (None: the scenario's).
-        objectives: objective expressions (one: single-objective; several: Pareto front).
-        directions: ``minimize``/``maximize`` per objective (None: all minimised).
-        trials: finished trials the study should hold.
-        seeds_per_trial: K, runs per trial (seeds ``seed_start .. seed_start + K - 1``, shared by all trials).
-        seed_start: first seed.
-        sampler: the Optuna sampler.
-        sampler_seed: seed of the sampler.
-        penalty: added in the worse direction to each objective of a run that does not complete.
-        overrides: ``key.path=value`` applied to every run (not tuned).
-        study_name: name of the study in the storage (default ``<scenario>-<planner>-<avoidance>``).
-        baseline: parameter values run as the first trial of a new study (e.g. the defaults).
-        enqueue: more parameter values run next in a new study (e.g. another study's trials, whose
-            runs ``runs.csv`` already holds when the studies share a directory).
-
-    Raises:
-        ConfigError: a bad parameter range, objective, direction, budget or sampler.
-    """
-
-    scenario: str | Path
-    params: Sequence[ParamSpec | str]
-    planner: str | None = None
-    avoidance: str | None = None
-    objectives: Sequence[str] | str = (DEFAULT_OBJECTIVE,)
-    directions: Sequence[str] | str | None = None
-    trials: int = 30
-    seeds_per_trial: int = 3
-    seed_start: int = 0
-    sampler: SamplerKind | str = SamplerKind.TPE
-    sampler_seed: int = 0
-    penalty: float = DEFAULT_PENALTY
-    overrides: Mapping[str, Any] | Sequence[str] = ()
-    study_name: str | None = None
-    baseline: Mapping[str, float] | None = None
-    enqueue: Sequence[Mapping[str, float]] = ()
-
-    def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 - frozen: normalised once, here
-        set_("params", check_params([p if isinstance(p, ParamSpec) else parse_param(p) for p in self.params]))
-        texts = split_expressions(self.objectives) if isinstance(self.objectives, str) else list(self.objectives)
-        objs = parse_objectives(self.objectives, self.directions,
-                                source="--objectives" if len(texts) > 1 else "--objective")
-        set_("_objectives", objs)
-        for name, low in (("trials", 1), ("seeds_per_trial", 1), ("seed_start", 0), ("sampler_seed", 0)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ConfigError(f"must be an integer >= {low}, got {v!r}", source="--" + name.replace("_", "-"))
-        try:
-            set_("sampler", SamplerKind(self.sampler))
-        except ValueError:
-            raise ConfigError(f"must be one of {', '.join(k.value for k in SamplerKind)}, got {self.sampler!r}",
-                              source="--sampler") from None
-        if self.sampler is SamplerKind.CMAES and len(objs) > 1:
-            raise ConfigError("CMA-ES optimises one objective; use nsga2 or tpe for --objectives",
-                              source="--sampler")
-        if not (isinstance(self.penalty, (int, float)) and math.isfinite(self.penalty) and self.penalty >= 0):
-            raise ConfigError(f"must be a number >= 0, got {self.penalty!r}", source="--penalty")
-        keys = {p.key for p in self.params}   # type: ignore[union-attr]
-        set_("enqueue", tuple(dict(e) for e in self.enqueue))
-        for name, given in (("baseline", [self.baseline] if self.baseline is not None else []),
-                            ("enqueue", self.enqueue)):
-            for values in given:
-                if set(values) != keys:
-                    raise ConfigError(f"needs a value for exactly the tuned keys {sorted(keys)}, got "
-                                      f"{sorted(values)}", source=name)
-
-    @property
-    def objective_list(self) -> tuple[Objective, ...]:
-        """The parsed objectives."""
-        return self._objectives  # type: ignore[attr-defined, no-any-return]
-
-    @property
-    def seeds(self) -> tuple[int, ...]:
-        """The seeds every trial runs."""
-        return tuple(range(self.seed_start, self.seed_start + self.seeds_per_trial))
-
-    @property
-    def multi(self) -> bool:
-        """True with more than one objective."""
-        return len(self.objective_list) > 1
-
-    def to_json(self) -> dict[str, Any]:
-        """What determines a study's results (stored with it; a resume must match)."""
-        return {"params": [p.to_json() for p in self.params],   # type: ignore[union-attr]
-                "objectives": [o.text for o in self.objective_list],
-                "directions": [o.direction.value for o in self.objective_list],
-                "seeds": list(self.seeds), "penalty": float(self.penalty)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -221,20 +113,32 @@ class _Context:
 
 
 def _resolve(spec: TuneSpec, out: Path) -> _Context:
-    from pybullet_swarm.experiment.sweep import Sweep, base_scenario, plan_sweep
+    """Resolve the study's scenario (planner, avoidance layer, overrides) and check the search space
+    against the parameter models: types and ranges from the models, then the scenario validated at
+    both ends of the ranges (rules between fields); nothing is simulated."""
+    from pybullet_swarm.experiment.scenario import field_info, load_scenario
+    from pybullet_swarm.experiment.sweep import Sweep, plan_sweep
 
+    scenario = load_scenario(spec.scenario, spec.overrides, planner=spec.planner, avoidance=spec.avoidance)
+    check_ranges(spec.params, lambda key: field_info(scenario, key))   # type: ignore[arg-type]  # normalised
     sweep = Sweep(spec.scenario, planners=(spec.planner,), avoidance=(spec.avoidance,), seeds=(spec.seed_start,),
                   overrides=spec.overrides)
-    data, _ = base_scenario(sweep)
-    run0 = plan_sweep(sweep, out).runs[0]
-    return _Context(spec=spec, out=out, planner=run0.planner, avoidance=run0.avoidance,
-                    scenario_name=str(data.get("name", "scenario")),
-                    base_hash=config_hash({k: v for k, v in data.items() if k != "seed"}))
+    plan = plan_sweep(sweep, out)
+    ctx = _Context(spec=spec, out=out, planner=plan.runs[0].planner, avoidance=plan.runs[0].avoidance,
+                   scenario_name=plan.scenario_name, base_hash=plan.base_hash)
+    for end in ("low", "high"):
+        values = {p.key: _cast(p, getattr(p, end)) for p in spec.params}   # type: ignore[union-attr, arg-type]
+        try:
+            ctx.plan(values, seeds=(spec.seed_start,))
+        except ConfigError as exc:
+            where = ", ".join(f"{k}={v:g}" for k, v in values.items())
+            raise ConfigError(f"the {end} end of the ranges is refused ({where}): {exc}", source="--param") from None
+    return ctx
 
 
 def probe_run(spec: RunSpec) -> Row:
     """Run a spec for three planner ticks in this process (nothing written): the row's keys are the
-    metric names of a run, and any parameter the planner refuses raises here."""
+    metric names of a run (the objectives are checked against them)."""
     import copy
 
     from pybullet_swarm.experiment.scenario import build_scenario
@@ -248,21 +152,14 @@ def probe_run(spec: RunSpec) -> Row:
     return make_row(spec, metrics)
 
 
-def _probe(ctx: _Context, probe: Worker) -> list[str]:
-    """Metric names of a run, checked at both ends of every range; refuses ranges the planner refuses."""
-    names: set[str] = set()
-    for end in ("low", "high"):
-        values = {p.key: _cast(p, getattr(p, end)) for p in ctx.spec.params}   # type: ignore[union-attr]
-        try:
-            spec = ctx.plan(values, seeds=(ctx.spec.seed_start,))[0]
-            row = probe(spec)
-        except ConfigError as exc:
-            where = ", ".join(f"{k}={v:g}" for k, v in values.items())
-            raise ConfigError(f"the {end} end of the ranges is refused ({where}): {exc}", source="--param") from None
-        if row.get("exit_status") == RunStatus.ERROR.value:
-            raise ConfigError(f"a run at the {end} end of the ranges fails: {row.get('error')}", source="--param")
-        names |= set(row)
-    return sorted(names)
+def _metric_names(ctx: _Context, probe: Worker) -> list[str]:
+    """Metric names of a run, from one short run at the low end of the ranges (parameters were
+    checked by ``_resolve``, against the models)."""
+    values = {p.key: _cast(p, p.low) for p in ctx.spec.params}   # type: ignore[union-attr, arg-type]
+    row = probe(ctx.plan(values, seeds=(ctx.spec.seed_start,))[0])
+    if row.get("exit_status") == RunStatus.ERROR.value:
+        raise ConfigError(f"a run at the low end of the ranges fails: {row.get('error')}", source="--param")
+    return sorted(row)
 
 
 def _cast(p: ParamSpec, v: float) -> float | int:
@@ -502,7 +399,7 @@ def run_tuning(spec: TuneSpec, out: str | Path, *, storage: str | None = None, e
     if out.exists() and not out.is_dir():
         raise ConfigError("exists and is not a directory", source=str(out))
     ctx = _resolve(spec, out)
-    check_names(spec.objective_list, _probe(ctx, probe or (worker if worker is not None else probe_run)),
+    check_names(spec.objective_list, _metric_names(ctx, probe or (worker if worker is not None else probe_run)),
                 source="--objectives" if spec.multi else "--objective")
     exclusive = storage is None
     url = storage or default_storage(out)

@@ -427,6 +427,65 @@ def test_check_quiet(capsys: pytest.CaptureFixture[str]) -> None:
     assert run_cli(capsys, ["check", "hover", "--quiet"]) == (0, "", "")
 
 
+# ------------------------------------------------- planner and avoidance parameters
+STIGMERGY = ["construction", "--set", "planner.name=stigmergy"]
+ORCA = ["hover", "--set", "avoidance=orca"]
+
+
+@pytest.mark.parametrize(("argv", "expected"), [
+    # the case: an unknown parameter
+    ([*STIGMERGY, "--set", "planner.params.no_such_parameter=1"],
+     "construction.yaml: planner.params.no_such_parameter: unknown field, got 1"),
+    ([*STIGMERGY, "--set", "planner.params.fatigue=fast"],
+     "construction.yaml: planner.params.fatigue: must be a valid number, got 'fast'"),
+    ([*STIGMERGY, "--set", "planner.params.fatigue=true"],
+     "construction.yaml: planner.params.fatigue: must be a valid number, got True"),
+    ([*STIGMERGY, "--set", "planner.params.fatigue=-1"],
+     "construction.yaml: planner.params.fatigue: must be >= 0.0, got -1"),
+    ([*STIGMERGY, "--set", "planner.params.cell_size=.nan"],
+     "construction.yaml: planner.params.cell_size: must be a finite number, got nan"),
+    ([*STIGMERGY, "--set", "planner.params.ties=first"],
+     "construction.yaml: planner.params.ties: must be 'random' or 'nearest', got 'first'"),
+    ([*ORCA, "--set", "avoidance_params.horizon=2"], "hover.yaml: avoidance_params.horizon: unknown field, got 2"),
+    ([*ORCA, "--set", "avoidance_params.max_neighbours=2.5"],
+     "hover.yaml: avoidance_params.max_neighbours: must be a valid integer, got 2.5"),
+    ([*ORCA, "--set", "avoidance_params.max_neighbours=100000"],
+     "hover.yaml: avoidance_params.max_neighbours: must be <= 100, got 100000"),
+    ([*ORCA, "--set", "avoidance_params.responsibility=0"],
+     "hover.yaml: avoidance_params.responsibility: must be > 0.0, got 0"),
+    (["formation", "--set", "avoidance_params.off_threshold=0.9"],
+     "formation.yaml: avoidance_params.off_threshold: must be <= on_threshold (0.55), got 0.9"),
+    (["hover", "--set", "avoidance_params.time_horizon=1"],     # the default layer, none, has no parameters
+     "hover.yaml: avoidance_params.time_horizon: unknown field, got 1"),
+    (["hover", "--set", "planner.params.x=1"], "hover.yaml: planner.params.x: unknown field, got 1"),
+    (["hover", "--set", "planner.name=nosuch"], "hover.yaml: planner.name: must be one of "),
+    (["hover", "--set", "planner.name=stigmergy"],
+     "hover.yaml: planner.name: planner 'stigmergy' does not solve 'waypoints' tasks (it solves construction)"),
+    (["hover", "--set", "avoidance=nosuch"], "hover.yaml: avoidance: must be one of braitenberg, none, orca"),
+])
+def test_check_refuses_bad_planner_and_avoidance_parameters(capsys: pytest.CaptureFixture[str], argv: list[str],
+                                                            expected: str) -> None:
+    assert_one_line_error(*run_cli(capsys, ["check", *argv]), PREFIX + expected)
+    # run refuses the same, before anything is simulated
+    assert_one_line_error(*run_cli(capsys, ["run", *argv, "--out", "/nonexistent/never"]), PREFIX + expected)
+
+
+def test_check_prints_every_parameter_resolved(capsys: pytest.CaptureFixture[str]) -> None:
+    from pybullet_swarm.planning.orca import OrcaParams
+    from pybullet_swarm.planning.stigmergy import StigmergyParams
+
+    code, out, err = run_cli(capsys, ["check", "construction", "--set", "planner.name=stigmergy", "--set",
+                                      "planner.params.fatigue=0.5", "--set", "avoidance=orca"])
+    assert (code, err) == (0, "")
+    data = yaml.safe_load(out)
+    assert data["planner"] == {"name": "stigmergy",
+                               "params": {**StigmergyParams().model_dump(mode="json"), "fatigue": 0.5}}
+    assert data["avoidance"] == "orca" and data["avoidance_params"] == OrcaParams().model_dump(mode="json")
+    code, out, _ = run_cli(capsys, ["check", "construction"])   # no planner named: the task's default, resolved
+    assert yaml.safe_load(out)["planner"] == {"name": "shortest_path", "params": {
+        "arrive_tol": 0.01, "release_clearance": 0.004, "altitude_step": 0.2, "release_tol": 0.005}}
+
+
 # ------------------------------------------------------------ real processes
 def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "pybullet_swarm.cli.main", *args], cwd=cwd, capture_output=True,

@@ -78,13 +78,31 @@ def test_sweep_then_plot_and_compare_read_the_results(tmp_path: Path, capsys: py
 def test_failed_runs_are_recorded_and_the_exit_code_says_so(tmp_path: Path,
                                                            capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "sw"
-    code, stdout, stderr = run_cli(capsys, ["sweep", "hover", "--seeds", "2", *HOVER_ARGS,
-                                            "--set", "planner.params.bogus=1", "--out", str(out), "--quiet"])
+    # flying altitudes that do not rise from floor to depot: only the task's layout shows it, when a run starts
+    code, stdout, stderr = run_cli(capsys, ["sweep", "construction_single", "--planners", "stigmergy", "--seeds", "2",
+                                            "--set", "planner.params.floor_altitude=0.9", "--set",
+                                            "task.time_limit_s=1", "--out", str(out), "--quiet", "--no-plots"])
     assert code == 1 and stdout == ""
     assert stderr.strip().splitlines()[-1].startswith(PREFIX + "2 of 2 runs failed")
     recorded = rows(out)
     assert [r["exit_status"] for r in recorded] == ["error", "error"]
-    assert all("bad parameters for planner 'waypoints'" in r["error"] for r in recorded)
+    assert all("planner.params.cruise_altitude: altitudes must rise" in r["error"] for r in recorded)
+
+
+def test_bad_planner_parameters_are_refused_before_anything_runs(tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "sw"
+    for extra, message in ((["--set", "planner.params.bogus=1"], "hover.yaml: planner.params.bogus: unknown field"),
+                           (["--planners", "stigmergy", "--set", "planner.params.fatigue=-1"],
+                            "construction.yaml: planner.params.fatigue: must be >= 0"),
+                           (["--avoidance", "orca", "--set", "avoidance_params.time_horizon=abc"],
+                            "hover.yaml: avoidance_params.time_horizon: must be a valid number")):
+        scenario = "construction" if "stigmergy" in extra else "hover"
+        code, stdout, stderr = run_cli(capsys, ["sweep", scenario, "--seeds", "1", *extra, "--out", str(out),
+                                                "--quiet"])
+        assert code == 2 and stdout == "" and stderr.count("\n") == 1, stderr
+        assert stderr.startswith(PREFIX + message), stderr
+        assert not out.exists()
 
 
 @pytest.mark.parametrize("argv, expected", [

@@ -54,7 +54,7 @@ def test_construction_observes_boxes_and_slots_in_view() -> None:
         lay = env.layout
         assert lay.slice("boxes").stop - lay.slice("boxes").start == 8
         sim = env.sim
-        c = sim.construction
+        c = sim.task
         pos = sim.state_array[:, :3]
         seen_any = False
         for i, a in enumerate(env.possible_agents):

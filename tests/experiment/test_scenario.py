@@ -324,10 +324,12 @@ def test_cyclic_alias_is_refused(tmp_path: Path) -> None:
 
 
 def test_shared_alias_is_fine(tmp_path: Path) -> None:
-    text = HOVER.read_text() + "planner:\n  params: {a: &p [1, 2], b: *p}\n"
+    text = HOVER.read_text().replace("limits:\n", "limits:\n  velocity: &v [0.5, 0.5, 0.4]\n  acceleration: *v\n", 1)
+    text = "\n".join(line for line in text.splitlines() if not line.startswith(("  velocity: 0", "  acceleration: 1")))
     path = tmp_path / "ok.yaml"
     path.write_text(text)
-    assert load_scenario(path).planner.params == {"a": [1, 2], "b": [1, 2]}
+    s = load_scenario(path)
+    assert s.limits.velocity == s.limits.acceleration == [0.5, 0.5, 0.4]
 
 
 @pytest.mark.parametrize("depth", [40, 2000])
@@ -420,8 +422,8 @@ def test_override_inside_a_scalar_or_list() -> None:
 
 
 def test_override_creates_sections_and_bad_values_are_reported() -> None:
-    s = load_scenario("hover", {"planner.params.alpha": 1.5})
-    assert s.planner.params == {"alpha": 1.5}
+    s = load_scenario("hover", {"avoidance": "orca", "avoidance_params.time_horizon": 2})
+    assert s.avoidance_params.time_horizon == 2.0 and s.data["avoidance_params"]["time_horizon"] == 2.0
     with pytest.raises(ConfigError) as info:
         load_scenario("hover", ["agents.count=abc"])
     assert str(info.value) == "hover.yaml: agents.count: must be a valid integer, got 'abc'"

@@ -235,7 +235,7 @@ def test_summary_groups_configurations_and_leaves_errors_out() -> None:
 
 # ------------------------------------------------------------------- failures
 def flaky_worker(spec: RunSpec) -> dict[str, Any]:
-    """The real worker; seed 1 gives its planner a parameter it does not take, so its run raises."""
+    """The real worker; seed 1 gives its planner a parameter it does not take, so its run is refused."""
     if spec.seed == 1:
         data = {**spec.scenario_data, "planner": {"name": None, "params": {"bogus": 1}}}
         spec = dataclasses.replace(spec, scenario_data=data)
@@ -256,7 +256,7 @@ def test_a_failing_run_is_recorded_and_the_sweep_continues(tmp_path: Path) -> No
     rows = _csv_rows(out / "runs.csv")
     bad = [r for r in rows if r["exit_status"] == "error"]
     assert sorted(r["seed"] for r in bad) == [1, 1]
-    assert all("bad parameters for planner 'waypoints'" in r["error"] for r in bad)
+    assert all("hover.yaml: planner.params.bogus: unknown field" in r["error"] for r in bad)
     assert all(r["completion_time_s"] is None for r in bad)
     assert all((out / r["run_dir"] / "error.txt").is_file() for r in bad)
     assert sorted(r["seed"] for r in rows if r["exit_status"] == "completed") == [0, 0, 2, 2]

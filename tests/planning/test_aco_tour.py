@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 
 from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.experiment.scenario import load_scenario
 from pybullet_swarm.planning.aco_tour import (
     VIA,
     AcoTour,
+    AcoTourParams,
     CostModel,
     Metric,
     axis_time,
@@ -148,15 +150,16 @@ def _flyable(points, n=3, return_home=False, seed=0, **params):
     rt = TourRuntime(spec, starts, a_max=A)
     kw = rt.task_info()
     info = TaskInfo(arena_size=np.array([4.0, 4.0]), n_agents=n, agent_radius=0.1, v_max=V, **kw)
-    planner = AcoTour(iterations=50, **params)
+    planner = AcoTour(AcoTourParams(iterations=50, **params))
     planner.reset(n, np.random.default_rng(seed), info)
     return rt, planner, starts
 
 
-def _view(t, positions):
+def _view(t, positions, rt=None):
     n = len(positions)
     return WorldView(t, positions.copy(), np.zeros((n, 3)), np.full(n, -1), np.zeros((0, 3)),
-                     np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=bool))
+                     np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=bool),
+                     None if rt is None else rt.view(t))
 
 
 def test_agents_climb_first_then_visit_their_legs_in_order_and_publish_the_plan():
@@ -166,12 +169,12 @@ def test_agents_climb_first_then_visit_their_legs_in_order_and_publish_the_plan(
     first = planner.plan_all(_view(0.0, pos))
     assert all(c.kind == CommandKind.POSITION for c in first)
     assert [c.vector.tolist() for c in first] == [[*s[:2], 0.3] for s in starts]   # straight up to safe altitude
-    plan = rt.board.plan
+    plan = planner.artefacts()["tour_plan"]
     assert plan is not None and plan.metric == "time"
     assert [leg.tolist() for leg in plan.legs] == [leg.tolist() for leg in planner.legs]
     assert all(np.array_equal(p[0], s) for p, s in zip(plan.paths, starts))
     assert all(_is_contiguous_piece(leg, planner.tour) for leg in plan.legs)
-    assert rt.metrics()["planned_length_m"] == pytest.approx(plan.length_m)
+    assert rt.metrics(None, planner.artefacts())["planned_length_m"] == pytest.approx(plan.length_m)
     assert plan.planned_time_s > 0
     # perfect tracking: every agent is where it was told to go at the next tick
     t = 0.0
@@ -192,9 +195,9 @@ def test_points_the_task_already_counted_are_skipped():
     rt.observe(0.0, pts[leg[0]][None, :])      # the task saw point leg[0] visited already
     route = planner.route[0]
     assert route[0][1] == VIA
-    assert planner.plan_all(_view(0.1, starts))[0].vector.tolist() == route[0][0].tolist()   # still climbing
-    planner.plan_all(_view(0.2, route[0][0][None, :]))
-    cmd = planner.plan_all(_view(0.3, route[0][0][None, :]))[0]
+    assert planner.plan_all(_view(0.1, starts, rt))[0].vector.tolist() == route[0][0].tolist()   # still climbing
+    planner.plan_all(_view(0.2, route[0][0][None, :], rt))
+    cmd = planner.plan_all(_view(0.3, route[0][0][None, :], rt))[0]
     assert cmd.vector.tolist() == pts[leg[1]].tolist()
 
 
@@ -208,7 +211,7 @@ def test_return_home_routes_end_at_home_and_complete_there():
         t += 0.1
         assert t < 20.0
     assert np.allclose(pos, rt.homes)
-    assert all(np.allclose(p[-1], h) for p, h in zip(rt.board.plan.paths, rt.homes))
+    assert all(np.allclose(p[-1], h) for p, h in zip(planner.artefacts()["tour_plan"].paths, rt.homes))
 
 
 def test_same_seed_same_tour_and_legs_different_params_refused():
@@ -218,16 +221,9 @@ def test_same_seed_same_tour_and_legs_different_params_refused():
     starts = np.array([[0.6, 0.2, 0.011], [2.0, 0.2, 0.011], [3.4, 0.2, 0.011]])
     assert np.array_equal(a.tour, b.tour)
     assert [x.tolist() for x in a.plan_legs(starts)] == [x.tolist() for x in b.plan_legs(starts)]
-    with pytest.raises(ConfigError) as err:
-        AcoTour(metric="fastest")
-    assert err.value.field == "planner.params.metric"
-    with pytest.raises(ConfigError) as err:
-        AcoTour(split="round-robin")
-    assert err.value.field == "planner.params.split"
-    with pytest.raises(ConfigError):
-        AcoTour(ants=0)
-    with pytest.raises(ConfigError):
-        AcoTour(safe_altitude=-1.0)
-    with pytest.raises(TypeError):
-        AcoTour(colour="red")
+    for bad in ({"metric": "fastest"}, {"split": "round-robin"}, {"ants": 0}, {"safe_altitude": -1.0},
+                {"colour": "red"}, {"iterations": 10**9}):
+        with pytest.raises(ConfigError) as err:
+            load_scenario("tour", {f"planner.params.{k}": v for k, v in bad.items()})
+        assert err.value.field == f"planner.params.{next(iter(bad))}" and str(err.value).startswith("tour.yaml: ")
     assert default_planner("tour") == "aco_tour"

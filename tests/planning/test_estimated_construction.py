@@ -147,8 +147,8 @@ def test_on_estimated_state_boxes_are_seen_relative_to_the_airframe_and_agents_k
     with ps.Simulation(sc, seed=2, planner="stigmergy") as sim:
         sigma = sim.info.extra["position_std"]
         assert 0.002 < sigma < sim.scenario.sensing.positioning.noise_std   # the filter averages 1 cm fixes
-        c = sim.construction
-        sim.construction.update(0.0)
+        c = sim.task
+        sim.task.update(0.0)
         # put agent 0's estimate 8 mm off the truth, right over a depot box
         sim.state_array[0, :3] = c.positions[4] + [0.0, 0.0, c.grasp_height + 0.03]
         sim.estimation.state_array[0, :3] = sim.state_array[0, :3] + [0.008, -0.004, 0.002]

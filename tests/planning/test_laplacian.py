@@ -5,8 +5,14 @@ import numpy as np
 import pytest
 
 from pybullet_swarm.planning.base import Observation, TaskInfo
-from pybullet_swarm.planning.laplacian import (LaplacianPlanner, adjacency, algebraic_connectivity, formation_error,
-                                               laplacian)
+from pybullet_swarm.planning.laplacian import (
+    LaplacianParams,
+    LaplacianPlanner,
+    adjacency,
+    algebraic_connectivity,
+    formation_error,
+    laplacian,
+)
 from pybullet_swarm.tasks.route import SEED_FORMATION
 
 
@@ -44,7 +50,8 @@ def test_kinematic_convergence_rate_matches_algebraic_connectivity(graph: str) -
     planners = []
     rng = np.random.default_rng(7)
     for i in range(n):
-        pl = LaplacianPlanner(graph=graph, gain=gain, migration_speed=0.0, w_separation=0.0, altitude=1.0)
+        pl = LaplacianPlanner(LaplacianParams(graph=graph, gain=gain, migration_speed=0.0, w_separation=0.0,
+                                             altitude=1.0))
         pl.reset(i, rng, info)
         planners.append(pl)
     x = np.column_stack([rng.uniform(3, 7, size=(n, 2)), np.ones(n)])   # random start, at the altitude

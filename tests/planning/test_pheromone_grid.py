@@ -160,9 +160,12 @@ def test_metrics_are_json_and_write_saves_the_layers(tmp_path):
     assert m["pheromone"]["task"] == {"cells_marked": 1, "max": 1.0, "min": 0.0, "deposits": 1}
     assert m["pheromone"]["presence"]["deposits"] == 10
     assert m["pheromone"]["tallies"] == {"boxes_found": 1}
-    files = g.write(tmp_path, plots=False)
+    from pybullet_swarm.experiment.runner import write_artefacts
+
+    files = write_artefacts(tmp_path, g.artefacts())
     assert [f.name for f in files] == ["pheromones.npz"]
     with np.load(files[0]) as z:
+        assert z["persistent"].tolist() == ["task"]
         assert np.array_equal(z["task"], g.values["task"])
         assert z["layers"].tolist() == ["task", "presence"]
         assert np.allclose(z["snapshot_t"], [0.1, 0.5, 1.0])          # first tick, then every 0.5 s

@@ -67,7 +67,13 @@ def test_planner_climbs_first_then_migrates_and_switches_waypoints() -> None:
 
 
 def test_unknown_parameter_refused() -> None:
-    with pytest.raises(ValueError, match="planner.params.speed"):
-        ry.ReynoldsPlanner(speed=1.0)
-    with pytest.raises(ValueError, match="altitude_band"):
-        ry.ReynoldsPlanner(altitude_band=[1.2, 0.8])
+    from pybullet_swarm.errors import ConfigError
+    from pybullet_swarm.experiment.scenario import load_scenario
+
+    with pytest.raises(ConfigError, match=r"^flocking\.yaml: planner\.params\.speed: unknown field, got 1\.0$"):
+        load_scenario("flocking", {"planner.params.speed": 1.0})
+    with pytest.raises(ConfigError, match=r"^flocking\.yaml: planner\.params\.altitude_band: must be \[lo, hi\] m "
+                                          r"with lo <= hi, got \[1\.2, 0\.8\]$"):
+        load_scenario("flocking", {"planner.params.altitude_band": [1.2, 0.8]})
+    with pytest.raises(ConfigError, match=r"planner\.params\.altitude_band\[1\]: must be > 0"):
+        load_scenario("flocking", {"planner.params.altitude_band": [0.5, -1.0]})

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pydantic
 import pytest
 
 import pybullet_swarm
@@ -48,7 +49,7 @@ def _medium(layered: bool = False) -> PheromoneGrid:
 
 
 def _agent(cls=Stigmergy, agent=0, seed=0, **params) -> Stigmergy:
-    a = cls(**params)
+    a = cls(cls.Params(**params))
     a.reset(agent, np.random.default_rng(seed), _info())
     return a
 
@@ -363,27 +364,44 @@ def test_presence_marks_fade_in_a_second_and_a_carrying_agent_also_marks_its_box
 # ----------------------------------------------------------------------------- configuration
 def test_registered_for_the_construction_task_with_thesis_defaults():
     reg = planners()
-    assert reg["stigmergy"][0] is Stigmergy and reg["layered_stigmergy"][0] is LayeredStigmergy
-    assert reg["stigmergy"][2] == ("construction",)
+    assert reg["stigmergy"].factory is Stigmergy and reg["layered_stigmergy"].factory is LayeredStigmergy
+    assert reg["stigmergy"].params is StigmergyParams and reg["layered_stigmergy"].params is LayeredStigmergyParams
+    assert reg["stigmergy"].tasks == ("construction",)
     p = LayeredStigmergyParams()
     assert (p.cell_size, p.box_pheromone, p.goal_pheromone, p.trail_pheromone, p.fatigue) == (0.1, 1.0, -1.0, 0.2, 0.0)
     assert (p.presence_pheromone, p.presence_fatigue, p.local_radius) == (2.0, 2.0, 0.2)
 
 
+def _refused_field(model, **values):
+    with pytest.raises(pydantic.ValidationError) as err:
+        model(**values)
+    return err.value.errors()[0]["loc"][0]
+
+
 def test_bad_parameters_are_refused_naming_the_field():
-    with pytest.raises(ConfigError, match=r"planner\.params\.goal_pheromone: must be < 0"):
-        Stigmergy(goal_pheromone=1.0)
-    with pytest.raises(ConfigError, match=r"planner\.params\.lookahead"):
-        LayeredStigmergy(lookahead=0.0)
-    with pytest.raises(TypeError):
-        Stigmergy(lookahead=0.2)                       # a layered parameter: not for plain stigmergy
-    with pytest.raises(ConfigError, match=r"planner\.params\.ties: must be one of \['random', 'nearest'\]"):
-        Stigmergy(ties="first")
-    assert Stigmergy(ties="nearest").params.ties is TieBreak.NEAREST
-    with pytest.raises(ConfigError, match=r"construction\.yaml: planner\.params\.cell_size: must be a number > 0"):
+    assert _refused_field(StigmergyParams, goal_pheromone=1.0) == "goal_pheromone"
+    assert _refused_field(LayeredStigmergyParams, lookahead=0.0) == "lookahead"
+    assert _refused_field(StigmergyParams, lookahead=0.2) == "lookahead"    # a layered parameter only
+    assert _refused_field(StigmergyParams, ties="first") == "ties"
+    assert _refused_field(StigmergyParams, cell_size=float("nan")) == "cell_size"
+    assert _refused_field(StigmergyParams, fatigue=True) == "fatigue"        # strict: a boolean is not a number
+    assert StigmergyParams(ties="nearest").ties is TieBreak.NEAREST
+    assert Stigmergy(StigmergyParams(ties="nearest")).params.ties is TieBreak.NEAREST
+    with pytest.raises(ConfigError,
+                       match=r"^construction\.yaml: planner\.params\.cell_size: must be >= 0\.01, got -0\.1$"):
         pybullet_swarm.run("construction", planner="stigmergy", overrides={"planner.params.cell_size": -0.1})
-    with pytest.raises(ConfigError, match=r"planner\.params.*unexpected keyword"):
+    with pytest.raises(ConfigError, match=r"^construction\.yaml: planner\.params\.speed: unknown field, got 2$"):
         pybullet_swarm.run("construction", planner="stigmergy", overrides={"planner.params.speed": 2})
+
+
+def test_a_grid_beyond_the_memory_budget_is_refused_at_load():
+    with pytest.raises(ConfigError) as err:
+        pybullet_swarm.load_scenario("construction", {"planner.params.cell_size": 0.01,
+                                                      "planner.params.grid_height": 20.0,
+                                                      "arena.size": [300.0, 100.0]}, planner="stigmergy")
+    # 30000 x 10000 x 2000 cells of 16 bytes, plus 501 snapshots of 30000 x 10000 floats
+    assert err.value.field == "planner.params.cell_size"
+    assert "30000 x 10000 x 2000 cells" in str(err.value) and "above the memory budget of 4 GiB" in str(err.value)
 
 
 # ----------------------------------------------------------------------------- runs

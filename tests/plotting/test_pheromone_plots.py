@@ -33,7 +33,10 @@ def test_a_medium_draws_its_layers_into_the_run_directory(tmp_path):
     for k in range(8):
         g.deposit("presence", [0.5 + 0.1 * k, 0.5, 0.25], 2.0, rule=DepositRule.SET, source=0)
         g.step(0.1)
-    files = g.write(tmp_path, plots=True)
+    from pybullet_swarm.experiment.runner import write_artefacts
+    from pybullet_swarm.plotting.run_plots import plot_saved_artifacts
+
+    files = write_artefacts(tmp_path, g.artefacts()) + plot_saved_artifacts(tmp_path, tmp_path / "plots")
     names = sorted(f.name for f in files)
     assert names == ["pheromone_activity.png", "pheromone_mass.png", "pheromone_presence.png",
                      "pheromone_presence_series.png", "pheromone_task.png", "pheromones.npz"]

@@ -18,7 +18,7 @@ def _hover_to(sim, target, seconds):
 
 def test_carried_box_follows_and_released_box_settles_in_its_slot(make_sim):
     sim = make_sim(load_scenario("construction_single", {"agents.start_jitter": 0.0}))
-    c = sim.construction
+    c = sim.task
     body = sim.world.agent_bodies[0]
     box = 4
     grasp = c.grasp_points()[box]
@@ -50,7 +50,7 @@ def test_carried_box_follows_and_released_box_settles_in_its_slot(make_sim):
 
 def test_grasp_refused_beyond_attach_threshold(make_sim):
     sim = make_sim(load_scenario("construction_single", {"agents.start_jitter": 0.0}))
-    c = sim.construction
+    c = sim.task
     far = c.grasp_points()[0] + [0.0, 0.0, c.spec.attach_threshold * 1.5]
     assert c.grasp(0, sim.world.agent_bodies[0], far, 0.0) == -1
     assert np.all(c.state == FREE)
@@ -58,7 +58,7 @@ def test_grasp_refused_beyond_attach_threshold(make_sim):
 
 def test_slots_open_bottom_layer_first(make_sim):
     sim = make_sim(load_scenario("construction_single"))
-    c = sim.construction
+    c = sim.task
     bottom = np.isclose(c.slots[:, 2], 0.05)
     assert np.array_equal(c.slot_open, bottom)
     c.slot_box[:] = -1
@@ -91,7 +91,7 @@ def test_completion_needs_every_slot_and_a_still_structure(make_sim):
     sc = load_scenario("construction_single", {"task.boxes": [[0.4, 0.5, 0.05]],
                                                "task.structure": [[2.7, 0.5, 0.05]], "task.settle_s": 1.0})
     sim = make_sim(sc)
-    c = sim.construction
+    c = sim.task
     assert not c.update(0.0)
     sim.world.reset_body(c.bodies[0], [2.7, 0.5, 0.05])
     assert not c.update(1.0)            # filled, but the structure must stand still for 1 s first
@@ -122,7 +122,7 @@ def test_shortest_path_completes_construction_with_five_agents():
 def test_placed_box_stays_placed_within_the_hysteresis_band(make_sim):
     sc = load_scenario("construction_single", {"task.boxes": [[0.4, 0.5, 0.05]], "task.structure": [[2.7, 0.5, 0.05]]})
     sim = make_sim(sc)
-    c = sim.construction
+    c = sim.task
     tol = c.spec.place_tolerance_m
     wide = (1.0 + c.spec.place_hysteresis) * tol
     c.update(0.0)
@@ -146,7 +146,7 @@ def test_placed_box_stays_placed_within_the_hysteresis_band(make_sim):
 def test_view_radius_is_measured_in_the_task_norm(make_sim, norm, seen):
     sc = load_scenario("construction_single", {"task.boxes": [[0.4, 0.5, 0.05]], "task.structure": [[2.7, 0.5, 0.05]],
                                                "task.view_norm": norm})
-    c = make_sim(sc).construction
+    c = make_sim(sc).task
     reach = c.view_radius + c.grasp_height
     grasp = c.grasp_points()[0]
     diagonal = grasp + 0.95 * reach * np.array([1.0, 1.0, 0.0])        # inside the cube, outside the ball
@@ -164,7 +164,7 @@ def test_grip_squares_a_box_knocked_askew(make_sim, square):
 
     sc = load_scenario("construction_single", {"agents.start_jitter": 0.0, "task.square_grip": square})
     sim = make_sim(sc)
-    c = sim.construction
+    c = sim.task
     body = sim.world.agent_bodies[0]
     box = 4
     yaw = np.radians(14.0)                                   # beyond the 10 deg place tolerance

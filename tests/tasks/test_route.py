@@ -62,10 +62,14 @@ def test_bad_route_scenarios_are_one_line_errors(override: dict, field: str) -> 
 
 
 def test_laplacian_bad_graph_is_a_config_error() -> None:
-    import pybullet_swarm as ps
-
-    with pytest.raises(ConfigError, match="formation.yaml: planner.params: .*graph"):
-        ps.Simulation(load_scenario("formation", {"planner.params.graph": [[0, 1], [1, 0]]}), record=False)
+    with pytest.raises(ConfigError, match=r"^formation\.yaml: planner\.params\.graph: must be a 5 x 5 adjacency "
+                                          r"matrix \(agents\.count = 5\), got 2 rows$"):
+        load_scenario("formation", {"planner.params.graph": [[0, 1], [1, 0]]})
+    with pytest.raises(ConfigError, match=r"^formation\.yaml: planner\.params\.graph: must be symmetric"):
+        load_scenario("formation", {"planner.params.graph": [[0, 1], [0, 0]]})
+    with pytest.raises(ConfigError, match=r"^formation\.yaml: planner\.params\.graph: is not connected"):
+        load_scenario("formation", {"agents.count": 3,
+                                    "planner.params.graph": [[0, 1, 0], [1, 0, 0], [0, 0, 0]]})
 
 
 def test_short_formation_flight_passes_a_waypoint_without_contacts() -> None:

@@ -9,16 +9,32 @@ from typing import Any
 import optuna
 import pytest
 import yaml
+from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.results import RunsTable
 from pybullet_swarm.experiment.sweep import RunSpec, make_row
 from pybullet_swarm.tuning import TuneSpec, run_tuning
 from pybullet_swarm.tuning.outputs import read_overrides_file
+from pybullet_swarm.planning.params import Params as PlannerParams
+from pybullet_swarm.planning.registry import register_planner
+from pybullet_swarm.planning.waypoints import WaypointFollower
 from pybullet_swarm.tuning.study import default_storage, open_storage
 
 XY = ["planner.params.x=-1:1", "planner.params.y=-1:1"]
 OPTIMUM = (0.3, -0.2)
+QUADRATIC = "test_tuning_quadratic"
+"""A stand-in planner whose parameters are x and y in [-1, 1] (it flies the task's set-points; the
+stand-in worker below scores x and y without simulating)."""
+
+
+class _QuadraticParams(PlannerParams):
+    x: float = Field(0.0, ge=-1.0, le=1.0, description="stand-in parameter")
+    y: float = Field(0.0, ge=-1.0, le=1.0, description="stand-in parameter")
+
+
+register_planner(QUADRATIC, WaypointFollower, "test only: the waypoint follower with two stand-in parameters",
+                 ("waypoints",), params=_QuadraticParams)
 
 
 def quadratic_worker(spec: RunSpec) -> dict[str, Any]:
@@ -39,7 +55,8 @@ def _trials_csv(out: Path) -> list[dict[str, str]]:
 
 
 def _tune(out: Path, **kw: Any) -> Any:
-    spec_kw = {"params": XY, "objectives": ["loss"], "trials": 6, "seeds_per_trial": 2, "sampler": "tpe"}
+    spec_kw = {"params": XY, "objectives": ["loss"], "trials": 6, "seeds_per_trial": 2, "sampler": "tpe",
+               "planner": QUADRATIC}
     spec_kw.update({k: v for k, v in kw.items() if k not in ("figures",)})
     spec = TuneSpec("hover", **spec_kw)
     return run_tuning(spec, out, workers=1, worker=quadratic_worker, figures=kw.get("figures", False))
@@ -63,7 +80,7 @@ def test_a_tiny_study_on_a_quadratic_finds_the_optimum_region(tmp_path: Path) ->
     assert len(RunsTable(out / "runs.csv")) == 60
     over = dict(read_overrides_file(out / "best.yaml"))
     assert over["planner.params.x"] == pytest.approx(best["planner.params.x"])
-    assert over["planner.name"] == "waypoints" and over["avoidance"] == "none"
+    assert over["planner.name"] == QUADRATIC and over["avoidance"] == "none"
     for name in ("history.png", "importance.png"):
         assert (out / "plots" / name).stat().st_size > 5000
     summary = json.loads((out / "study.json").read_text())
@@ -109,7 +126,7 @@ def test_a_trial_left_running_by_a_killed_tuner_is_queued_again(tmp_path: Path) 
     out = tmp_path / "killed"
     _tune(out, trials=2)
     # a tuner killed mid-trial leaves a RUNNING trial in the storage
-    study = optuna.load_study(study_name="hover-waypoints-none", storage=open_storage(default_storage(out)))
+    study = optuna.load_study(study_name=f"hover-{QUADRATIC}-none", storage=open_storage(default_storage(out)))
     dists = {"planner.params.x": optuna.distributions.FloatDistribution(-1, 1),
              "planner.params.y": optuna.distributions.FloatDistribution(-1, 1)}
     orphan = study.ask(dists)
@@ -125,7 +142,7 @@ def test_a_trial_left_running_by_a_killed_tuner_is_queued_again(tmp_path: Path) 
 def test_a_study_resumed_with_other_settings_is_refused(tmp_path: Path) -> None:
     out = tmp_path / "other"
     _tune(out, trials=1)
-    with pytest.raises(ConfigError, match=r"--study: study 'hover-waypoints-none' .* \(penalty differ\)"):
+    with pytest.raises(ConfigError, match=rf"--study: study 'hover-{QUADRATIC}-none' .* \(penalty differ\)"):
         _tune(out, trials=2, penalty=10.0)
     _tune(out, trials=2, penalty=10.0, study_name="second")   # another study in the same storage is fine
 
@@ -136,11 +153,62 @@ def test_bad_input_is_refused_before_anything_runs(tmp_path: Path) -> None:
         _tune(out, objectives=["lossy + 1"])
     assert str(err.value) == "--objective: unknown metric 'lossy' in 'lossy + 1'; did you mean loss?"
     assert not (out / "study.db").exists()
-    with pytest.raises(ConfigError, match=r"--param: the low end of the ranges is refused \(limits.velocity=-1\)"):
+    with pytest.raises(ConfigError, match=r"^--param: limits\.velocity: the range -1:1 leaves the parameter's range "
+                                          r"\(0, 1e\+06\]$"):
         run_tuning(TuneSpec("hover", params=["limits.velocity=-1:1"], objectives=["sim_time_s"]), out)
     with pytest.raises(ConfigError, match="--storage: cannot open 'nosuchdb://x'"):
-        run_tuning(TuneSpec("hover", params=XY, objectives=["loss"]), out, storage="nosuchdb://x",
+        run_tuning(TuneSpec("hover", params=XY, objectives=["loss"], planner=QUADRATIC), out, storage="nosuchdb://x",
                    worker=quadratic_worker)
+
+
+def _never(spec: RunSpec) -> dict[str, Any]:
+    raise AssertionError("nothing may run")
+
+
+@pytest.mark.parametrize("scenario, planner, avoidance, param, message", [
+    ("hover", QUADRATIC, None, "planner.params.x=-2:1", "planner.params.x: the range -2:1 leaves the parameter's "
+                                                         "range [-1, 1]"),
+    ("construction", "stigmergy", None, "planner.params.fatigue=-1:1", "planner.params.fatigue: the range -1:1 leaves "
+                                                                       "the parameter's range [0, 1000]"),
+    ("construction", "stigmergy", None, "planner.params.cell_size=0.001:0.1:log",
+     "planner.params.cell_size: the range 0.001:0.1 leaves the parameter's range [0.01, 1]"),
+    ("construction", "stigmergy", None, "planner.params.ties=0:1", "planner.params.ties: is not a number "
+                                                                   "(random | nearest) and cannot be tuned"),
+    ("construction", "stigmergy", None, "planner.params.nosuch=0:1", "planner.params.nosuch: names no field"),
+    ("hover", None, "orca", "avoidance_params.max_neighbours=2:8", "avoidance_params.max_neighbours: is an integer: "
+                                                                   "give its range with :int"),
+    ("hover", None, "orca", "avoidance_params.max_neighbours=0:8:int", "the range 0:8 leaves the parameter's range "
+                                                                       "[1, 100]"),
+    ("hover", None, None, "sim.planner_hz=1:20000:int",
+     "sim.planner_hz: the range 1:20000 leaves the parameter's range [1, 10000]"),
+    # within the model's ranges, but a rule between fields refuses one end (formation: on_threshold 0.55)
+    ("formation", None, None, "avoidance_params.off_threshold=0.1:0.9",
+     "the high end of the ranges is refused (avoidance_params.off_threshold=0.9): formation.yaml: "
+     "avoidance_params.off_threshold: must be <= on_threshold (0.55), got 0.9"),
+])
+def test_ranges_are_read_from_the_models_and_refused_before_anything_runs(
+        tmp_path: Path, scenario: str, planner: str | None, avoidance: str | None, param: str, message: str) -> None:
+    spec = TuneSpec(scenario, params=[param], objectives=["sim_time_s"], planner=planner, avoidance=avoidance)
+    with pytest.raises(ConfigError) as err:
+        run_tuning(spec, tmp_path / "t", worker=_never, probe=_never)
+    assert str(err.value).startswith("--param: ") and message in str(err.value) and "\n" not in str(err.value)
+    assert not (tmp_path / "t" / "study.db").exists()
+
+
+def test_field_info_gives_the_models_types_and_ranges() -> None:
+    from pybullet_swarm.experiment.scenario import field_info, load_scenario
+
+    sc = load_scenario("construction", planner="stigmergy", avoidance="orca")
+    cell = field_info(sc, "planner.params.cell_size")
+    assert (cell.type, cell.default, cell.low, cell.low_open, cell.high, cell.integer) == ("float", 0.1, 0.01, False,
+                                                                                         1.0, False)
+    k = field_info(sc, "avoidance_params.max_neighbours")
+    assert (k.integer, k.low, k.high, k.default) == (True, 1.0, 100.0, 10)
+    v = field_info(sc, "limits.velocity")
+    assert v.numeric and (v.low, v.low_open, v.high) == (0.0, True, 1e6)
+    assert field_info(sc, "task.time_limit_s").range_text() == "(0, 100000]"
+    assert not field_info(sc, "planner.params.ties").numeric
+    assert field_info(sc, "sim") is None and field_info(sc, "planner.params.nosuch") is None
 
 
 #: hover shortened to ~1 s simulated (as in the sweep tests).
@@ -177,6 +245,7 @@ def test_a_second_study_in_the_same_directory_rescores_recorded_runs_without_run
     first = _tune(out, trials=4)
     seen = [{k: t[k] for k in ("planner.params.x", "planner.params.y")} for t in first.trials]
     second = run_tuning(TuneSpec("hover", params=XY, objectives="x,y", trials=4, seeds_per_trial=2, sampler="nsga2",
+                                 planner=QUADRATIC,
                                  study_name="xy", enqueue=seen),
                         out, workers=1, worker=quadratic_worker, figures=True, outputs=tmp_path / "xy")
     assert len(RunsTable(out / "runs.csv")) == 4 * 2            # every run came from runs.csv
@@ -214,10 +283,11 @@ def slow_quadratic_worker(spec: RunSpec) -> dict[str, Any]:
 KILLED_TUNER = """
 import sys
 sys.path.insert(0, {here!r})
-from test_tuning_study import XY, slow_quadratic_worker
+from test_tuning_study import QUADRATIC, XY, slow_quadratic_worker
 from pybullet_swarm.tuning import TuneSpec, run_tuning
 if __name__ == "__main__":
-    run_tuning(TuneSpec("hover", params=XY, objectives=["loss"], trials=40, seeds_per_trial=2), {out!r},
+    run_tuning(TuneSpec("hover", params=XY, objectives=["loss"], trials=40, seeds_per_trial=2, planner=QUADRATIC),
+               {out!r},
                workers=1, worker=slow_quadratic_worker, figures=False)
 """
 
@@ -242,7 +312,7 @@ def test_a_tuner_killed_with_sigkill_resumes_without_losing_finished_trials(tmp_
                 break
             if (out / "study.db").is_file():
                 try:
-                    study = optuna.load_study(study_name="hover-waypoints-none", storage=default_storage(out))
+                    study = optuna.load_study(study_name=f"hover-{QUADRATIC}-none", storage=default_storage(out))
                     finished = [t for t in study.trials if t.state.name == "COMPLETE"]
                 except Exception:   # noqa: BLE001 - the tuner is still creating the study
                     continue
@@ -266,7 +336,7 @@ def test_a_tuner_killed_with_sigkill_resumes_without_losing_finished_trials(tmp_
 
 def test_two_directories_share_one_study_through_a_storage_url(tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'team.db'}"     # stands in for postgresql://... shared by several machines
-    spec = dict(params=XY, objectives=["loss"], seeds_per_trial=2, study_name="team")
+    spec = dict(params=XY, objectives=["loss"], seeds_per_trial=2, study_name="team", planner=QUADRATIC)
     a = run_tuning(TuneSpec("hover", trials=3, **spec), tmp_path / "a", storage=url, workers=1,
                    worker=quadratic_worker, figures=False)
     b = run_tuning(TuneSpec("hover", trials=5, **spec), tmp_path / "b", storage=url, workers=1,

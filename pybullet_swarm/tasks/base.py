@@ -1,0 +1,161 @@
+"""The task protocol: one ``TaskRuntime`` per task kind, built from the scenario, found by kind.
+
+The simulation is a clock that names no task. At the start of a run it builds the task's runtime
+with ``TASK_RUNTIMES[kind](spec, context)``; then, every planner tick, it asks the runtime to
+``update`` (progress and completion), publishes its ``view`` and the agents' ``local_views`` to the
+perception of the planners, and hands the agents' task actions to ``apply``. At the end it merges
+the runtime's ``metrics`` into ``metrics.json`` and writes its ``artefacts`` (plain data) into the
+run directory. The learning environments call the same methods.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pybullet_swarm.planning.base import Action, LocalView, TaskView
+from pybullet_swarm.types import Event, TimeSeries
+from pybullet_swarm.world import World
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskContext:
+    """What a task runtime is given when it is built.
+
+    Attributes:
+        world: the physics world, to add the task's bodies (boxes) and read or constrain them.
+        n: number of agents.
+        starts: (n, 3) m, the agents' start positions.
+        agent_radius: m, radius of the circle enclosing an airframe.
+        collision_size: (3,) m, the airframe's collision box.
+        arena_size: (2,) m, the arena is [0, Lx] x [0, Ly].
+        arena_height: m, the ceiling, or None.
+        v_max: (3,) m/s per-axis velocity limit, or None when references are not shaped.
+        a_max: (3,) m/s^2 per-axis acceleration limit.
+        ghost: agents pass through each other (contacts disabled, overlaps counted).
+        position_std: m, per-axis standard deviation of an agent's own position estimate (0 on true state).
+        rng: the task's own random generator (derived from the run's seed by name).
+    """
+
+    world: World
+    n: int
+    starts: NDArray[np.float64]
+    agent_radius: float
+    collision_size: NDArray[np.float64]
+    arena_size: NDArray[np.float64]
+    arena_height: float | None
+    v_max: NDArray[np.float64] | None
+    a_max: NDArray[np.float64]
+    ghost: bool
+    position_std: float
+    rng: np.random.Generator
+
+
+class ScenarioLike(Protocol):
+    """The parts of a loaded scenario a task model's ``check(scenario, source)`` may read."""
+
+    @property
+    def arena(self) -> Any:
+        """The arena section (size, height, obstacles)."""
+
+    @property
+    def agents(self) -> Any:
+        """The agents section (count, vehicle, starts)."""
+
+    def start_positions(self, rest_height: float) -> NDArray[np.float64]:
+        """Start positions (n, 3) m."""
+
+
+#: what ``contact_class`` returns for a body the task does not own
+NOT_MINE = "not_mine"
+
+
+@runtime_checkable
+class TaskRuntime(Protocol):
+    """The runtime of one task kind.
+
+    Attributes:
+        completed_at: s, when the task was completed, or None.
+        events: task events (grasps, placements, waypoints passed ...), in time order.
+    """
+
+    completed_at: float | None
+    events: list[Event]
+
+    def task_info(self) -> dict[str, Any]:
+        """Keyword arguments of ``TaskInfo``: the task's static layout (``depot``, ``slots``, ``box_size``,
+        ``grasp_height``, ``route``, ``extra``) that every agent knows before the run."""
+
+    def update(self, t: float, positions: NDArray[np.float64]) -> bool:
+        """Progress at time ``t`` s from the agents' true positions (n, 3) m; True once completed
+        (idempotent: calling it twice at one instant judges the same)."""
+
+    def view(self, t: float) -> TaskView:
+        """What the task shows at time ``t``."""
+
+    def refresh(self) -> None:
+        """Read the task's bodies now without judging progress (between planner ticks, e.g. for a
+        learning environment's observation)."""
+
+    def local_views(self, true_positions: NDArray[np.float64],
+                    sensed_positions: NDArray[np.float64]) -> list[LocalView] | None:
+        """The objects each agent sees (seen from where its airframe truly is, expressed in the agent's
+        own, possibly estimated, frame), or None when the task has no objects to see."""
+
+    def apply(self, agent: int, action: Action, t: float, position: NDArray[np.float64]) -> float | None:
+        """Carry out an agent's task action at its true position (3,) m; returns the agent's new payload
+        mass kg when it changed (a grasp or a release), else None."""
+
+    def contact_class(self, agent: int, body: int) -> str | None:
+        """The collision class (a ``CollisionClass`` value) of a contact between ``agent`` and the task's
+        body ``body``, None when it does not count (a carried load and its carrier), ``NOT_MINE`` for a
+        body the task does not own."""
+
+    def sample(self) -> dict[str, NDArray[np.float64]]:
+        """Channels to record at the recording rate (e.g. box positions), by name."""
+
+    def metrics(self, series: TimeSeries | None, planner_artefacts: dict[str, Any]) -> dict[str, Any]:
+        """The task's metrics of the run (plain JSON data), given the recorded series and what the planner
+        published (e.g. a tour planner's ``tour_plan``)."""
+
+    def artefacts(self, planner_artefacts: dict[str, Any]) -> dict[str, Any]:
+        """Files the run directory gets, as data by file name (``.json``: plain data, ``.npz``: arrays)."""
+
+
+class TaskBase:
+    """Defaults for the optional parts of the protocol (a task without objects, actions or files)."""
+
+    completed_at: float | None = None
+
+    def task_info(self) -> dict[str, Any]:
+        """No static layout beyond the arena."""
+        return {}
+
+    def local_views(self, true_positions: NDArray[np.float64],
+                    sensed_positions: NDArray[np.float64]) -> list[LocalView] | None:
+        """No objects to see."""
+        return None
+
+    def refresh(self) -> None:
+        """No bodies to read."""
+
+    def apply(self, agent: int, action: Action, t: float, position: NDArray[np.float64]) -> float | None:
+        """No task actions."""
+        return None
+
+    def contact_class(self, agent: int, body: int) -> str | None:
+        """The task owns no bodies."""
+        return NOT_MINE
+
+    def sample(self) -> dict[str, NDArray[np.float64]]:
+        """Nothing extra to record."""
+        return {}
+
+    def artefacts(self, planner_artefacts: dict[str, Any]) -> dict[str, Any]:
+        """No files."""
+        return {}
+
+
+TaskFactory = Callable[[Any, TaskContext], TaskRuntime]
