@@ -438,6 +438,12 @@ def _resolve_plugins(f: _ScenarioFile, task: Any, source: str) -> tuple[str, Par
     if kind not in entry.tasks:
         raise ConfigError(f"planner {name!r} does not solve {kind!r} tasks (it solves {', '.join(entry.tasks)})",
                           source=source, field="planner.name")
+    check_task = getattr(entry.factory, "check_task", None)   # what a planner needs of its task (a formation ...)
+    if callable(check_task):
+        try:
+            check_task(task)
+        except ConfigError as exc:
+            raise exc.with_source(source) from None
     layers = avoidance_layers()
     if f.avoidance not in layers:
         raise ConfigError(f"must be one of {', '.join(sorted(layers))}, got {_short(f.avoidance)}", source=source,

@@ -177,6 +177,13 @@ class LaplacianPlanner:
     def __init__(self, params: LaplacianParams | None = None) -> None:
         self.params = params if params is not None else LaplacianParams()
 
+    @classmethod
+    def check_task(cls, task: Any) -> None:
+        """Refuse, when the scenario is loaded, a route task without the formation this planner keeps."""
+        if getattr(task, "formation", None) is None:
+            raise ConfigError("the laplacian planner needs a formation: add task.formation (slots, or the default "
+                              "five-robot formation for 5 agents)", field="task.formation")
+
     def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Start a run as agent ``agent_id``: build the graph and read the slots."""
         p = self.params

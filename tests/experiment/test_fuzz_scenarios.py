@@ -14,9 +14,10 @@ field, a deleted field, shared YAML aliases, an alias bomb, a recursive alias or
 The suite runs a small, fixed (derandomised) set of examples; ``scripts/fuzz_scenarios.py`` runs
 many more, at random, and prints the outcomes by mutation.
 
-Plug-in parameters (``planner``, ``planner.params``, ``avoidance``, ``avoidance_params``) are left
-out of the mutations until every plug-in's parameters are validated at load: add their mutations
-to ``PLUGIN_MUTATIONS`` (see ``plugin_paths``).
+Plug-in parameters (``planner``, ``planner.params``, ``avoidance``, ``avoidance_params``) are
+validated at load against each plug-in's model: besides the generic mutations, ``PLUGIN_MUTATIONS``
+picks a registered planner or avoidance layer and sets one of its parameters to a value at, inside
+or beyond the bounds of its model (a new kind of plug-in adds its mutation there).
 """
 from __future__ import annotations
 
@@ -47,11 +48,78 @@ SCENARIOS: dict[str, dict[str, Any]] = {
     name: yaml.safe_load((scenarios_dir() / f"{name}.yaml").read_text(encoding="utf-8")) for name in bundled_scenarios()
 }
 
-#: Sections of plug-in parameters, not mutated by the generic mutations (see the module docstring).
+#: Sections of plug-in parameters. The generic mutations (types, NaN, huge numbers ...) reach
+#: them like any other section; ``PLUGIN_MUTATIONS`` adds mutations that know each plug-in's model.
 PLUGIN_SECTIONS: tuple[Path_, ...] = (("planner",), ("avoidance",), ("avoidance_params",))
-#: Extra mutations of plug-in parameters: ``mutation(draw, data) -> description`` edits ``data`` in place.
-#: For example, one per registered planner that sets a field of its ``Params`` model to a drawn value.
-PLUGIN_MUTATIONS: list[Callable[[Callable[..., Any], dict[str, Any]], str]] = []
+#: Generic mutations also touch the plug-in sections (their parameters are validated at load).
+MUTATE_PLUGIN_SECTIONS = True
+
+
+def _planner_names() -> list[str]:
+    from pybullet_swarm.planning.registry import planners
+
+    return sorted(planners())
+
+
+def _avoidance_names() -> list[str]:
+    from pybullet_swarm.planning.registry import avoidance_layers
+
+    return sorted(avoidance_layers())
+
+
+def _edge_values(info: Any) -> st.SearchStrategy[Any]:
+    """Values at, just inside and just outside a parameter's range, plus its default and junk."""
+    values: list[Any] = [info.default, None, "x", True, [1.0], math.nan, -1, 0, 1e6]
+    for bound in (info.low, info.high):
+        if bound is not None:
+            values += [bound, bound * (1 + 1e-9) + 1e-12, bound * (1 - 1e-9) - 1e-12, bound * 10, bound / 10]
+    if info.integer:
+        values += [int(v) for v in values if is_number(v) and math.isfinite(v) and abs(v) < 1e12]
+    return st.sampled_from(values)
+
+
+def _mutate_planner(draw: Callable[..., Any], data: dict[str, Any]) -> str:
+    """Choose a registered planner (fit for the task or not) and set one of its parameters to an edge value."""
+    from pybullet_swarm.planning.params import describe
+    from pybullet_swarm.planning.registry import planners
+
+    name = draw(st.sampled_from(_planner_names()))
+    infos = describe(planners()[name].params)
+    planner = data.setdefault("planner", {})
+    if not isinstance(planner, dict):
+        return "planner is not a mapping"
+    if planner.get("name") != name or not isinstance(planner.get("params"), dict):
+        planner["params"] = {}
+    planner["name"] = name
+    if not infos:
+        return f"planner.name = {name}"
+    info = draw(st.sampled_from(infos))
+    value = draw(_edge_values(info))
+    planner.setdefault("params", {})[info.name] = value
+    return f"planner {name}: params.{info.name} = {value!r}"
+
+
+def _mutate_avoidance(draw: Callable[..., Any], data: dict[str, Any]) -> str:
+    """Choose a registered avoidance layer and set one of its parameters to an edge value."""
+    from pybullet_swarm.planning.params import describe
+    from pybullet_swarm.planning.registry import avoidance_layers
+
+    name = draw(st.sampled_from(_avoidance_names()))
+    infos = describe(avoidance_layers()[name].params)
+    if data.get("avoidance") != name or not isinstance(data.get("avoidance_params"), dict):
+        data["avoidance_params"] = {}
+    data["avoidance"] = name
+    if not infos:
+        return f"avoidance = {name}"
+    info = draw(st.sampled_from(infos))
+    value = draw(_edge_values(info))
+    data["avoidance_params"][info.name] = value
+    return f"avoidance {name}: {info.name} = {value!r}"
+
+
+#: Mutations of plug-in parameters: ``mutation(draw, data) -> description`` edits ``data`` in place.
+#: A new kind of plug-in adds its own here.
+PLUGIN_MUTATIONS: list[Callable[[Callable[..., Any], dict[str, Any]], str]] = [_mutate_planner, _mutate_avoidance]
 
 
 # ------------------------------------------------------------------ helpers
@@ -71,8 +139,8 @@ def walk(node: Any, path: Path_ = (), seen: set[int] | None = None) -> list[tupl
 
 
 def plugin_paths(path: Path_) -> bool:
-    """True for a path inside a plug-in section."""
-    return any(path[: len(p)] == p for p in PLUGIN_SECTIONS)
+    """True for a path inside a plug-in section that the generic mutations leave alone."""
+    return not MUTATE_PLUGIN_SECTIONS and any(path[: len(p)] == p for p in PLUGIN_SECTIONS)
 
 
 def get_at(data: Any, path: Path_) -> Any:
@@ -115,7 +183,7 @@ TAGS = st.sampled_from(["!!int abc", "!!float x", "!!binary AAAA", "!!python/obj
                         "!!set {a}", "!!omap [a: 1]", "!!str 1", "!!null ''", "!!bool maybe"])
 NEAR = st.one_of(st.floats(-1e3, 1e3, allow_nan=False), st.integers(-10, 3000), st.floats(0, 2, allow_nan=False))
 KINDS = ("type", "nonfinite", "huge", "tiny", "scale", "near", "unknown", "delete", "alias_share", "alias_bomb",
-         "alias_cycle", "tag")
+         "alias_cycle", "tag", "plugin")
 
 
 def _mutate_once(draw: Callable[..., Any], data: dict[str, Any], tags: list[str]) -> tuple[str, str]:
@@ -123,8 +191,7 @@ def _mutate_once(draw: Callable[..., Any], data: dict[str, Any], tags: list[str]
 
     A YAML tag is written as a placeholder ``@@TAGk@@`` whose text ``tags[k]`` replaces it after dumping.
     """
-    kinds = KINDS + (("plugin",) if PLUGIN_MUTATIONS else ())
-    kind = draw(st.sampled_from(kinds))
+    kind = draw(st.sampled_from(KINDS if PLUGIN_MUTATIONS else KINDS[:-1]))
     everything = [(p, v) for p, v in walk(data) if not plugin_paths(p)]
     leaves = [(p, v) for p, v in everything if not isinstance(v, (dict, list))]
     numbers = [(p, v) for p, v in leaves if is_number(v)] or leaves

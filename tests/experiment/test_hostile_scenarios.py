@@ -86,7 +86,7 @@ def test_1_numbers_are_read_as_people_write_them(text: str, value: Any) -> None:
     ("task__boxes", [[0.25, 0.25, float("nan")]], "task.boxes[0][2]"),
     ("task__structure", [[2.5, 0.5, float("inf")]], "task.structure[0][2]"),
     ("task__box_size", float("nan"), "task.box_size"),
-    ("planner__params__trail_pheromone", float("-inf"), "planner.params.trail_pheromone"),
+    ("avoidance_params__zz", float("-inf"), "avoidance_params.zz"),
 ])
 def test_2_non_finite_numbers_are_refused_anywhere(key: str, value: Any, field: str) -> None:
     err = bad(with_(CONSTRUCTION, **{key: value}))
@@ -167,10 +167,12 @@ def test_2_grid_estimate_is_its_arrays() -> None:
 
 def test_2_budget_names_the_field_and_the_size(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(memory.ENV_VAR, raising=False)
-    err = bad(with_(CONSTRUCTION, planner={"name": "layered_stigmergy", "params": {"cell_size": 0.002}}))
+    err = bad(with_(CONSTRUCTION, arena__size=[30.0, 10.0],
+                    planner={"name": "layered_stigmergy", "params": {"cell_size": 0.01, "grid_height": 2.0}}))
     assert err.field == "planner.params.cell_size"
-    # 2 layers x (1500 x 500 x 500 cells x 32 B + 501 snapshots x 1500 x 500 columns x 8 B) = 28 GiB
-    assert "a pheromone grid of 1500 x 500 x 500 cells would need about 28 GiB" in err.detail
+    # 2 layers x (3000 x 1000 x 200 cells x 16 B + 501 snapshots x 3000 x 1000 columns x 4 B) = 29.1 GiB
+    assert "a pheromone grid of 3000 x 1000 x 200 cells (2 layer(s), with its snapshots) would need about 29.1 GiB, " \
+           "above the memory budget of 4 GiB" in err.detail
     err = bad(with_(HOVER, agents__count=2, task__time_limit_s=1e5, sim__record_hz=240))
     assert err.field == "sim.record_hz" and "recording 24000002 samples of 2 agents" in err.detail
 
