@@ -218,7 +218,7 @@ class _UniqueKeyLoader(yaml.SafeLoader):
             tag = str(node.tag).replace("tag:yaml.org,2002:", "!!")
             value = node.value if isinstance(node, yaml.ScalarNode) else f"<{type(node).__name__}>"
             reason = "not a value of this type" if isinstance(exc, (KeyError, AttributeError, IndexError)) else \
-                " ".join(str(exc).split()) or exc.__class__.__name__
+                " ".join(str(exc).split(";")[0].split()) or exc.__class__.__name__
             raise YamlValueError(f"cannot read {tag} {_short(value, 30)} ({reason[:100]})", node.start_mark,
                                  _node_path(getattr(self, "_root", None), node)) from None
 

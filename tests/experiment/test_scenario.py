@@ -356,12 +356,16 @@ def test_merge_keys_still_work(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    "value",
-    ["2020-13-45", "!!int abc", "!!float abc", "9" * 5000, "!!python/object:os.system x"],
+    ("value", "expected"),
+    [("2020-13-45", "bad.yaml: seed: cannot read !!timestamp '2020-13-45' (month must be in 1..12)"),
+     ("!!int abc", "bad.yaml: seed: cannot read !!int 'abc' (invalid literal for int() with base 10: 'abc')"),
+     ("!!float abc", "bad.yaml: seed: cannot read !!float 'abc' (could not convert string to float: 'abc')"),
+     ("9" * 5000, "bad.yaml: seed: cannot read !!int '9999"),
+     ("!!python/object:os.system x", "bad.yaml: malformed YAML at line 4, column 7: could not determine a constructor")],
 )
-def test_unreadable_yaml_values(tmp_path: Path, value: str) -> None:
+def test_unreadable_yaml_values(tmp_path: Path, value: str, expected: str) -> None:
     err = bad_file(tmp_path, HOVER.read_text().replace("seed: 0", f"seed: {value}"))
-    assert str(err).startswith("bad.yaml: malformed YAML")
+    assert str(err).startswith(expected)
 
 
 @pytest.mark.parametrize(
