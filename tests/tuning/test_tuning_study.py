@@ -154,7 +154,7 @@ def test_bad_input_is_refused_before_anything_runs(tmp_path: Path) -> None:
     assert str(err.value) == "--objective: unknown metric 'lossy' in 'lossy + 1'; did you mean loss?"
     assert not (out / "study.db").exists()
     with pytest.raises(ConfigError, match=r"^--param: limits\.velocity: the range -1:1 leaves the parameter's range "
-                                          r"\(0, 1e\+06\]$"):
+                                          r"\[0\.001, 1e\+06\]$"):
         run_tuning(TuneSpec("hover", params=["limits.velocity=-1:1"], objectives=["sim_time_s"]), out)
     with pytest.raises(ConfigError, match="--storage: cannot open 'nosuchdb://x'"):
         run_tuning(TuneSpec("hover", params=XY, objectives=["loss"], planner=QUADRATIC), out, storage="nosuchdb://x",
@@ -205,7 +205,7 @@ def test_field_info_gives_the_models_types_and_ranges() -> None:
     k = field_info(sc, "avoidance_params.max_neighbours")
     assert (k.integer, k.low, k.high, k.default) == (True, 1.0, 100.0, 10)
     v = field_info(sc, "limits.velocity")
-    assert v.numeric and (v.low, v.low_open, v.high) == (0.0, True, 1e6)
+    assert v.numeric and (v.low, v.low_open, v.high) == (1e-3, False, 1e6)
     assert field_info(sc, "task.time_limit_s").range_text() == "(0, 100000]"
     assert not field_info(sc, "planner.params.ties").numeric
     assert field_info(sc, "sim") is None and field_info(sc, "planner.params.nosuch") is None
