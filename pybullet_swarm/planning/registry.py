@@ -53,7 +53,9 @@ def register_planner(name: str, factory: Callable[..., Any], description: str, t
 
     Args:
         name: the planner's name.
-        factory: ``factory(params) -> planner``, given a validated instance of ``params``.
+        factory: ``factory(params) -> planner``, given a validated instance of ``params``. An
+            optional ``factory.check_task(task)`` is called when a scenario is loaded and raises
+            ``ConfigError`` for a task the planner cannot fly (``laplacian`` without a formation).
         description: one line.
         tasks: task kinds it solves.
         default_for: task kinds whose default planner it is.
