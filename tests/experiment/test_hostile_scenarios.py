@@ -107,8 +107,12 @@ def test_2_gravity_the_rotors_cannot_lift() -> None:
 
 
 def test_2_coordinates_are_bounded() -> None:
-    err = bad(with_(HOVER, agents__start=[[1.0, 1.0, 1e308]]))
+    err = bad(with_(HOVER, agents__start=[[1.0, 1.0, 1e6]]))
     assert err.field == "agents.start[0][2]" and "must be <= 100000.0" in err.detail
+    # any real number beyond 1e12 (a tour point at 1e308 overflowed the neighbour search)
+    tour = yaml.safe_load((scenarios_dir() / "tour.yaml").read_text())
+    err = bad(with_(tour, task__points=[[1.0, 1.0, 1e308]]))
+    assert err.field == "task.points[0][2]" and "must be a number of magnitude at most 1e+12" in err.detail
 
 
 def test_2_raised_obstacle_compares_vertical_extents() -> None:
