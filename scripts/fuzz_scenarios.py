@@ -6,7 +6,8 @@ refused and without an exception. Prints, per kind of mutation, how many mutants
 refused, how many it accepted and how their runs ended, and every violation of the property
 (with the mutant's text saved in ``--keep``).
 
-    python scripts/fuzz_scenarios.py --examples 500 [--seed 1] [--plots] [--keep DIR]
+    python scripts/fuzz_scenarios.py --examples 500 [--seed 1] [--mutations 3] [--plots] [--seconds 2]
+                                     [--keep DIR]
 
 Needs the test extra (hypothesis).
 """
@@ -51,6 +52,8 @@ def main() -> int:
     parser.add_argument("--examples", type=int, default=500, help="mutants to try (default 500)")
     parser.add_argument("--seed", type=int, default=None, help="seed of the mutations (default: random)")
     parser.add_argument("--plots", action="store_true", help="draw each accepted run's figures too (slower)")
+    parser.add_argument("--seconds", type=float, default=None,
+                        help="simulated seconds of each accepted run (default: the test's RUN_SECONDS, 0.3)")
     parser.add_argument("--mutations", type=int, default=3, help="at most this many mutations per mutant (default 3)")
     parser.add_argument("--keep", type=Path, default=None, help="save the text of each violating mutant here")
     args = parser.parse_args()
@@ -58,6 +61,8 @@ def main() -> int:
     from hypothesis import HealthCheck, given, seed, settings
 
     fz = _load_fuzz_module()
+    if args.seconds is not None:
+        fz.RUN_SECONDS = args.seconds
     counts: dict[str, collections.Counter[str]] = collections.defaultdict(collections.Counter)
     violations: list[tuple[str, str, str]] = []
     t0 = time.perf_counter()
