@@ -11,7 +11,7 @@ field, a deleted field, shared YAML aliases, an alias bomb, a recursive alias or
   exit status without raising (no ``ConfigError``: what ``check`` accepts, ``run`` accepts; no
   other exception: exit 1 is for bugs) and without warnings.
 
-The suite runs a small, fixed (derandomised) set of examples; ``scripts/fuzz_scenarios.py`` runs
+The suite runs a small, fixed set of examples (a fixed seed); ``scripts/fuzz_scenarios.py`` runs
 many more, at random, and prints the outcomes by mutation.
 
 Plug-in parameters (``planner``, ``planner.params``, ``avoidance``, ``avoidance_params``) are
@@ -32,7 +32,7 @@ from typing import Any, Callable
 
 import pytest
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, given, seed, settings
 from hypothesis import strategies as st
 
 from pybullet_swarm.cli.main import main
@@ -186,12 +186,13 @@ KINDS = ("type", "nonfinite", "huge", "tiny", "scale", "near", "unknown", "delet
          "alias_cycle", "tag", "plugin")
 
 
-def _mutate_once(draw: Callable[..., Any], data: dict[str, Any], tags: list[str]) -> tuple[str, str]:
-    """Apply one drawn mutation to ``data`` in place; returns (kind, what was done).
+def _mutate_once(draw: Callable[..., Any], data: dict[str, Any], tags: list[str],
+                 kinds: tuple[str, ...] = KINDS) -> tuple[str, str]:
+    """Apply one drawn mutation (of one of ``kinds``) to ``data`` in place; returns (kind, what was done).
 
     A YAML tag is written as a placeholder ``@@TAGk@@`` whose text ``tags[k]`` replaces it after dumping.
     """
-    kind = draw(st.sampled_from(KINDS if PLUGIN_MUTATIONS else KINDS[:-1]))
+    kind = draw(st.sampled_from([k for k in kinds if k != "plugin" or PLUGIN_MUTATIONS]))
     everything = [(p, v) for p, v in walk(data) if not plugin_paths(p)]
     leaves = [(p, v) for p, v in everything if not isinstance(v, (dict, list))]
     numbers = [(p, v) for p, v in leaves if is_number(v)] or leaves
@@ -246,13 +247,13 @@ def _mutate_once(draw: Callable[..., Any], data: dict[str, Any], tags: list[str]
 
 
 @st.composite
-def mutants(draw: Callable[..., Any], max_mutations: int = 1) -> tuple[str, str, str]:
-    """(scenario name, ``name: kind: what was done``, YAML text) of 1 .. ``max_mutations`` mutations of
-    one bundled scenario (kind ``multi`` for several)."""
+def mutants(draw: Callable[..., Any], max_mutations: int = 1, kinds: tuple[str, ...] = KINDS) -> tuple[str, str, str]:
+    """(scenario name, ``name: kind: what was done``, YAML text) of 1 .. ``max_mutations`` mutations
+    (of ``kinds``) of one bundled scenario (kind ``multi`` for several)."""
     name = draw(st.sampled_from(sorted(SCENARIOS)))
     data = copy.deepcopy(SCENARIOS[name])
     tags: list[str] = []
-    done = [_mutate_once(draw, data, tags) for _ in range(draw(st.integers(1, max_mutations)))]
+    done = [_mutate_once(draw, data, tags, kinds) for _ in range(draw(st.integers(1, max_mutations)))]
     text = yaml.safe_dump(data, sort_keys=False, allow_unicode=True)
     for k, tag in enumerate(tags):
         text = text.replace(f"'@@TAG{k}@@'", tag).replace(f"@@TAG{k}@@", tag)
@@ -323,14 +324,30 @@ def assert_property(what: str, o: Outcome) -> None:
     assert not o.run_warnings, (what, o.run_warnings)
 
 
-FUZZ = settings(max_examples=30, deadline=None, database=None, derandomize=True,
+# a fixed seed: the same examples on every run (no flaky test), drawn at random rather than
+# simplest-first (derandomize=True keeps to the first values of every choice)
+FUZZ = settings(max_examples=60, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 
+#: Mutations that often leave a valid scenario: the short run is exercised mostly by these.
+PLAUSIBLE = ("near", "scale", "tiny", "delete", "plugin", "alias_share")
+
+
+@seed(23)
 @FUZZ
 @given(case=mutants(max_mutations=3))
 def test_mutated_bundled_scenarios_check_in_one_line_and_run(tmp_path_factory: pytest.TempPathFactory,
                                                              case: tuple[str, str, str]) -> None:
+    _, what, text = case
+    assert_property(what, try_mutant(text, tmp_path_factory.mktemp("fuzz")))
+
+
+@seed(2)
+@settings(FUZZ, max_examples=40)
+@given(case=mutants(kinds=PLAUSIBLE))
+def test_plausible_mutations_that_check_accepts_run(tmp_path_factory: pytest.TempPathFactory,
+                                                    case: tuple[str, str, str]) -> None:
     _, what, text = case
     assert_property(what, try_mutant(text, tmp_path_factory.mktemp("fuzz")))
 
