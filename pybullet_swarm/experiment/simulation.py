@@ -639,10 +639,11 @@ class Simulation:
         return m
 
     def _swarm_metrics(self, ts: TimeSeries) -> dict[str, Any]:
-        from pybullet_swarm.metrics.construction import proximity_metrics, utility_of_space
+        from pybullet_swarm.metrics.construction import proximity_metrics, thesis_proximity_metrics, utility_of_space
 
         pos = ts.positions.astype(float)
         out = proximity_metrics(ts.t, pos, self.diameter)
+        out.update(thesis_proximity_metrics(pos, self.diameter))
         out["utility_of_space"] = utility_of_space(pos[:, :, :2], self.scenario.arena.size)
         return out
 
