@@ -180,7 +180,7 @@ class CascadeController:
 
 
 class _ReferencePrefilter:
-    """The acceleration path of each position loop, discretised (zero-order hold at the control
+    """The acceleration path of each position loop (the design's sampled-data model at the control
     period), run on the position and velocity references of all agents at once (one compiled call).
 
     Starts (and restarts after ``primed = False``) in steady state at the references it is given.
@@ -189,7 +189,10 @@ class _ReferencePrefilter:
     def __init__(self, design: ControllerDesign, dt: float) -> None:
         import control
 
-        systems = [control.c2d(control.ss(design.acceleration_path(loop)), dt, "zoh") for loop in ("x", "y", "z")]
+        systems = [control.ss(design.acceleration_path(loop)) for loop in ("x", "y", "z")]
+        for sys in systems:
+            if not math.isclose(float(sys.dt), dt, rel_tol=1e-9):
+                raise ValueError(f"prefilter: the design's position period {sys.dt} s is not the control period {dt} s")
         m = max(sys.nstates for sys in systems)        # axes with fewer states are padded with zeros
         self.At, self.B = np.zeros((3, m, m)), np.zeros((3, m))
         self.C, self.D, self.x_unit = np.zeros((3, m)), np.zeros(3), np.zeros((3, m))
