@@ -955,10 +955,9 @@ class ControllerDesign:
         if lp.is_attitude:
             raise ValueError(f"acceleration_path: expected a position loop (x, y, z), got {lp.value!r}")
         h, tau, n = 1.0 / self.physics_hz, self.motor_time_constant, self.substeps
-        if lp is Loop.Z:
-            fine = attitude_plant(h, tau)
-            e = np.eye(3)
-            return acceleration_path_ss((fine.a, fine.b), n, h, np.zeros(3), e[2])
+        if lp is Loop.Z:       # only the motor state: the applied acceleration is the lagged command
+            beta = _motor_beta(h, tau)
+            return acceleration_path_ss((np.array([[beta]]), np.array([1.0 - beta])), n, h, np.zeros(1), np.ones(1))
         tilt = Loop.PITCH if lp is Loop.X else Loop.ROLL
         a_cl, b_r = attitude_plant(h, tau).closed(self.gains(tilt))
         return acceleration_path_ss((a_cl, b_r), n, h, np.eye(4)[0], np.zeros(4))
