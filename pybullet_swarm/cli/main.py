@@ -128,7 +128,8 @@ def _add_design(sub: Any) -> None:
     p = sub.add_parser("design", help="design the controller of a vehicle and report poles, margins, bandwidths "
                                       "and rotor saturation")
     p.add_argument("--scenario", default=None,
-                   help="take vehicle, rates, gravity and the reference step (its limits) from this scenario")
+                   help="take vehicle, rates and gravity from this scenario and check its reference step "
+                        "(its limits) for rotor saturation")
     p.add_argument("--vehicle", default=None, help="bundled vehicle name or vehicle YAML file (default quad150)")
     p.add_argument("--physics-hz", type=float, default=None, help="attitude-loop rate, Hz (default 240)")
     p.add_argument("--control-hz", type=float, default=None, help="position-loop rate, Hz (default 48)")
@@ -160,15 +161,23 @@ def _cmd_design(args: argparse.Namespace) -> int:
     if physics_hz <= 0 or control_hz <= 0:
         raise ConfigError("rates must be > 0", source="--physics-hz/--control-hz")
     try:
-        design = design_controller(params, physics_hz=physics_hz, position_hz=control_hz, step=step, gravity=gravity)
+        design = design_controller(params, physics_hz=physics_hz, position_hz=control_hz, gravity=gravity)
     except ConfigError:
         raise
     except ValueError as exc:
         raise ConfigError(str(exc), source="--control-hz") from None
+    checked = design.check_step(step) if step is not None else None    # the scenario's step, the runtime's gains
     if args.json:
-        print(json.dumps(design.to_json_dict()))
+        data = design.to_json_dict()
+        if checked is not None:
+            data["scenario_saturation"] = checked.to_json_dict()
+        print(json.dumps(data))
     else:
         print(format_table(design))
+        if checked is not None:
+            st = checked.step
+            print(f"scenario {args.scenario}: step a = {st.acceleration} m/s^2, p = {st.position} m, yaw = {st.yaw:g} "
+                  f"rad: rotor speed {100 * checked.min_fraction:.1f} .. {100 * checked.peak_fraction:.1f} % of max")
     if args.plot is not None:
         from pybullet_swarm.plotting.design_plots import plot_design
 

@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.control.design import ControllerDesign, design_controller
+from pybullet_swarm.control.design import ControllerDesign, ReferenceStep, design_controller
 from pybullet_swarm.control import kernels
 from pybullet_swarm.control.reference import Reference
 from pybullet_swarm.types import SwarmState
@@ -33,7 +33,11 @@ class CascadeController:
         thrust_margin: fraction of the maximum thrust the position loop may command.
         drag: linear drag coefficient of the airframe model, N/(m/s) (0: none).
         ground_effect: model the thrust gain near the ground.
-        design: a precomputed design (default: designed now for these rates).
+        design: a precomputed design (default: designed now for these rates and this gravity).
+        reference_step: the largest reference step of the run (a scenario's is
+            ``ReferenceStep.from_limits(scenario.velocity_limits(), scenario.acceleration_limits())``);
+            refused with a ``ConfigError`` when following it would saturate a rotor
+            (``ControllerDesign.check_step``). The design itself is made for ``ReferenceStep()``.
         prefilter: follow shaped references as the inner loops can (two-degree-of-freedom): the
             position and velocity references are passed through the design's model of the
             acceleration path (``ControllerDesign.acceleration_path``) while the acceleration
@@ -62,9 +66,13 @@ class CascadeController:
         ground_effect: bool = False,
         design: ControllerDesign | None = None,
         prefilter: bool = False,
+        reference_step: ReferenceStep | None = None,
     ) -> None:
         self.params = params
-        self.design = design or design_controller(params, physics_hz=physics_hz, position_hz=control_hz)
+        self.design = design or design_controller(params, physics_hz=physics_hz, position_hz=control_hz,
+                                                  gravity=gravity)
+        if reference_step is not None:
+            self.design.check_step(reference_step)
         self.physics_dt = 1.0 / physics_hz
         self.control_dt = 1.0 / control_hz
         self.gravity = float(gravity)

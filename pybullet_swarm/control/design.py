@@ -52,6 +52,7 @@ import enum
 import functools
 import math
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import control
 import numpy as np
@@ -270,6 +271,8 @@ class SaturationReport:
         min_fraction: smallest rotor speed command / max_rotor_speed; negative when a rotor would
             have to turn backwards (the runtime clips it at 0), as -sqrt(|w^2|) / max_rotor_speed.
         peak_channel: the step ('x', 'y', 'z' or 'yaw') that contributes most to the peak.
+        peak_shares: each step's part of the peak rotor's squared speed, as a fraction of
+            max_rotor_speed squared (the hover part under 'hover'); they add up to peak_fraction^2.
         alone: peak fraction of each step on its own, by channel.
         limit: the largest allowed rotor fraction (``DesignSpec.max_rotor_fraction``).
     """
@@ -279,6 +282,7 @@ class SaturationReport:
     peak_fraction: float
     min_fraction: float
     peak_channel: str
+    peak_shares: dict[str, float]
     alone: dict[str, float]
     limit: float
 
@@ -291,7 +295,9 @@ class SaturationReport:
         """The report as plain Python values."""
         return {"step": self.step.to_json_dict(), "hover_fraction": float(self.hover_fraction),
                 "peak_fraction": float(self.peak_fraction), "min_fraction": float(self.min_fraction),
-                "peak_channel": self.peak_channel, "alone": {k: float(v) for k, v in self.alone.items()},
+                "peak_channel": self.peak_channel,
+                "peak_shares": {k: float(v) for k, v in self.peak_shares.items()},
+                "alone": {k: float(v) for k, v in self.alone.items()},
                 "limit": float(self.limit), "ok": self.ok}
 
 
@@ -374,7 +380,7 @@ def _frequency_response(a: NDArray[np.float64], b: NDArray[np.float64], c: NDArr
     n = a.shape[0]
     mats = np.multiply.outer(z, np.eye(n)) - a
     x = np.linalg.solve(mats, np.broadcast_to(b.astype(complex)[:, None], (z.size, n, 1)))[..., 0]
-    return x @ c + d
+    return np.asarray(x @ c + d, dtype=complex)
 
 
 def _motor_beta(h: float, tau: float) -> float:
@@ -610,7 +616,10 @@ class _NoGains(Exception):
 def _evaluate(plant: SampledPlant, spec: DesignSpec, wn: float, max_bandwidth: float) -> _LoopDesign:
     """Place the pattern at ``wn`` and judge it; raises _Infeasible naming the first failed check."""
     placed = spec.placed_poles(wn)
-    gains = place_pid(plant, placed)
+    try:
+        gains = place_pid(plant, placed)
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        raise _Infeasible(f"cannot place the poles at w_n {wn:.3g} rad/s ({exc})") from None
     if not np.all(gains > 0.0):
         raise _Infeasible(f"gains not all positive at w_n {wn:.3g} rad/s ({gains})")
     poles = closed_loop_poles(plant, gains)
@@ -623,7 +632,10 @@ def _evaluate(plant: SampledPlant, spec: DesignSpec, wn: float, max_bandwidth: f
     dominance = min(-q.real for q in others) / pair_re if others else math.inf
     if dominance < spec.dominance:
         raise _Infeasible(f"placed poles not dominant at w_n {wn:.3g} rad/s (ratio {dominance:.2f})")
-    gm_db, pm_deg = loop_margins(plant, gains)
+    try:
+        gm_db, pm_deg = loop_margins(plant, gains)
+    except ValueError as exc:
+        raise _Infeasible(f"{exc} at w_n {wn:.3g} rad/s") from None
     if gm_db is not None and gm_db < spec.gain_margin_db:
         raise _Infeasible(f"gain margin {gm_db:.2f} dB at w_n {wn:.3g} rad/s")
     if pm_deg < spec.phase_margin_deg:
@@ -691,9 +703,9 @@ def _design_loop(
 # Saturation
 
 
-@dataclasses.dataclass(frozen=True)
-class _Vehicle:
-    """What the saturation check needs of the airframe."""
+@dataclasses.dataclass(frozen=True, eq=False)
+class Airframe:
+    """What the saturation check needs of a vehicle (from its ``VehicleParams`` and the gravity)."""
 
     mass: float                       # kg
     inertia: tuple[float, float, float]   # kg m^2
@@ -789,7 +801,7 @@ class _Gains:
     yaw: NDArray[np.float64] | None = None
 
 
-def _saturation(vehicle: _Vehicle, step: ReferenceStep, gains: _Gains, h: float, n_sub: int, tau: float,
+def _saturation(vehicle: Airframe, step: ReferenceStep, gains: _Gains, h: float, n_sub: int, tau: float,
                 spec: DesignSpec, horizon_s: float) -> SaturationReport:
     """Rotor commands while the loops designed so far follow ``step`` from hover (worst signs).
 
@@ -839,6 +851,8 @@ def _saturation(vehicle: _Vehicle, step: ReferenceStep, gains: _Gains, h: float,
         peak_fraction=float(math.sqrt(float(high.max())) / wmax),
         min_fraction=float(math.copysign(math.sqrt(abs(lowest)), lowest) / wmax),
         peak_channel=str(peak_channel),
+        peak_shares={"hover": float(base[i_hi]) / wmax**2,
+                     **{k: float(c[k_hi, i_hi]) / wmax**2 for k, c in contrib.items()}},
         alone=alone,
         limit=spec.max_rotor_fraction,
     )
@@ -857,8 +871,9 @@ def _saturation_reason(rep: SaturationReport) -> str | None:
     if rep.ok:
         return None
     if rep.peak_fraction > rep.limit:
+        shares = ", ".join(f"{k} {100 * v:.0f} %" for k, v in rep.peak_shares.items())
         return (f"rotor speed command {100 * rep.peak_fraction:.1f} % of max_rotor_speed (limit "
-                f"{100 * rep.limit:.0f} %, mostly the {rep.peak_channel} step) for the reference step")
+                f"{100 * rep.limit:.0f} %; parts of its square: {shares}) for the reference step")
     return f"a rotor command below zero ({100 * rep.min_fraction:.1f} % of max_rotor_speed) for the reference step"
 
 
@@ -886,7 +901,8 @@ class ControllerDesign:
         natural_frequency: w_n of each loop's placed poles, rad/s, keys as ``Loop`` values.
         motor_time_constant: first-order motor lag in the models, s.
         spec: the specification the gains were designed to.
-        saturation: rotor commands while following ``saturation.step``.
+        saturation: rotor commands while following the design's reference step ``saturation.step``.
+        airframe: mass, inertia, mixer and rotor speed limit, for ``saturation_for``.
         vehicle_file: the vehicle's parameter file, if known.
     """
 
@@ -902,6 +918,7 @@ class ControllerDesign:
     motor_time_constant: float
     spec: DesignSpec
     saturation: SaturationReport
+    airframe: Airframe
     vehicle_file: str | None = None
 
     @property
@@ -961,6 +978,27 @@ class ControllerDesign:
         tilt = Loop.PITCH if lp is Loop.X else Loop.ROLL
         a_cl, b_r = attitude_plant(h, tau).closed(self.gains(tilt))
         return acceleration_path_ss((a_cl, b_r), n, h, np.eye(4)[0], np.zeros(4))
+
+    def saturation_for(self, step: ReferenceStep) -> SaturationReport:
+        """Rotor commands of these gains while following another reference step (e.g. a scenario's)."""
+        gains = _Gains(tilt=self.gains(Loop.ROLL), z=self.gains(Loop.Z), xy=self.gains(Loop.X),
+                       yaw=self.gains(Loop.YAW))
+        slowest = self.spec.integral_pole_ratio * min(self.natural_frequency.values())
+        return _saturation(self.airframe, step, gains, 1.0 / self.physics_hz, self.substeps, self.motor_time_constant,
+                           self.spec, min(_FINAL_HORIZON_MAX_S, 6.0 / slowest))
+
+    def check_step(self, step: ReferenceStep) -> SaturationReport:
+        """``saturation_for(step)``, refused when a rotor command leaves its range.
+
+        Raises:
+            ConfigError: names the vehicle file and the channel (loop) whose step contributes most.
+        """
+        rep = self.saturation_for(step)
+        if not rep.ok:
+            source = Path(self.vehicle_file).name if self.vehicle_file else f"vehicle {self.vehicle!r}"
+            raise ConfigError(f"the controller cannot follow the reference step: {_saturation_reason(rep)}",
+                              source=source, field=rep.peak_channel)
+        return rep
 
     def to_json_dict(self) -> dict[str, object]:
         """The report as JSON-ready plain Python values."""
@@ -1058,7 +1096,8 @@ def _design_cached(params: VehicleParams, physics_hz: float, position_hz: float,
                    step: ReferenceStep, gravity: float) -> ControllerDesign:
     h, n_sub, tau = 1.0 / physics_hz, check_rates(physics_hz, position_hz), float(params.motor_time_constant)
     source = params.param_file.name if params.param_file is not None else f"vehicle {params.name!r}"
-    vehicle = _Vehicle(params.mass, tuple(params.inertia), np.asarray(params.mixer_inverse, dtype=float),
+    jx, jy, jz = (float(j) for j in params.inertia)
+    vehicle = Airframe(params.mass, (jx, jy, jz), np.asarray(params.mixer_inverse, dtype=float),
                        float(params.max_rotor_speed), gravity)
     hover = math.sqrt(float(vehicle.hover_speed_sq.max())) / vehicle.max_rotor_speed
     if hover >= spec.max_rotor_fraction:
@@ -1122,6 +1161,7 @@ def _design_cached(params: VehicleParams, physics_hz: float, position_hz: float,
         motor_time_constant=tau,
         spec=spec,
         saturation=saturation,
+        airframe=vehicle,
         vehicle_file=str(params.param_file) if params.param_file is not None else None,
     )
 

@@ -10,7 +10,8 @@ from conftest import physics_scenario
 
 from pybullet_swarm.control import kernels
 from pybullet_swarm.control.cascade import CascadeController
-from pybullet_swarm.control.design import design_controller
+from pybullet_swarm.control.design import ReferenceStep, design_controller
+from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.control.rotations import quat_to_matrix
 from pybullet_swarm.types import ExitStatus
 from pybullet_swarm.vehicle import load_vehicle
@@ -152,6 +153,14 @@ def test_the_runtime_uses_exactly_the_designed_gains(make_sim):
     assert ctrl.design is design
     np.testing.assert_array_equal(ctrl.const[kernels.K_GAINS:kernels.K_GAINS + 9], design.attitude_gains.ravel())
     np.testing.assert_array_equal(ctrl.pos_gains, design.position_gains)
+
+
+def test_a_cascade_for_a_step_its_rotors_cannot_follow_is_refused():
+    params = load_vehicle("quad150")
+    ok = CascadeController(params, 2, reference_step=ReferenceStep.from_limits([0.5] * 3, [1.0] * 3))
+    assert ok.design is design_controller(params)
+    with pytest.raises(ConfigError, match=r"quad150.yaml: z: the controller cannot follow"):
+        CascadeController(params, 2, reference_step=ReferenceStep.from_limits([0.5] * 3, [1.0, 1.0, 10.0], yaw=0.0))
 
 
 def test_the_design_predicts_the_rotor_speed_a_yaw_step_asks_for(make_sim):

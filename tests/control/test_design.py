@@ -320,6 +320,21 @@ def test_a_design_that_saturates_is_refused_naming_the_file_and_the_loop(tmp_pat
         design_controller(load_vehicle(_write_vehicle(tmp_path, "heavy.yaml", mass=0.4)))
 
 
+def test_a_scenario_step_is_checked_against_the_designed_gains() -> None:
+    d = design_controller(_vehicle("quad150"))
+    shaped = ReferenceStep.from_limits([0.5, 0.5, 0.5], [1.0, 1.0, 1.0])
+    rep = d.check_step(shaped)             # the bundled scenarios' limits: within the design's own step
+    assert rep.ok and rep.peak_fraction < d.saturation.peak_fraction
+    with pytest.raises(ConfigError, match=r"^quad150.yaml: z: the controller cannot follow the reference step"):
+        d.check_step(ReferenceStep.from_limits([0.5, 0.5, 0.5], [1.0, 1.0, 10.0], yaw=0.0))
+    too_fast = d.saturation_for(ReferenceStep.from_limits([0.5, 0.5, 0.5], [1.0, 1.0, 10.0], yaw=0.0))
+    # hover w^2 plus the 10 m/s^2 climb step is (g + 10) / g of it; the tilt steps add the rest
+    p = _vehicle("quad150")
+    assert too_fast.peak_shares["hover"] == pytest.approx(p.mass * _G / (4 * p.kf * p.max_rotor_speed**2), rel=1e-9)
+    assert too_fast.peak_shares["z"] == pytest.approx(too_fast.peak_shares["hover"] * 10.0 / _G, rel=1e-9)
+    assert sum(too_fast.peak_shares.values()) == pytest.approx(too_fast.peak_fraction**2, rel=1e-9)
+
+
 def test_reference_step_from_scenario_limits() -> None:
     shaped = ReferenceStep.from_limits([0.5, 0.5, 0.3], [1.0, 1.0, 0.5])
     assert shaped.acceleration == (1.0, 1.0, 0.5) and shaped.position == (0.0, 0.0, 0.0)
