@@ -5,7 +5,8 @@ kernels (``kernels.physics_tick`` once per physics step h = 1/physics_hz, ``kern
 once every N = physics_hz/position_hz steps, T = N h) and Bullet's semi-implicit Euler step. In
 acceleration units (the runtime multiplies commands by the mass and inertia and inverts the mixer
 built from kf and km, so at hover the small-signal gain from a commanded to an applied
-acceleration is exactly one), one physics step of an attitude axis is::
+acceleration is exactly one; the motor lag acts on rotor speed, and about hover a lag on w is the
+same lag on the thrust kf w^2), one physics step of an attitude axis is::
 
     c_k = -kp (theta_k - r) - kd w_k - ki I_k        I_{k+1} = I_k + h (theta_k - r)
     m_{k+1} = beta m_k + (1 - beta) c_k              beta = exp(-h / tau_m): the motor lag, exact
@@ -42,8 +43,15 @@ the rotor speeds the mixer asks for when the loops follow the largest reference 
 (``ReferenceStep``). Loops are designed in the order tilt (roll = pitch), z, x = y, yaw; each
 search also requires that the loops designed so far, following that step together, keep every
 rotor command within [0, max_rotor_fraction * w_max]. Yaw comes last and takes the headroom that
-is left, as the runtime mixer gives yaw the authority left after thrust, roll and pitch. A
+is left, as the runtime mixer gives yaw the authority left after thrust, roll and pitch. When a
+later loop finds no range left, the tilt loop is capped below its w_n and the design repeated. A
 vehicle for which no w_n passes is refused with a ``ConfigError`` naming its file and the loop.
+
+**Which step.** The gains are designed for the documented default ``ReferenceStep()`` -- shaped
+references with the scenarios' 1 m/s^2 acceleration limit, raw 0.1 m position steps and a
+0.5 rad yaw step, all at once -- so a vehicle's gains do not depend on the scenario and
+``pybullet-swarm design`` shows the runtime's gains. A scenario's own step is checked against
+them (``ControllerDesign.check_step``) and refused when a rotor would saturate.
 """
 from __future__ import annotations
 
