@@ -126,34 +126,59 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------- design
 def _add_design(sub: Any) -> None:
-    p = sub.add_parser("design", help="design the controller of a vehicle and report margins and bandwidths")
-    p.add_argument("--vehicle", default="quad150", help="bundled vehicle name or vehicle YAML file")
-    p.add_argument("--physics-hz", type=float, default=240.0, help="attitude-loop rate, Hz")
-    p.add_argument("--control-hz", type=float, default=48.0, help="position-loop rate, Hz")
+    p = sub.add_parser("design", help="design the controller of a vehicle and report poles, margins, bandwidths "
+                                      "and rotor saturation")
+    p.add_argument("--scenario", default=None,
+                   help="take vehicle, rates and gravity from this scenario and check its reference step "
+                        "(its limits) for rotor saturation")
+    p.add_argument("--vehicle", default=None, help="bundled vehicle name or vehicle YAML file (default quad150)")
+    p.add_argument("--physics-hz", type=float, default=None, help="attitude-loop rate, Hz (default 240)")
+    p.add_argument("--control-hz", type=float, default=None, help="position-loop rate, Hz (default 48)")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR", help="write Bode and step-response figures")
     p.set_defaults(func=_cmd_design)
 
 
 def _cmd_design(args: argparse.Namespace) -> int:
-    from pybullet_swarm.control.design import design_controller, format_table
+    from pybullet_swarm.control.design import ReferenceStep, design_controller, format_table
     from pybullet_swarm.vehicle import load_vehicle
 
+    vehicle, physics_hz, control_hz, gravity, step = "quad150", 240.0, 48.0, 9.81, None
+    if args.scenario is not None:
+        from pybullet_swarm.experiment.scenario import load_scenario
+
+        sc = load_scenario(args.scenario)
+        vehicle, physics_hz, control_hz, gravity = (sc.agents.vehicle, float(sc.sim.physics_hz),
+                                                    float(sc.sim.control_hz), float(sc.sim.gravity))
+        step = ReferenceStep.from_limits(sc.velocity_limits(), sc.acceleration_limits())
+    vehicle = args.vehicle if args.vehicle is not None else vehicle
+    physics_hz = args.physics_hz if args.physics_hz is not None else physics_hz
+    control_hz = args.control_hz if args.control_hz is not None else control_hz
     try:
-        params = load_vehicle(args.vehicle)
+        params = load_vehicle(vehicle)
     except OSError as exc:  # e.g. a name too long for the file system
         raise ConfigError(f"must be a bundled vehicle name or a vehicle .yaml file ({exc.strerror})",
                           source="--vehicle") from None
-    if args.physics_hz <= 0 or args.control_hz <= 0:
+    if physics_hz <= 0 or control_hz <= 0:
         raise ConfigError("rates must be > 0", source="--physics-hz/--control-hz")
     try:
-        design = design_controller(params, physics_hz=args.physics_hz, position_hz=args.control_hz)
+        design = design_controller(params, physics_hz=physics_hz, position_hz=control_hz, gravity=gravity)
+    except ConfigError:
+        raise
     except ValueError as exc:
         raise ConfigError(str(exc), source="--control-hz") from None
+    checked = design.check_step(step) if step is not None else None    # the scenario's step, the runtime's gains
     if args.json:
-        print(json.dumps(design.to_json_dict()))
+        data = design.to_json_dict()
+        if checked is not None:
+            data["scenario_saturation"] = checked.to_json_dict()
+        print(json.dumps(data))
     else:
         print(format_table(design))
+        if checked is not None:
+            st = checked.step
+            print(f"scenario {args.scenario}: step a = {st.acceleration} m/s^2, p = {st.position} m, yaw = {st.yaw:g} "
+                  f"rad: rotor speed {100 * checked.min_fraction:.1f} .. {100 * checked.peak_fraction:.1f} % of max")
     if args.plot is not None:
         from pybullet_swarm.plotting.design_plots import plot_design
 

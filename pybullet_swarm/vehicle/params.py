@@ -51,6 +51,7 @@ class VehicleParams:
     motor_time_constant: float           # s
     max_rotor_speed: float               # rad/s
     collision_size: tuple[float, float, float]  # m, box extents (x, y, z)
+    param_file: Path | None = None       # the YAML these parameters were read from (for error messages)
 
     @property
     def rotor_xy(self) -> NDArray[np.float64]:
@@ -129,7 +130,7 @@ def _load(path: Path) -> VehicleParams:
         raise ConfigError(f"URDF file {data.urdf!r} not found beside the parameter file", source=path.name, field="urdf")
     fields = data.model_dump()
     fields.pop("urdf")
-    return VehicleParams(urdf_path=urdf, **fields)
+    return VehicleParams(urdf_path=urdf, param_file=path, **fields)
 
 
 def load_vehicle(name_or_path: str | Path) -> VehicleParams:
