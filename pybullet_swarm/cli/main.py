@@ -1,4 +1,5 @@
-"""``pybullet-swarm``: run, check, design, plot, sweep, compare, list (and the subcommands later layers add).
+"""``pybullet-swarm``: run, check, design, plot, sweep, compare, replay, report, list (and the subcommands later
+layers add).
 
 Exit codes: 0 when the command did its work (a simulation's outcome is in ``exit_status``),
 2 for bad input (one line on stderr naming the file, the field and the expectation), 1 for an
@@ -42,9 +43,14 @@ def _add_run(sub: Any) -> None:
                    help="override a scenario field (repeatable), e.g. --set agents.count=20")
     p.add_argument("-c", "--config", type=Path, default=None, metavar="FILE",
                    help="override file of key.path: value lines (e.g. best.yaml of `tune`), applied before --set")
-    p.add_argument("--gui", action="store_true", help="watch in the Bullet GUI")
+    p.add_argument("--gui", action="store_true",
+                   help="watch in the Bullet GUI: the arena framed, paced to real time (see --speed), overlays")
     p.add_argument("--video", action="store_true",
-                   help="render RUN_DIR/video.mp4 (GIF without an MP4 encoder), 4x faster than real time")
+                   help="after the run, render RUN_DIR/video.mp4 (GIF without an MP4 encoder): the replay of "
+                        "`replay RUN_DIR`, 3d view, 4x faster than real time (see --speed)")
+    p.add_argument("--speed", type=_speed, default=None, metavar="X",
+                   help="--gui: simulated seconds per wall-clock second (default 1, real time); "
+                        "--video: simulated seconds per second of video (default 4)")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
     p.set_defaults(func=_cmd_run)
@@ -95,12 +101,104 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError(f"must be >= 0, got {args.seed}", source="--seed")
     scenario = load_scenario(args.scenario, overrides, planner=planner, avoidance=avoidance, seed=args.seed)
     out = args.out or default_run_dir(scenario.name, str(scenario.planner.name), scenario.seed)
-    result = run(scenario, out=out, gui=args.gui, plots=not args.no_plots, video=args.video, quiet=args.quiet)
+    result = run(scenario, out=out, gui=args.gui, plots=not args.no_plots, video=args.video, speed=args.speed,
+                 report=True, quiet=args.quiet)
     if not args.quiet:
         print(f"{scenario.name}: {result.exit_status.value} after {result.metrics['sim_time_s']:.2f} s simulated "
               f"({result.metrics['real_time_factor'] or 0:.1f}x real time)")
         print(_format_metrics(result.metrics))
         print(f"run directory: {result.run_dir}")
+        if "video" in result.metrics:
+            print(f"video: {Path(result.run_dir) / result.metrics['video']}")
+        print(f"report: {Path(result.run_dir) / 'report.html'}")
+    return 0
+
+
+def _speed(text: str) -> float:
+    """A positive finite number (a pace or a playback speed)."""
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _size(text: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT`` in px, both even and at least 64."""
+    import re
+
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    size = (int(m.group(1)), int(m.group(2))) if m else (0, 1)
+    if min(size) < 64 or size[0] % 2 or size[1] % 2:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in px, both even and >= 64 (e.g. 1280x720), "
+                                         f"got {text!r}")
+    return size
+
+
+# ------------------------------------------------------------------- replay
+#: the replay's cameras (``plotting.replay.View``; spelled out so that the parser imports no matplotlib)
+REPLAY_VIEWS = ("top", "chase", "orbit", "3d")
+
+
+def _add_replay(sub: Any) -> None:
+    p = sub.add_parser("replay", help="render a video of a finished run from its saved results (no re-simulation)")
+    p.add_argument("run_dir", type=Path, metavar="RUN_DIR")
+    p.add_argument("--out", type=Path, default=None, metavar="FILE",
+                   help="video file (default RUN_DIR/video.mp4; .gif when no MP4 encoder is installed)")
+    p.add_argument("--view", choices=REPLAY_VIEWS, default="3d",
+                   help="top (orthographic, from above), chase (behind the swarm), orbit (circling the arena) "
+                        "or 3d (fixed, framing the arena; default)")
+    p.add_argument("--speed", type=_speed, default=4.0, metavar="X",
+                   help="simulated seconds per second of video (default 4)")
+    p.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH", help="frame size in px (default 1280x720)")
+    p.add_argument("--frame", type=float, default=None, metavar="T",
+                   help="write only the frame at simulated time T s, as a PNG (default --out: RUN_DIR/frame.png)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, print nothing on success")
+    p.set_defaults(func=_cmd_replay)
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from pybullet_swarm.experiment.replay import render_replay, render_still
+
+    if not (args.run_dir / "timeseries.npz").is_file():
+        raise ConfigError("not a run directory (no timeseries.npz)", source=str(args.run_dir))
+    if args.frame is not None:
+        path = render_still(args.run_dir, args.frame, args.out, view=args.view, size=args.size)
+    else:
+        path = render_replay(args.run_dir, args.out, view=args.view, speed=args.speed, size=args.size,
+                             quiet=args.quiet)
+    if not args.quiet:
+        print(path)
+    return 0
+
+
+# ------------------------------------------------------------------- report
+def _add_report(sub: Any) -> None:
+    p = sub.add_parser("report", help="write report.html into a run or sweep directory (one self-contained page)")
+    p.add_argument("directory", type=Path, metavar="RUN_DIR|SWEEP_DIR")
+    p.add_argument("--quiet", action="store_true", help="print nothing on success")
+    p.set_defaults(func=_cmd_report)
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from pybullet_swarm.experiment.report import write_run_report
+    from pybullet_swarm.experiment.results import is_sweep_dir
+
+    if is_sweep_dir(args.directory):
+        from pybullet_swarm.experiment.sweep_report import write_sweep_report
+
+        path = write_sweep_report(args.directory)
+    elif (args.directory / "timeseries.npz").is_file() or (args.directory / "metrics.json").is_file():
+        path = write_run_report(args.directory)
+    else:
+        raise ConfigError("not a run directory (no timeseries.npz) nor a sweep directory (no runs.csv)",
+                          source=str(args.directory))
+    if not args.quiet:
+        print(path)
     return 0
 
 
@@ -285,7 +383,7 @@ def _add_sweep(sub: Any) -> None:
                    help="sweep directory (default: runs/sweep-<scenario>-<hash of scenario and --set>)")
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as errors")
     p.add_argument("--run-plots", action="store_true",
-                   help="draw each run's own figures too (later: pybullet-swarm plot RUN_DIR)")
+                   help="draw each run's own figures and report.html too (later: pybullet-swarm plot/report RUN_DIR)")
     p.add_argument("--no-plots", action="store_true", help="skip the comparison figures")
     p.add_argument("--ci", choices=("t", "bootstrap"), default="t",
                    help="95%% interval of the mean in summary.csv: t-interval or BCa bootstrap (default t)")
@@ -313,10 +411,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if result.interrupted:
         return _fail(f"interrupted; {len(result.rows)} runs recorded in {result.out}; "
                      "run the same command again to resume", 130)
+    from pybullet_swarm.experiment.sweep_report import write_sweep_report
+
+    page = write_sweep_report(result.out)
     if not args.quiet:
         print(result.table())
         print(f"sweep directory: {result.out} ({result.n_planned} runs: {result.n_run} run now, "
               f"{result.n_skipped} skipped, {result.n_failed} failed; {result.wall_time_s:.1f} s)")
+        print(f"report: {page}")
     if result.n_failed:
         return _fail(f"{result.n_failed} of {result.n_planned} runs failed (exit_status=error in "
                      f"{result.out / 'runs.csv'}; --retry-failed runs them again)", 1)
@@ -424,7 +526,8 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``pybullet-swarm``."""
     parser = _Parser(prog=PROG, description="A testbed for quadrotor swarms in PyBullet.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
-    for add in (_add_run, _add_check, _add_design, _add_plot, _add_sweep, _add_compare, _add_list):
+    for add in (_add_run, _add_check, _add_design, _add_plot, _add_sweep, _add_compare, _add_replay, _add_report,
+                _add_list):
         add(sub)
     try:
         from pybullet_swarm.cli import tsp
