@@ -1,4 +1,5 @@
-"""``pybullet-swarm``: run, check, design, plot, sweep, compare, list (and the subcommands later layers add).
+"""``pybullet-swarm``: run, check, design, plot, sweep, compare, replay, report, list (and the subcommands later
+layers add).
 
 Exit codes: 0 when the command did its work (a simulation's outcome is in ``exit_status``),
 2 for bad input (one line on stderr naming the file, the field and the expectation), 1 for an
@@ -42,9 +43,14 @@ def _add_run(sub: Any) -> None:
                    help="override a scenario field (repeatable), e.g. --set agents.count=20")
     p.add_argument("-c", "--config", type=Path, default=None, metavar="FILE",
                    help="override file of key.path: value lines (e.g. best.yaml of `tune`), applied before --set")
-    p.add_argument("--gui", action="store_true", help="watch in the Bullet GUI")
+    p.add_argument("--gui", action="store_true",
+                   help="watch in the Bullet GUI: the arena framed, paced to real time (see --speed), overlays")
     p.add_argument("--video", action="store_true",
-                   help="render RUN_DIR/video.mp4 (GIF without an MP4 encoder), 4x faster than real time")
+                   help="after the run, render RUN_DIR/video.mp4 (GIF without an MP4 encoder): the replay of "
+                        "`replay RUN_DIR`, 3d view, 4x faster than real time (see --speed)")
+    p.add_argument("--speed", type=_speed, default=None, metavar="X",
+                   help="--gui: simulated seconds per wall-clock second (default 1, real time); "
+                        "--video: simulated seconds per second of video (default 4)")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
     p.set_defaults(func=_cmd_run)
@@ -109,12 +115,104 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     out = check_run_dir(args.out, source="--out") if args.out is not None else \
         default_run_dir(scenario.name, str(scenario.planner.name), scenario.seed)
-    result = run(scenario, out=out, gui=args.gui, plots=not args.no_plots, video=args.video, quiet=args.quiet)
+    result = run(scenario, out=out, gui=args.gui, plots=not args.no_plots, video=args.video, speed=args.speed,
+                 report=True, quiet=args.quiet)
     if not args.quiet:
         print(f"{scenario.name}: {result.exit_status.value} after {result.metrics['sim_time_s']:.2f} s simulated "
               f"({result.metrics['real_time_factor'] or 0:.1f}x real time)")
         print(_format_metrics(result.metrics))
         print(f"run directory: {result.run_dir}")
+        if "video" in result.metrics:
+            print(f"video: {Path(result.run_dir) / result.metrics['video']}")
+        print(f"report: {Path(result.run_dir) / 'report.html'}")
+    return 0
+
+
+def _speed(text: str) -> float:
+    """A positive finite number (a pace or a playback speed)."""
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _size(text: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT`` in px, both even and at least 64."""
+    import re
+
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    size = (int(m.group(1)), int(m.group(2))) if m else (0, 1)
+    if min(size) < 64 or size[0] % 2 or size[1] % 2:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in px, both even and >= 64 (e.g. 1280x720), "
+                                         f"got {text!r}")
+    return size
+
+
+# ------------------------------------------------------------------- replay
+#: the replay's cameras (``plotting.replay.View``; spelled out so that the parser imports no matplotlib)
+REPLAY_VIEWS = ("top", "chase", "orbit", "3d")
+
+
+def _add_replay(sub: Any) -> None:
+    p = sub.add_parser("replay", help="render a video of a finished run from its saved results (no re-simulation)")
+    p.add_argument("run_dir", type=Path, metavar="RUN_DIR")
+    p.add_argument("--out", type=Path, default=None, metavar="FILE",
+                   help="video file (default RUN_DIR/video.mp4; .gif when no MP4 encoder is installed)")
+    p.add_argument("--view", choices=REPLAY_VIEWS, default="3d",
+                   help="top (orthographic, from above), chase (behind the swarm), orbit (circling the arena) "
+                        "or 3d (fixed, framing the arena; default)")
+    p.add_argument("--speed", type=_speed, default=4.0, metavar="X",
+                   help="simulated seconds per second of video (default 4)")
+    p.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH", help="frame size in px (default 1280x720)")
+    p.add_argument("--frame", type=float, default=None, metavar="T",
+                   help="write only the frame at simulated time T s, as a PNG (default --out: RUN_DIR/frame.png)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, print nothing on success")
+    p.set_defaults(func=_cmd_replay)
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from pybullet_swarm.experiment.replay import render_replay, render_still
+
+    if not (args.run_dir / "timeseries.npz").is_file():
+        raise ConfigError("not a run directory (no timeseries.npz)", source=str(args.run_dir))
+    if args.frame is not None:
+        path = render_still(args.run_dir, args.frame, args.out, view=args.view, size=args.size)
+    else:
+        path = render_replay(args.run_dir, args.out, view=args.view, speed=args.speed, size=args.size,
+                             quiet=args.quiet)
+    if not args.quiet:
+        print(path)
+    return 0
+
+
+# ------------------------------------------------------------------- report
+def _add_report(sub: Any) -> None:
+    p = sub.add_parser("report", help="write report.html into a run or sweep directory (one self-contained page)")
+    p.add_argument("directory", type=Path, metavar="RUN_DIR|SWEEP_DIR")
+    p.add_argument("--quiet", action="store_true", help="print nothing on success")
+    p.set_defaults(func=_cmd_report)
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from pybullet_swarm.experiment.report import write_run_report
+    from pybullet_swarm.experiment.results import is_sweep_dir
+
+    if is_sweep_dir(args.directory):
+        from pybullet_swarm.experiment.sweep_report import write_sweep_report
+
+        path = write_sweep_report(args.directory)
+    elif (args.directory / "timeseries.npz").is_file() or (args.directory / "metrics.json").is_file():
+        path = write_run_report(args.directory)
+    else:
+        raise ConfigError("not a run directory (no timeseries.npz) nor a sweep directory (no runs.csv)",
+                          source=str(args.directory))
+    if not args.quiet:
+        print(path)
     return 0
 
 
@@ -140,52 +238,66 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------- design
 def _add_design(sub: Any) -> None:
-    p = sub.add_parser("design", help="design the controller of a vehicle and report margins and bandwidths")
-    p.add_argument("--vehicle", default="quad150", help="bundled vehicle name or vehicle YAML file")
-    p.add_argument("--physics-hz", type=float, default=240.0, help="attitude-loop rate, Hz")
-    p.add_argument("--control-hz", type=float, default=48.0, help="position-loop rate, Hz")
+    p = sub.add_parser("design", help="design the controller of a vehicle and report poles, margins, bandwidths "
+                                      "and rotor saturation")
+    p.add_argument("--scenario", default=None,
+                   help="take vehicle, rates and gravity from this scenario and check its reference step "
+                        "(its limits) for rotor saturation")
+    p.add_argument("--vehicle", default=None, help="bundled vehicle name or vehicle YAML file (default quad150)")
+    p.add_argument("--physics-hz", type=float, default=None, help="attitude-loop rate, Hz (default 240)")
+    p.add_argument("--control-hz", type=float, default=None, help="position-loop rate, Hz (default 48)")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR", help="write Bode and step-response figures")
     p.set_defaults(func=_cmd_design)
 
 
 def _cmd_design(args: argparse.Namespace) -> int:
-    from pybullet_swarm.control.design import design_controller, format_table
-    from pybullet_swarm.vehicle import load_vehicle
-
     import math
 
-    from pybullet_swarm.control.design import check_rates
-    from pybullet_swarm.vehicle.params import vehicle_file
+    from pybullet_swarm.control.design import ReferenceStep, check_rates, design_controller, format_table
+    from pybullet_swarm.vehicle import load_vehicle
 
     for option, value in (("--physics-hz", args.physics_hz), ("--control-hz", args.control_hz)):
-        if not (math.isfinite(value) and 0 < value <= 1e5):
+        if value is not None and not (math.isfinite(value) and 0 < value <= 1e5):
             raise ConfigError(f"must be a rate in (0, 100000] Hz, got {value:g}", source=option)
     if args.plot is not None:
         from pybullet_swarm.experiment.rundir import check_output_dir
 
         check_output_dir(args.plot, source="--plot")
+    vehicle, physics_hz, control_hz, gravity, step = "quad150", 240.0, 48.0, 9.81, None
+    if args.scenario is not None:
+        from pybullet_swarm.experiment.scenario import load_scenario
+
+        sc = load_scenario(args.scenario)
+        vehicle, physics_hz, control_hz, gravity = (sc.agents.vehicle, float(sc.sim.physics_hz),
+                                                    float(sc.sim.control_hz), float(sc.sim.gravity))
+        step = ReferenceStep.from_limits(sc.velocity_limits(), sc.acceleration_limits())
+    vehicle = args.vehicle if args.vehicle is not None else vehicle
+    physics_hz = args.physics_hz if args.physics_hz is not None else physics_hz
+    control_hz = args.control_hz if args.control_hz is not None else control_hz
     try:
-        params = load_vehicle(args.vehicle)
+        params = load_vehicle(vehicle)
     except OSError as exc:  # e.g. a name too long for the file system
         raise ConfigError(f"must be a bundled vehicle name or a vehicle .yaml file ({exc.strerror})",
                           source="--vehicle") from None
     try:
-        check_rates(args.physics_hz, args.control_hz)
+        check_rates(physics_hz, control_hz)
     except ValueError as exc:
         raise ConfigError(str(exc), source="--control-hz") from None
-    try:
-        design = design_controller(params, physics_hz=args.physics_hz, position_hz=args.control_hz)
-    except ValueError as exc:   # no gains meet the design targets
-        text = " ".join(str(exc).split())
-        loop, sep, why = text.partition(" loop: ")
-        what = f"finds no gains for the {loop} loop ({why})" if sep and " " not in loop else f"fails ({text})"
-        raise ConfigError(f"the controller design {what} with motor_time_constant {params.motor_time_constant:g} s",
-                          source=vehicle_file(args.vehicle).name, field="motor_time_constant") from None
+    # no gains for a loop, or a saturating step: a ConfigError naming the vehicle file and the loop
+    design = design_controller(params, physics_hz=physics_hz, position_hz=control_hz, gravity=gravity)
+    checked = design.check_step(step) if step is not None else None    # the scenario's step, the runtime's gains
     if args.json:
-        print(json.dumps(design.to_json_dict()))
+        data = design.to_json_dict()
+        if checked is not None:
+            data["scenario_saturation"] = checked.to_json_dict()
+        print(json.dumps(data))
     else:
         print(format_table(design))
+        if checked is not None:
+            st = checked.step
+            print(f"scenario {args.scenario}: step a = {st.acceleration} m/s^2, p = {st.position} m, yaw = {st.yaw:g} "
+                  f"rad: rotor speed {100 * checked.min_fraction:.1f} .. {100 * checked.peak_fraction:.1f} % of max")
     if args.plot is not None:
         from pybullet_swarm.plotting.design_plots import plot_design
 
@@ -322,7 +434,7 @@ def _add_sweep(sub: Any) -> None:
                    help="sweep directory (default: runs/sweep-<scenario>-<hash of scenario and --set>)")
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as errors")
     p.add_argument("--run-plots", action="store_true",
-                   help="draw each run's own figures too (later: pybullet-swarm plot RUN_DIR)")
+                   help="draw each run's own figures and report.html too (later: pybullet-swarm plot/report RUN_DIR)")
     p.add_argument("--no-plots", action="store_true", help="skip the comparison figures")
     p.add_argument("--ci", choices=("t", "bootstrap"), default="t",
                    help="95%% interval of the mean in summary.csv: t-interval or BCa bootstrap (default t)")
@@ -354,10 +466,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if result.interrupted:
         return _fail(f"interrupted; {len(result.rows)} runs recorded in {result.out}; "
                      "run the same command again to resume", 130)
+    from pybullet_swarm.experiment.sweep_report import write_sweep_report
+
+    page = write_sweep_report(result.out)
     if not args.quiet:
         print(result.table())
         print(f"sweep directory: {result.out} ({result.n_planned} runs: {result.n_run} run now, "
               f"{result.n_skipped} skipped, {result.n_failed} failed; {result.wall_time_s:.1f} s)")
+        print(f"report: {page}")
     if result.n_failed:
         return _fail(f"{result.n_failed} of {result.n_planned} runs failed (exit_status=error in "
                      f"{result.out / 'runs.csv'}; --retry-failed runs them again)", 1)
@@ -469,7 +585,8 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``pybullet-swarm``."""
     parser = _Parser(prog=PROG, description="A testbed for quadrotor swarms in PyBullet.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
-    for add in (_add_run, _add_check, _add_design, _add_plot, _add_sweep, _add_compare, _add_list):
+    for add in (_add_run, _add_check, _add_design, _add_plot, _add_sweep, _add_compare, _add_replay, _add_report,
+                _add_list):
         add(sub)
     try:
         from pybullet_swarm.cli import tsp

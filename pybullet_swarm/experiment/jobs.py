@@ -30,7 +30,7 @@ class RunSpec:
         scenario_data: the resolved scenario (overrides and grid values applied), plain data.
         source: the scenario file's name (for error messages).
         run_dir: absolute path of the run directory.
-        plots: draw the run's own figures.
+        plots: draw the run's own figures and write its ``report.html``.
     """
 
     run_id: str
@@ -86,7 +86,7 @@ def execute_run(spec: RunSpec) -> Row:
             shutil.rmtree(run_dir)
         scenario = build_scenario(copy.deepcopy(dict(spec.scenario_data)), source=spec.source)
         result = run(scenario, planner=spec.planner, avoidance=spec.avoidance, seed=spec.seed, out=run_dir,
-                     plots=spec.plots, quiet=True)
+                     plots=spec.plots, report=spec.plots, quiet=True)
         return make_row(spec, result.metrics, worker_time_s=time.perf_counter() - t0)
     except Exception as exc:  # noqa: BLE001 - a failed run is a result, recorded with its error
         with contextlib.suppress(OSError):

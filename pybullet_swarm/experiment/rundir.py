@@ -151,7 +151,7 @@ def check_output_dir(path: Path, *, source: str | None = None) -> Path:
 
 #: What a run directory holds (``runner.write_run``, the artifacts, ``--video``, a sweep's error.txt).
 RUN_FILES = frozenset({"scenario.yaml", "metrics.json", "timeseries.npz", "events.csv", "pheromones.npz", "tour.json",
-                       "video.mp4", "video.gif", "error.txt"})
+                       "video.mp4", "video.gif", "error.txt", "report.html", "frame.png"})
 RUN_DIRS = frozenset({"plots"})
 
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -21,6 +22,8 @@ def run(
     gui: bool = False,
     plots: bool = True,
     video: bool = False,
+    speed: float | None = None,
+    report: bool = False,
     quiet: bool = True,
 ) -> RunResult:
     """Run a scenario to its end and return the result.
@@ -33,9 +36,14 @@ def run(
         seed: seed of the run (default: the scenario's ``seed``).
         out: write the run directory here (nothing is written when None).
         overrides: ``key.path=value`` overrides applied to the scenario (after the choices above).
-        gui: watch in the Bullet GUI.
+        gui: watch in the Bullet GUI: the camera frames the arena, the run is paced to ``speed`` x
+            real time, agents are coloured as in the replay and a heads-up line is shown.
         plots: draw the figures into ``out/plots`` (only with ``out``).
-        video: render ``out/video.mp4`` (``.gif`` when no MP4 encoder is installed; needs ``out``).
+        video: render ``out/video.mp4`` after the run, a replay of the saved results
+            (``experiment.replay``; ``.gif`` when no MP4 encoder is installed; needs ``out``).
+        speed: with ``gui``, simulated seconds per wall-clock second (default 1: real time); with
+            ``video``, simulated seconds per second of video (default ``replay.DEFAULT_SPEED``).
+        report: write ``out/report.html`` (``experiment.report``).
         quiet: no progress bar.
 
     Returns:
@@ -52,30 +60,40 @@ def run(
         from pybullet_swarm.experiment.rundir import check_run_dir
 
         check_run_dir(Path(out))   # before the simulation: a directory it could not write is refused now
-    video_path = None
-    if video and out is not None:
-        Path(out).mkdir(parents=True, exist_ok=True)
-        video_path = Path(out) / "video.mp4"
-    with Simulation(scenario, gui=gui, video=video_path, video_quiet=quiet) as sim:
-        result = sim.run()
-        written = sim.close_video()
-    if written is not None:
-        result.metrics["video"] = written.name
+    if speed is not None and not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"speed: expected a positive number, got {speed!r}")
+    with Simulation(scenario, gui=gui) as sim:
+        result = _watch(sim, 1.0 if speed is None else speed) if gui else sim.run()
     if out is not None:
-        result = dataclasses.replace(result, run_dir=write_run(result, Path(out), plots=plots))
+        run_dir = write_run(result, Path(out), plots=plots, video=video, video_speed=speed, report=report, quiet=quiet)
+        result = dataclasses.replace(result, run_dir=run_dir)
     return result
 
 
-def write_run(result: RunResult, out: Path, *, plots: bool = True) -> Path:
-    """Write ``scenario.yaml``, ``metrics.json``, ``timeseries.npz``, ``events.csv`` and ``plots/``.
+def _watch(sim: Simulation, speed: float) -> RunResult:
+    """Run in the Bullet GUI, one control period at a time, paced to ``speed`` x real time."""
+    from pybullet_swarm.experiment.gui import GuiViewer
+    from pybullet_swarm.types import ExitStatus
+
+    viewer = GuiViewer(sim, speed=speed)
+    while sim.exit_status is ExitStatus.RUNNING:
+        sim.step()
+        viewer.update()
+    return sim.result()
+
+
+def write_run(result: RunResult, out: Path, *, plots: bool = True, video: bool = False,
+              video_speed: float | None = None, report: bool = False, quiet: bool = True) -> Path:
+    """Write ``scenario.yaml``, ``timeseries.npz``, ``events.csv``, the artefacts' files, ``plots/``,
+    ``video.mp4`` (with ``video``), ``metrics.json`` (it marks a finished run), then ``report.html``
+    (with ``report``).
 
     A previous run's files in ``out`` are removed first (``rundir.clear_run_dir``): the directory
     then holds this run only.
     """
     from pybullet_swarm.experiment.rundir import atomic_write, clear_run_dir
 
-    video = result.metrics.get("video")
-    clear_run_dir(out, keep=frozenset({video}) if isinstance(video, str) else frozenset())
+    clear_run_dir(out)
     out.mkdir(parents=True, exist_ok=True)
     write_yaml(out / "scenario.yaml", dict(result.scenario.data))   # resolved: planner, avoidance, seed, parameters
     atomic_write(out / "timeseries.npz", result.timeseries.save_to, binary=True)
@@ -87,7 +105,18 @@ def write_run(result: RunResult, out: Path, *, plots: bool = True) -> Path:
         plot_run(result.timeseries, out / "plots", result.metrics, scenario=result.scenario.data,
                  events=result.events)
         plot_saved_artifacts(out, out / "plots")
-    write_json(out / "metrics.json", result.metrics)   # last: its presence marks a finished run
+    if video:
+        from pybullet_swarm.experiment.replay import render_replay
+        from pybullet_swarm.plotting.replay import DEFAULT_SPEED
+
+        written = render_replay(out, out / "video.mp4", speed=video_speed or DEFAULT_SPEED, metrics=result.metrics,
+                                quiet=quiet)
+        result.metrics["video"] = written.name
+    write_json(out / "metrics.json", result.metrics)   # its presence marks a finished run
+    if report:
+        from pybullet_swarm.experiment.report import write_run_report
+
+        write_run_report(out)
     return out
 
 

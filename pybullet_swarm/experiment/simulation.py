@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pybullet_swarm.control.cascade import CascadeController
+from pybullet_swarm.control.design import ReferenceStep
 from pybullet_swarm.control.kernels import STATUS_FLIPPED, STATUS_NONFINITE, physics_tick
 from pybullet_swarm.control.reference import ReferenceShaper
 from pybullet_swarm.control.rotations import quat_to_euler
@@ -121,7 +122,9 @@ class Simulation:
         self.controller = CascadeController(p, n, physics_hz=s.physics_hz, control_hz=s.control_hz, gravity=s.gravity,
                                             max_tilt_deg=s.max_tilt_deg, drag=s.drag_coefficient,
                                             ground_effect=s.ground_effect,
-                                            prefilter=sc.velocity_limits() is not None)
+                                            prefilter=sc.velocity_limits() is not None,
+                                            reference_step=ReferenceStep.from_limits(sc.velocity_limits(),
+                                                                                     sc.acceleration_limits()))
         self.shaper = ReferenceShaper(n, sc.velocity_limits(), sc.acceleration_limits(), 1.0 / s.control_hz)
         self.state_array = np.zeros((n, 13))   # position, quaternion, velocity, angular velocity (world)
         self.world.read_agent_states(self.state_array)
@@ -606,10 +609,11 @@ class Simulation:
         return dict(report()) if callable(report) else {}
 
     def _swarm_metrics(self, ts: TimeSeries) -> dict[str, Any]:
-        from pybullet_swarm.metrics.construction import proximity_metrics, utility_of_space
+        from pybullet_swarm.metrics.construction import proximity_metrics, thesis_proximity_metrics, utility_of_space
 
         pos = ts.positions.astype(float)
         out = proximity_metrics(ts.t, pos, self.diameter)
+        out.update(thesis_proximity_metrics(pos, self.diameter))
         out["utility_of_space"] = utility_of_space(pos[:, :, :2], self.scenario.arena.size)
         return out
 

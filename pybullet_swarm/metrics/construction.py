@@ -1,4 +1,5 @@
-"""Construction-task metrics from recorded arrays: proximity, use of space, box progress, a time bound.
+"""Construction-task metrics from recorded arrays: proximity, the thesis's collision count, use of
+space, box progress, a time bound.
 
 The construction task (thesis sections 3.5.3 and 3.6) has agents carry boxes from a depot to
 goal slots. Everything here reads plain arrays (positions, times, box layouts); nothing touches
@@ -158,16 +159,61 @@ def proximity_metrics(t: ArrayLike, positions: ArrayLike, threshold: float) -> d
     }
 
 
-def utility_of_space(xy: ArrayLike, arena_size: ArrayLike, cell: float = 0.1) -> float:
-    """Fraction of the arena floor that the swarm flew over.
+def thesis_proximity_metrics(positions: ArrayLike, diameter: float) -> dict[str, Any]:
+    """The thesis's collision count, per agent, and the nearest-neighbour reading of its use of space.
 
-    This is our reading of the thesis's "utility of space" (section 3.6, Tables 5.3 and 6.x). The
-    thesis defines it only qualitatively -- "how efficiently the agents move in proximity to each
-    other", lowest preferred, the lowest level being agents moving as close to each other as
-    possible without collisions -- and reports percentages (74 % for 3D stigmergy, 78 % for the
-    layered variant, explained by collision avoidance needing "more space to manoeuvre"). We take
-    it as the share of floor cells that any agent's horizontal position visited during the run: a
-    swarm that shares narrow corridors scores low, one that spreads out or detours scores high.
+    Thesis section 3.5.3 and Fig. 3.12: each agent's distance to its nearest other agent, centre
+    to centre, is drawn over time with the collision line at one agent diameter; section 3.6:
+    "Number of collisions will be the number of times an agent moves below the collision line".
+    So each agent's curve is counted on its own: a crossing is a sample where the agent's
+    nearest-neighbour distance is below ``diameter`` and the previous sample's was not (an agent
+    already below at the first sample counts once, as in ``proximity_metrics``). Two agents that
+    close in on each other are two crossings here (one per curve) and one pair onset in
+    ``proximity_violations``; an agent whose nearest neighbour changes while it stays below the
+    line is one crossing however many pairs it meets.
+
+    Args:
+        positions: (m, n, 3) m, agent centres at m samples.
+        diameter: m, the collision line (one agent diameter), > 0.
+
+    Returns:
+        ``thesis_collisions``: crossings summed over agents (int).
+        ``thesis_collisions_per_agent``: (n,) list of each agent's crossings.
+        ``nn_distance_diameters``: the mean over samples and agents of the nearest-neighbour
+        distance divided by ``diameter`` (None when n < 2 or there are no samples). A
+        proximity-based alternative to ``utility_of_space`` after the thesis's wording ("how
+        efficiently the agents move in proximity to each other ... the lowest [is] as close to
+        each other as possible without triggering a collision"): 1.0 is that lowest level, values
+        below 1 need time under the collision line, larger values mean agents keep more room.
+    """
+    p = _as_positions(positions)
+    if not (diameter > 0 and np.isfinite(diameter)):
+        raise ValueError(f"diameter: must be a positive length, got {diameter}")
+    m, n, _ = p.shape
+    if m == 0 or n < 2:
+        return {"thesis_collisions": 0, "thesis_collisions_per_agent": [0] * n, "nn_distance_diameters": None}
+    nn = nearest_neighbour_distances(p)                        # (m, n) m
+    below = nn < diameter                                      # (m, n)
+    crossings = below[0].astype(np.int64) + np.count_nonzero(below[1:] & ~below[:-1], axis=0)
+    return {
+        "thesis_collisions": int(crossings.sum()),
+        "thesis_collisions_per_agent": [int(c) for c in crossings],
+        "nn_distance_diameters": float(nn.mean() / diameter),
+    }
+
+
+def utility_of_space(xy: ArrayLike, arena_size: ArrayLike, cell: float = 0.1) -> float:
+    """Fraction of the arena floor that the swarm flew over: our reading of an undefined thesis metric.
+
+    The thesis never defines "utility of space" (section 3.6, Tables 5.3 and 6.x) beyond words --
+    "how efficiently the agents move in proximity to each other", lowest preferred, the lowest
+    level being agents moving as close to each other as possible without collisions -- and
+    reports percentages (74 % for 3D stigmergy, 78 % for the layered variant, explained by
+    collision avoidance needing "more space to manoeuvre") without saying how they were computed.
+    This function is therefore our reading, not the thesis's formula: the share of floor cells
+    that any agent's horizontal position visited during the run (a swarm that shares narrow
+    corridors scores low, one that spreads out or detours scores high). ``nn_distance_diameters``
+    of ``thesis_proximity_metrics`` is a proximity-based alternative reading, reported beside it.
 
     The floor [0, Lx] x [0, Ly] is cut into ``ceil(Lx / cell) x ceil(Ly / cell)`` cells (the last
     row/column may be narrower). Points outside the arena are clipped into the border cells;

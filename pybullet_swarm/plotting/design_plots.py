@@ -30,10 +30,11 @@ def plot_design(design: ControllerDesign, out_dir: Path) -> list[Path]:
     return paths
 
 
-def _frequency_grid(design: ControllerDesign) -> NDArray[np.float64]:
-    """Frequencies, (n,) rad/s, from well below the slowest to well above the fastest loop."""
+def _frequency_grid(design: ControllerDesign, loop: Loop) -> NDArray[np.float64]:
+    """Frequencies, (n,) rad/s, from well below the slowest loop up to this loop's Nyquist frequency."""
     wn = np.array(list(design.natural_frequency.values()))
-    return np.logspace(np.log10(wn.min() / 20.0), np.log10(min(wn.max() * 200.0, np.pi * design.physics_hz)), 800)
+    nyquist = np.pi / design.report(loop).sample_period_s * (1.0 - 1e-9)
+    return np.logspace(np.log10(wn.min() / 20.0), np.log10(min(wn.max() * 200.0, nyquist)), 800)
 
 
 def _margin_label(design: ControllerDesign, loop: Loop) -> str:
@@ -44,10 +45,10 @@ def _margin_label(design: ControllerDesign, loop: Loop) -> str:
 
 def _bode_figure(design: ControllerDesign) -> Figure:
     """Open-loop Bode magnitude and phase of the six loops, margins in the legend."""
-    omega = _frequency_grid(design)
     fig = Figure(figsize=(9.0, 7.0), layout="constrained")
     ax_mag, ax_phase = fig.subplots(2, 1, sharex=True)
     for loop in Loop:
+        omega = _frequency_grid(design, loop)
         resp = control.frequency_response(design.open_loop(loop), omega)
         mag_db = 20.0 * np.log10(np.abs(np.squeeze(resp.magnitude)))        # (n,) dB
         phase_deg = np.degrees(np.unwrap(np.squeeze(resp.phase)))         # (n,) deg
@@ -59,11 +60,12 @@ def _bode_figure(design: ControllerDesign) -> Figure:
         ax_phase.semilogx(omega, phase_deg, **style)
     ax_mag.axhline(0.0, color="k", lw=0.8)
     ax_phase.axhline(-180.0, color="k", lw=0.8)
-    ax_mag.set_ylabel("|L(jw)| [dB]")
+    ax_mag.set_ylabel("|L(exp(jwT))| [dB]")
     ax_mag.set_ylim(-80.0, 80.0)
-    ax_phase.set_ylabel("arg L(jw) [deg]")
+    ax_phase.set_ylabel("arg L(exp(jwT)) [deg]")
     ax_phase.set_xlabel("frequency [rad/s]")
-    ax_mag.set_title(f"{design.vehicle}: open loops L = C P (blue attitude, red position)")
+    ax_mag.set_title(f"{design.vehicle}: sampled-data open loops L = C P up to each loop's Nyquist frequency "
+                     "(blue attitude, red position)")
     ax_mag.legend(fontsize="small", loc="lower left")
     for ax in (ax_mag, ax_phase):
         ax.grid(True, which="both", alpha=0.3)
@@ -72,12 +74,14 @@ def _bode_figure(design: ControllerDesign) -> Figure:
 
 def _step_axes(design: ControllerDesign, ax: Axes, loops: tuple[Loop, ...], unit: str) -> None:
     wn = min(design.natural_frequency[loop.value] for loop in loops)
-    t = np.linspace(0.0, _STEP_DURATION_WN / wn, 1000)  # (n,) s
     for loop in loops:
+        dt = design.report(loop).sample_period_s
+        t = np.arange(int(np.ceil(_STEP_DURATION_WN / wn / dt)) + 1) * dt  # (n,) s, the loop's samples
         resp = control.step_response(design.closed_loop(loop), T=t)
         bw = design.report(loop).bandwidth_rad_s
-        ax.plot(
-            resp.time, np.squeeze(resp.outputs), linestyle=_LINESTYLE[loop], label=f"{loop.value} (BW {bw:.2f} rad/s)"
+        ax.step(
+            resp.time, np.squeeze(resp.outputs), where="post", linestyle=_LINESTYLE[loop],
+            label=f"{loop.value} (BW {bw:.2f} rad/s)"
         )
     ax.axhline(1.0, color="k", lw=0.8)
     ax.set_ylabel(f"output [{unit}] for a unit step")

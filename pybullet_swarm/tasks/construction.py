@@ -404,9 +404,10 @@ class ConstructionRuntime(TaskBase):
         self.read()
 
     def sample(self) -> dict[str, NDArray[np.float64]]:
-        """Box positions (B, 3) m now."""
+        """Box positions (B, 3) m, orientations (B, 4) (x, y, z, w) and carriers (B,) (agent, -1: none) now."""
         self.read()
-        return {"box_positions": self.positions}
+        return {"box_positions": self.positions, "box_quaternions": self.quaternions,
+                "box_carried_by": self.carried_by}
 
     def metrics(self, series: TimeSeries | None = None, planner_artefacts: dict[str, Any] | None = None
                 ) -> dict[str, Any]:

@@ -175,6 +175,8 @@ def default_storage(out: Path) -> str:
 def open_storage(url: str) -> Any:
     """An Optuna RDB storage with heartbeats (any SQLAlchemy URL).
 
+    A new SQLite file is made whole before anyone can open it (``_create_sqlite_schema``).
+
     Raises:
         ConfigError: a URL SQLAlchemy cannot use, a missing database driver, or a database that
             cannot be reached.
@@ -182,6 +184,7 @@ def open_storage(url: str) -> Any:
     import optuna
 
     try:
+        _create_sqlite_schema(url)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             retry = getattr(optuna.storages, "RetryHeartbeatStaleTrialCallback", None)   # Optuna >= 4.9
@@ -195,6 +198,46 @@ def open_storage(url: str) -> Any:
         text = " ".join(str(exc).split())[:300]
         raise ConfigError(f"cannot open {url!r} as an SQLAlchemy database URL ({type(exc).__name__}: {text})",
                           source="--storage") from None
+
+
+def _create_sqlite_schema(url: str) -> None:
+    """Give a new SQLite storage file its Optuna schema in a temporary file, then link it into place.
+
+    Optuna creates its tables with check-then-create steps that are not atomic across processes:
+    a second process opening a database that is being created (a dashboard, a test watching the
+    study, a second tuner on a shared file) creates the same tables, and one of the two fails with
+    ``table studies already exists``. Building the schema under a private name and publishing it
+    with ``os.link`` (which fails if the file appeared meanwhile) means ``study.db`` never exists
+    half made; every later opener finds the tables and only reads them. Nothing is done for other
+    databases or an existing file.
+    """
+    import os
+
+    import optuna
+    import sqlalchemy
+
+    parsed = sqlalchemy.engine.make_url(url)
+    if not parsed.drivername.startswith("sqlite") or parsed.database in (None, "", ":memory:") \
+            or parsed.query.get("mode") is not None or parsed.database.startswith("file:"):
+        return
+    path = Path(parsed.database)
+    if path.exists():
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    tmp.unlink(missing_ok=True)
+    try:
+        storage = optuna.storages.RDBStorage(parsed.set(database=str(tmp)).render_as_string(hide_password=False))
+        storage.engine.dispose()
+        try:
+            os.link(tmp, path)
+        except FileExistsError:   # another process published its schema first: use that file
+            pass
+        except OSError:           # no hard links on this file system: rename (last one wins, still whole)
+            if not path.exists():
+                os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def _study_name(ctx: _Context) -> str:

@@ -117,6 +117,7 @@ class VehicleParams:
     motor_time_constant: float           # s
     max_rotor_speed: float               # rad/s
     collision_size: tuple[float, float, float]  # m, box extents (x, y, z)
+    param_file: Path | None = None       # the YAML these parameters were read from (for error messages)
 
     @property
     def rotor_xy(self) -> NDArray[np.float64]:
@@ -210,7 +211,7 @@ def _load(path: Path, stamp: tuple[int, int] = (0, 0)) -> VehicleParams:
     check_urdf(urdf, source=path.name)
     fields = data.model_dump()
     fields.pop("urdf")
-    return VehicleParams(urdf_path=urdf, **fields)
+    return VehicleParams(urdf_path=urdf, param_file=path, **fields)
 
 
 def load_vehicle(name_or_path: str | Path) -> VehicleParams:

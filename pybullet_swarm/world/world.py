@@ -350,6 +350,48 @@ class World:
         rgba = np.reshape(np.asarray(img[2], dtype=np.uint8), (height, width, 4))
         return rgba[:, :, :3]
 
+    # ------------------------------------------------------------ GUI overlays
+    def set_camera(self, target: Sequence[float], distance: float, yaw: float, pitch: float) -> None:
+        """Point the GUI's camera at ``target`` (3,) m from ``distance`` m, ``yaw`` and ``pitch`` deg
+        (Bullet's convention: yaw 0 looks along +y); nothing happens in DIRECT mode."""
+        if self.gui:
+            pb.resetDebugVisualizerCamera(float(distance), float(yaw), float(pitch), [float(v) for v in target],
+                                          physicsClientId=self._cid)
+
+    def set_color(self, body: int, rgba: Sequence[float]) -> None:
+        """Colour every visual shape of a body (RGBA in [0, 1])."""
+        pb.changeVisualShape(body, -1, rgbaColor=[float(v) for v in rgba], physicsClientId=self._cid)
+
+    def debug_text(self, text: str, position: Sequence[float], *, color: Sequence[float] = (0.0, 0.0, 0.0),
+                   size: float = 1.4, replace: int = -1) -> int:
+        """Show ``text`` at ``position`` (3,) m in the GUI (replacing the item ``replace``); returns the
+        item's id, -1 in DIRECT mode (where nothing is drawn)."""
+        if not self.gui:
+            return -1
+        kw = {"replaceItemUniqueId": replace} if replace >= 0 else {}
+        return int(pb.addUserDebugText(text, [float(v) for v in position], textColorRGB=[float(c) for c in color[:3]],
+                                       textSize=float(size), physicsClientId=self._cid, **kw))
+
+    def debug_line(self, start: Sequence[float], end: Sequence[float], *, color: Sequence[float] = (1.0, 0.0, 0.0),
+                   width: float = 2.0, lifetime: float = 0.0) -> int:
+        """Draw a line from ``start`` to ``end`` (3,) m in the GUI for ``lifetime`` s of wall-clock time (0:
+        until removed); returns its id, -1 in DIRECT mode (where nothing is drawn)."""
+        if not self.gui:
+            return -1
+        return int(pb.addUserDebugLine([float(v) for v in start], [float(v) for v in end],
+                                       lineColorRGB=[float(c) for c in color[:3]], lineWidth=float(width),
+                                       lifeTime=float(lifetime), physicsClientId=self._cid))
+
+    def debug_points(self, points: NDArray[np.float64], colors: Sequence[Sequence[float]], *, size: float = 4.0,
+                     lifetime: float = 0.0) -> int:
+        """Draw points (k, 3) m in RGB ``colors`` (k, 3) in the GUI for ``lifetime`` s of wall-clock time (0:
+        until removed), in one call; returns the item's id, -1 in DIRECT mode (where nothing is drawn)."""
+        if not self.gui or len(points) == 0:
+            return -1
+        return int(pb.addUserDebugPoints(np.asarray(points, dtype=float).tolist(),
+                                         [[float(c) for c in rgb[:3]] for rgb in colors], pointSize=float(size),
+                                         lifeTime=float(lifetime), physicsClientId=self._cid))
+
     def close(self) -> None:
         """Disconnect the client (idempotent)."""
         if self._cid >= 0:

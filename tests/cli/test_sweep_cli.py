@@ -45,6 +45,7 @@ def test_sweep_then_plot_and_compare_read_the_results(tmp_path: Path, capsys: py
     recorded = rows(out)
     assert len(recorded) == 4 and {r["exit_status"] for r in recorded} == {"completed"}
     assert (out / "summary.csv").is_file() and not (out / "plots").exists()
+    assert f"report: {out / 'report.html'}" in stdout and (out / "report.html").is_file()
 
     # the same command again: nothing runs, it says so
     code, stdout, stderr = run_cli(capsys, ["sweep", "hover", "--seeds", "2", "--grid", "limits.velocity=0.5,1.0",

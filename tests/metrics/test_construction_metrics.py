@@ -14,6 +14,7 @@ from pybullet_swarm.metrics.construction import (
     nearest_neighbour_distances,
     proximity_metrics,
     task_lower_bound,
+    thesis_proximity_metrics,
     utility_of_space,
 )
 
@@ -104,6 +105,85 @@ def test_proximity_matches_pairwise_episodes(dense_limit: int, monkeypatch: pyte
     assert res["proximity_time_s"] == pytest.approx(time_s)
     assert res["min_separation_m"] == pytest.approx(nn.min())
     assert res["mean_nn_distance_m"] == pytest.approx(nn.mean())
+
+
+# ---------------------------------------------------------------------------------------------
+# The thesis's collision count: crossings of each agent's nearest-neighbour curve (Fig. 3.12)
+
+
+def _line(gaps_left: list[float], gaps_right: list[float]) -> np.ndarray:
+    """(m, 3, 3) m: agent 1 fixed at x = 1.5, agent 0 ``gaps_left`` to its left, agent 2 ``gaps_right`` to its right."""
+    m = len(gaps_left)
+    p = np.zeros((m, 3, 3))
+    p[:, :, 1], p[:, :, 2] = 0.5, 1.0
+    p[:, 0, 0] = 1.5 - np.asarray(gaps_left)
+    p[:, 1, 0] = 1.5
+    p[:, 2, 0] = 1.5 + np.asarray(gaps_right)
+    return p
+
+
+def test_one_close_pass_is_two_thesis_collisions_and_one_pair_onset() -> None:
+    t = np.arange(251) * 0.04
+    p = _pair(t, 0.1 + 0.1 * np.abs(t - 5.0))            # below 0.15 m while |t - 5| < 0.5 s
+    res = thesis_proximity_metrics(p, diameter=0.15)
+    assert res["thesis_collisions_per_agent"] == [1, 1]  # both curves cross the line once
+    assert res["thesis_collisions"] == 2
+    assert proximity_metrics(t, p, threshold=0.15)["proximity_violations"] == 1
+
+
+def test_an_agent_below_the_line_while_its_neighbour_changes_crosses_once() -> None:
+    # sample:          0    1    2    3    4
+    left = [0.3, 0.1, 0.1, 0.3, 0.3]    # agent 0 <-> agent 1, m
+    right = [0.3, 0.3, 0.1, 0.1, 0.3]   # agent 1 <-> agent 2, m
+    p = _line(left, right)
+    res = thesis_proximity_metrics(p, diameter=0.15)
+    # agent 1's nearest distance is 0.3, 0.1, 0.1, 0.1, 0.3: one crossing (neighbour 0, then 2)
+    assert res["thesis_collisions_per_agent"] == [1, 1, 1]
+    assert res["thesis_collisions"] == 3
+    # pair onsets: (0, 1) at sample 1 and (1, 2) at sample 2; (0, 2) never closer than 0.2 m
+    assert proximity_metrics(np.arange(5.0), p, threshold=0.15)["proximity_violations"] == 2
+    nn = np.array([left, np.minimum(left, right), right]).T          # (5, 3) m
+    assert res["nn_distance_diameters"] == pytest.approx(nn.mean() / 0.15, rel=1e-12)
+
+
+def test_thesis_count_starts_below_once_counts_every_dip_and_not_the_line_itself() -> None:
+    res = thesis_proximity_metrics(_pair(np.arange(5.0), np.array([0.1, 0.1, 0.2, 0.1, 0.3])), diameter=0.15)
+    assert res["thesis_collisions_per_agent"] == [2, 2]   # below at the start (1) and the dip at sample 3 (1)
+    # gaps of 0.5 and 0.25 m are exact in binary: the middle sample sits exactly on the line
+    on_line = thesis_proximity_metrics(_pair(np.arange(3.0), np.array([0.5, 0.25, 0.5])), diameter=0.25)
+    assert on_line["thesis_collisions"] == 0              # exactly one diameter is not below the line
+    assert on_line["nn_distance_diameters"] == pytest.approx((2.0 + 1.0 + 2.0) / 3)
+    just_below = thesis_proximity_metrics(_pair(np.arange(3.0), np.array([0.5, 0.2499, 0.5])), diameter=0.25)
+    assert just_below["thesis_collisions"] == 2
+
+
+def test_thesis_count_of_a_lone_agent_and_bad_diameters() -> None:
+    assert thesis_proximity_metrics(np.zeros((4, 1, 3)), 0.15) == {
+        "thesis_collisions": 0, "thesis_collisions_per_agent": [0], "nn_distance_diameters": None}
+    assert thesis_proximity_metrics(np.zeros((0, 2, 3)), 0.15)["thesis_collisions_per_agent"] == [0, 0]
+    for bad in (0.0, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="diameter"):
+            thesis_proximity_metrics(np.zeros((2, 2, 3)), bad)
+
+
+@pytest.mark.parametrize("dense_limit", [64, 1])
+def test_thesis_count_matches_a_per_agent_loop(dense_limit: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(construction, "BROADCAST_MAX_AGENTS", dense_limit)   # 1: k-d tree path
+    rng = np.random.default_rng(11)
+    p = np.cumsum(rng.normal(0, 0.03, size=(150, 6, 3)), axis=0) + rng.uniform(0, 0.5, size=(1, 6, 3))
+    nn = _brute_nn(p)
+    expected = []
+    for i in range(6):
+        below_before, count = False, 0
+        for k in range(nn.shape[0]):
+            below = nn[k, i] < 0.15
+            count += int(below and not below_before)
+            below_before = below
+        expected.append(count)
+    res = thesis_proximity_metrics(p, 0.15)
+    assert sum(expected) > 5
+    assert res["thesis_collisions_per_agent"] == expected
+    assert res["thesis_collisions"] == sum(expected)
 
 
 def test_utility_of_space_of_a_straight_line() -> None:

@@ -303,7 +303,11 @@ def test_a_tuner_killed_with_sigkill_resumes_without_losing_finished_trials(tmp_
     out = tmp_path / "sigkill"
     script = tmp_path / "tuner.py"
     script.write_text(KILLED_TUNER.format(here=str(Path(__file__).parent), out=str(out)))
-    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    stderr = tmp_path / "tuner.stderr"
+    # The watcher only reads (a read-only SQLite URI): it must not take part in creating the storage.
+    watch = f"sqlite:///file:{out / 'study.db'}?mode=ro&uri=true"
+    with open(stderr, "w") as err:
+        proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.DEVNULL, stderr=err)
     try:
         finished: list[Any] = []
         for _ in range(1200):    # poll (at most ~10 min on a loaded machine) until 3 trials are finished
@@ -312,13 +316,13 @@ def test_a_tuner_killed_with_sigkill_resumes_without_losing_finished_trials(tmp_
                 break
             if (out / "study.db").is_file():
                 try:
-                    study = optuna.load_study(study_name=f"hover-{QUADRATIC}-none", storage=default_storage(out))
+                    study = optuna.load_study(study_name=f"hover-{QUADRATIC}-none", storage=watch)
                     finished = [t for t in study.trials if t.state.name == "COMPLETE"]
-                except Exception:   # noqa: BLE001 - the tuner is still creating the study
+                except Exception:   # noqa: BLE001 - the tuner has not created the study yet
                     continue
                 if len(finished) >= 3:
                     break
-        assert proc.poll() is None and len(finished) >= 3
+        assert proc.poll() is None and len(finished) >= 3, f"tuner exited {proc.poll()}: {stderr.read_text()}"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
     finally:
@@ -332,6 +336,32 @@ def test_a_tuner_killed_with_sigkill_resumes_without_losing_finished_trials(tmp_
     assert sum(t["state"] == "complete" for t in res.trials) == len(before) + 3
     assert all(t["state"] in ("complete", "fail") for t in res.trials)  # nothing is left running
     assert all(t["error"] is None for t in res.trials)
+
+
+def test_a_new_sqlite_storage_appears_with_its_schema_complete(tmp_path: Path, monkeypatch: Any) -> None:
+    """study.db is published only once Optuna's tables are in it, so that a process opening it
+    meanwhile (a watcher, a dashboard) never runs Optuna's table creation against the tuner's
+    (the cause of "table studies already exists" in a tuner started beside a watcher)."""
+    import sqlite3
+
+    db = tmp_path / "study.db"
+    real = optuna.storages.RDBStorage
+    published_while_built: list[bool] = []
+
+    def spy(url: str, *args: Any, **kw: Any) -> Any:
+        storage = real(url, *args, **kw)
+        published_while_built.append(db.exists())
+        return storage
+
+    monkeypatch.setattr(optuna.storages, "RDBStorage", spy)
+    open_storage(default_storage(tmp_path))
+    assert published_while_built[0] is False      # the schema was built before study.db existed
+    with sqlite3.connect(f"file:{db}?mode=ro", uri=True) as con:
+        tables = {r[0] for r in con.execute("select name from sqlite_master where type = 'table'")}
+    assert {"studies", "trials", "version_info", "alembic_version"} <= tables
+    assert [p.name for p in tmp_path.iterdir()] == ["study.db"]   # no temporary file left behind
+    open_storage(default_storage(tmp_path))       # an existing file is opened as it is
+    assert published_while_built[-1] is True
 
 
 def test_two_directories_share_one_study_through_a_storage_url(tmp_path: Path) -> None:

@@ -29,6 +29,39 @@ def test_motor_step_reaches_63_percent_at_time_constant(make_sim, vehicle):
     assert np.all(np.diff(frac) > 0) and frac[-1] < 1.0
 
 
+@pytest.mark.parametrize("vehicle", ["quad150", "cf2x"])
+def test_the_world_applies_kf_w_squared_of_the_lagged_rotor_speed(make_sim, vehicle):
+    """The force Bullet applies after a rotor step, measured as the body's acceleration step by step,
+    is 4 kf w(t)^2 with w(t) = w1 + (w0 - w1) exp(-t / tau), t the end of each physics step (the
+    kernel advances the motors, then applies their new speeds for the step)."""
+    params = load_vehicle(vehicle)
+    sim = make_sim(physics_scenario(start_z=50.0, vehicle=vehicle))
+    g, h, tau = sim.scenario.sim.gravity, 1.0 / sim.physics_hz, params.motor_time_constant
+    w0, w1 = 0.3 * params.max_rotor_speed, 0.8 * params.max_rotor_speed
+    sim.set_open_loop(np.full((1, 4), w0), motor_state=True)
+    sim.set_open_loop(np.full((1, 4), w1))
+    n = int(round(5 * tau / h))
+    accel = np.empty(n)
+    for k in range(n):
+        v_before = sim.state.velocities[0, 2]
+        sim.step(1)
+        accel[k] = (sim.state.velocities[0, 2] - v_before) / h        # m/s^2, measured
+    t_end = h * np.arange(1, n + 1)                                    # s, end of each step
+    w = w1 + (w0 - w1) * np.exp(-t_end / tau)                          # rad/s
+    expected = 4.0 * params.kf * w**2 / params.mass - g
+    np.testing.assert_allclose(accel, expected, rtol=0.0, atol=1e-9 * g)
+    assert np.abs(sim.state.body_rates).max() < 1e-9                   # equal rotors: no torque
+    # the rotor speed the force implies closes the gap as exp(-t / tau): the time constant it
+    # gives at every step is the vehicle's (63.2 % of the way at t = tau)
+    w_seen = np.sqrt((accel + g) * params.mass / (4.0 * params.kf))
+    tau_seen = -t_end / np.log((w1 - w_seen) / (w1 - w0))
+    np.testing.assert_allclose(tau_seen, tau, rtol=1e-6)
+    # teeth: a step late (w at the start of each step) or no lag at all miss by far more
+    late = 4.0 * params.kf * (w1 + (w0 - w1) * np.exp(-(t_end - h) / tau)) ** 2 / params.mass - g
+    assert np.abs(accel - late).max() > 1e-3 * g
+    assert np.abs(accel - (4.0 * params.kf * w1**2 / params.mass - g)).max() > 0.5 * g
+
+
 def test_motor_saturates_to_range():
     w = np.full((2, 4), 100.0)
     cmd = np.array([[-50.0] * 4, [1e6] * 4])
