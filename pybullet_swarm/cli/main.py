@@ -178,8 +178,16 @@ def _add_replay(sub: Any) -> None:
 def _cmd_replay(args: argparse.Namespace) -> int:
     from pybullet_swarm.experiment.replay import render_replay, render_still
 
+    from pybullet_swarm.experiment.results import check_saved_run
+    from pybullet_swarm.experiment.rundir import check_output_dir
+
     if not (args.run_dir / "timeseries.npz").is_file():
         raise ConfigError("not a run directory (no timeseries.npz)", source=str(args.run_dir))
+    if args.out is not None and args.out.is_dir():
+        raise ConfigError("is a directory; give a file name (.mp4, .gif or, with --frame, .png)",
+                          source=f"--out {args.out}")
+    check_output_dir(args.out.parent if args.out is not None else args.run_dir, source="--out" if args.out else None)
+    check_saved_run(args.run_dir)   # every saved file is read and checked before the first frame
     if args.frame is not None:
         path = render_still(args.run_dir, args.frame, args.out, view=args.view, size=args.size)
     else:
@@ -202,11 +210,28 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from pybullet_swarm.experiment.report import write_run_report
     from pybullet_swarm.experiment.results import is_sweep_dir
 
+    from pybullet_swarm.experiment.results import check_saved_run
+    from pybullet_swarm.experiment.rundir import check_output_dir
+
     if is_sweep_dir(args.directory):
+        from pybullet_swarm.experiment.sweep import load_sweep
         from pybullet_swarm.experiment.sweep_report import write_sweep_report
 
+        check_output_dir(args.directory)
+        load_sweep(args.directory)   # runs.csv, sweep.json and summary.csv checked before the page is made
+        if (args.directory / "summary.csv").is_file():
+            from pybullet_swarm.experiment.results import read_summary_csv
+
+            read_summary_csv(args.directory / "summary.csv")
         path = write_sweep_report(args.directory)
     elif (args.directory / "timeseries.npz").is_file() or (args.directory / "metrics.json").is_file():
+        check_output_dir(args.directory)
+        if (args.directory / "timeseries.npz").is_file():
+            check_saved_run(args.directory)
+        else:
+            from pybullet_swarm.experiment.results import read_metrics
+
+            read_metrics(args.directory)
         path = write_run_report(args.directory)
     else:
         raise ConfigError("not a run directory (no timeseries.npz) nor a sweep directory (no runs.csv)",
@@ -325,26 +350,16 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
     if is_sweep_dir(args.run_dir):
         return _plot_sweep(args)
-    from pybullet_swarm.experiment.results import (read_events, read_metrics, read_pheromones, read_scenario_data,
-                                                   read_timeseries, read_tour)
+    from pybullet_swarm.experiment.results import check_saved_run
     from pybullet_swarm.experiment.rundir import check_output_dir
     from pybullet_swarm.plotting.run_plots import plot_run, plot_saved_artifacts
 
-    npz = args.run_dir / "timeseries.npz"
-    if not npz.is_file():
+    if not (args.run_dir / "timeseries.npz").is_file():
         raise ConfigError("not a run directory (no timeseries.npz) nor a sweep directory (no runs.csv)",
                           source=str(args.run_dir))
     out = check_output_dir(args.out or args.run_dir / "plots", source="--out" if args.out else None)
-    # every saved file is read and checked before the first figure is drawn
-    metrics = read_metrics(args.run_dir) if (args.run_dir / "metrics.json").is_file() else {}
-    series = read_timeseries(npz)
-    scenario = read_scenario_data(args.run_dir)
-    events = read_events(args.run_dir / "events.csv")
-    if (args.run_dir / "pheromones.npz").is_file():
-        read_pheromones(args.run_dir / "pheromones.npz")
-    if (args.run_dir / "tour.json").is_file():
-        read_tour(args.run_dir / "tour.json")
-    files = plot_run(series, out, metrics, scenario=scenario, events=events)
+    saved = check_saved_run(args.run_dir)   # every saved file is read and checked before the first figure
+    files = plot_run(saved["timeseries"], out, saved["metrics"], scenario=saved["scenario"], events=saved["events"])
     files += plot_saved_artifacts(args.run_dir, out)
     for f in files:
         print(f)

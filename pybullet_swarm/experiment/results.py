@@ -542,6 +542,54 @@ def read_timeseries(path: Path) -> Any:
     return TimeSeries(**{k: arrays[k] for k in _SERIES_SHAPES}, extra=extra)
 
 
+def read_summary_csv(path: Path) -> list[dict[str, str]]:
+    """The records of a ``summary.csv`` (text cells by column), checked: CSV text with ``config`` and
+    ``metric`` columns and a value for both in every row.
+
+    Raises:
+        ConfigError: unreadable or not a summary table, in one line naming the file.
+    """
+    path = Path(path)
+    text = _read_text(path)
+    try:
+        reader = csv.DictReader(io.StringIO(text, newline=""))
+        records = list(reader)
+        header = reader.fieldnames or []
+    except csv.Error as exc:
+        raise ConfigError(f"unreadable: not CSV ({_reason(exc)})", source=str(path)) from None
+    if text.strip() and not {"config", "metric"} <= set(header):
+        raise ConfigError("corrupt: not a summary table (no config and metric columns)", source=str(path))
+    for i, rec in enumerate(records):
+        if not isinstance(rec.get("config"), str) or not isinstance(rec.get("metric"), str) or None in rec:
+            raise ConfigError(f"corrupt: row {i + 2} does not fit the header", source=str(path))
+    return records
+
+
+def check_saved_run(run_dir: Path) -> dict[str, Any]:
+    """Read and check every result file of a run directory before anything is drawn from it.
+
+    Returns:
+        ``metrics`` (a mapping, empty without ``metrics.json``), ``timeseries``, ``scenario``
+        (None without ``scenario.yaml``) and ``events``; ``pheromones.npz`` and ``tour.json`` are
+        checked when present.
+
+    Raises:
+        ConfigError: the first missing, unreadable or corrupt file, in one line naming it.
+    """
+    run_dir = Path(run_dir)
+    npz = run_dir / "timeseries.npz"
+    if not npz.is_file():
+        raise ConfigError("not a run directory (no timeseries.npz)", source=str(run_dir))
+    out: dict[str, Any] = {"metrics": read_metrics(run_dir) if (run_dir / "metrics.json").is_file() else {},
+                           "timeseries": read_timeseries(npz), "scenario": read_scenario_data(run_dir),
+                           "events": read_events(run_dir / "events.csv")}
+    if (run_dir / "pheromones.npz").is_file():
+        read_pheromones(run_dir / "pheromones.npz")
+    if (run_dir / "tour.json").is_file():
+        read_tour(run_dir / "tour.json")
+    return out
+
+
 def read_tour(path: Path) -> dict[str, Any]:
     """The data of ``tour.json`` (see ``TourRuntime.artefacts``), checked for the figure.
 

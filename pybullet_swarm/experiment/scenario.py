@@ -602,7 +602,8 @@ MIN_GRAVITY = 0.1   # m/s^2: the hover controller carries m g and limits its til
 
 
 def _check_flight(s: Scenario, vehicle: VehicleParams, source: str) -> None:
-    """Gravity the hover controller can fly in, and a controller design that finds gains.
+    """Gravity the hover controller can fly in, a controller design that finds gains, and
+    reference limits the designed controller follows without saturating a rotor.
 
     The position loop feeds the weight forward and limits the commanded tilt relative to g: with
     no gravity it has nothing to hold (zero-g flight is out of scope, refused); with more gravity
@@ -615,22 +616,23 @@ def _check_flight(s: Scenario, vehicle: VehicleParams, source: str) -> None:
     if vehicle.thrust_to_weight(g) < 1.0:
         raise ConfigError(f"{vehicle.name} cannot lift its own weight at {g:g} m/s^2 (thrust-to-weight "
                           f"{vehicle.thrust_to_weight(g):.3g} < 1)", source=source, field="sim.gravity")
-    from pybullet_swarm.control.design import design_controller
-    from pybullet_swarm.vehicle.params import vehicle_file
+    from pybullet_swarm.control.design import ReferenceStep, design_controller
 
+    # what the simulation's controller does when it is built: design (no gains for a loop is an
+    # error naming the vehicle file and the loop), then the scenario's reference step must not
+    # saturate a rotor
     try:
-        design_controller(vehicle, physics_hz=s.sim.physics_hz, position_hz=s.sim.control_hz)
-    except ValueError as exc:   # no gains meet the design targets (rates were checked before)
-        text = " ".join(str(exc).split())
-        loop, sep, why = text.partition(" loop: ")
-        what = f"finds no gains for the {loop} loop ({why})" if sep and " " not in loop else f"fails ({text})"
-        raise ConfigError(f"{vehicle_file(s.agents.vehicle).name}: motor_time_constant: the controller design {what} "
-                          f"with motor_time_constant {vehicle.motor_time_constant:g} s at sim.physics_hz "
-                          f"{s.sim.physics_hz} and sim.control_hz {s.sim.control_hz}", source=source,
-                          field="agents.vehicle") from None
+        design = design_controller(vehicle, physics_hz=s.sim.physics_hz, position_hz=s.sim.control_hz, gravity=g)
+    except ConfigError as exc:
+        raise ConfigError(f"{exc} (with sim.gravity {g:g} m/s^2, sim.physics_hz {s.sim.physics_hz}, sim.control_hz "
+                          f"{s.sim.control_hz})", source=source, field="agents.vehicle") from None
+    try:
+        design.check_step(ReferenceStep.from_limits(s.velocity_limits(), s.acceleration_limits()))
+    except ConfigError as exc:
+        field = "limits.acceleration" if s.limits.velocity is not None else "limits.velocity"
+        raise ConfigError(str(exc), source=source, field=field) from None
 
 
-# ----------------------------------------------------------------- memory budget
 def _check_budgets(s: Scenario) -> None:
     """Refuse a scenario whose arrays would not fit the memory budget (``pybullet_swarm.memory``).
 

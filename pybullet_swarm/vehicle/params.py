@@ -169,15 +169,6 @@ class VehicleParams:
         return float(0.5 * np.hypot(self.collision_size[0], self.collision_size[1]))
 
 
-def vehicle_file(name_or_path: str | Path) -> Path:
-    """The parameter file of a bundled vehicle name or a vehicle YAML path.
-
-    Raises:
-        ConfigError: neither a bundled vehicle nor an existing ``.yaml`` file.
-    """
-    return _resolve(name_or_path)
-
-
 def _resolve(name_or_path: str | Path) -> Path:
     p = Path(name_or_path)
     try:

@@ -101,9 +101,13 @@ def test_2_gravity_too_small_for_the_hover_controller(gravity: float) -> None:
 
 def test_2_gravity_the_rotors_cannot_lift() -> None:
     # quad150: 4 kf wmax^2 = 2.94 N for 0.150 kg: it hovers up to 19.6 m/s^2
-    assert load_scenario("hover", {"sim.gravity": 19.5}).sim.gravity == 19.5
     err = bad(with_(HOVER, sim__gravity=19.7))
     assert err.field == "sim.gravity" and "cannot lift its own weight" in err.detail
+    # just below, the controller design finds the vehicle cannot manoeuvre (rotors near their maximum)
+    err = bad(with_(HOVER, sim__gravity=19.5))
+    assert err.field == "agents.vehicle" and err.detail.startswith("quad150.yaml: z: ")
+    assert "(with sim.gravity 19.5 m/s^2, sim.physics_hz 240, sim.control_hz 48)" in err.detail
+    assert load_scenario("hover", {"sim.gravity": 15.0}).sim.gravity == 15.0
 
 
 def test_2_coordinates_are_bounded() -> None:
