@@ -50,5 +50,5 @@ def test_a_scenario_step_the_rotors_cannot_follow_is_refused(capsys: pytest.Capt
     path.write_text(yaml.safe_dump(raw))
     code, out, err = _run(capsys, ["design", "--scenario", str(path)])
     assert code == 2 and out == ""
-    assert err.startswith("pybullet-swarm: error: quad150.yaml: ")
+    assert err.startswith("pybullet-swarm: error: fast.yaml: limits.acceleration: quad150.yaml: ")   # refused at load
     assert "cannot follow the reference step" in err and "% of max_rotor_speed" in err

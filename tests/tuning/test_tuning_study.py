@@ -221,7 +221,7 @@ def test_best_yaml_applied_to_run_reproduces_the_trials_metrics(tmp_path: Path) 
     from pybullet_swarm.cli.main import main
 
     out = tmp_path / "real"
-    spec = TuneSpec("hover", params=["limits.velocity=0.2:0.8", "limits.acceleration=0.5:2:log"],
+    spec = TuneSpec("hover", params=["limits.velocity=0.2:0.8", "limits.acceleration=0.5:1.4:log"],
                     objectives=["tracking_rmse_m + 0.1 * sim_time_s"], trials=2, seeds_per_trial=1, seed_start=3,
                     overrides=HOVER)
     res = run_tuning(spec, out, workers=1)
