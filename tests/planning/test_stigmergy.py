@@ -14,8 +14,8 @@ from pybullet_swarm.planning.base import Action, CommandKind, Observation, TaskI
 from pybullet_swarm.planning.pheromone_grid import DepositRule, PheromoneGrid
 from pybullet_swarm.planning.registry import planners
 from pybullet_swarm.planning.stigmergy import (
-    FlightGeometry, Layer, LayeredStigmergy, LayeredStigmergyParams, Phase, Stigmergy, StigmergyParams, Strategy,
-    TieBreak)
+    Carry, FlightGeometry, Layer, LayeredStigmergy, LayeredStigmergyParams, Phase, Sighting, Stigmergy, StigmergyParams,
+    Strategy, TieBreak)
 from pybullet_swarm.types import ExitStatus
 
 GH = 0.065            # m, grasp height of quad150 with 10 cm boxes
@@ -175,14 +175,15 @@ def test_a_seen_box_is_fetched_grasped_and_marked_with_plus_one():
     box = DEPOT[4]
     near = [box[0] + 0.1, box[1], look]
     cmd = a.plan(_obs(near, boxes=[box], box_ids=[4]), med)
-    assert a.phase == Phase.FETCH
+    assert a.phase == Phase.TO_BOX
     assert np.allclose(cmd.vector, [box[0], box[1], look])              # above it first
     above = [box[0], box[1], look]
     cmd = a.plan(_obs(above, boxes=[box], box_ids=[4]), med)
     grasp = box + [0, 0, GH]
     assert np.allclose(cmd.vector, grasp) and cmd.action == Action.NONE  # then straight down
+    assert a.phase == Phase.DESCEND_BOX
     cmd = a.plan(_obs(grasp + [0.003, 0.0, 0.004], boxes=[box], box_ids=[4]), med)
-    assert cmd.action == Action.GRASP
+    assert cmd.action == Action.GRASP and a.phase == Phase.GRASPING
     # the task attached it: +1 in the agent's cell, the box hangs where it was seen, climb back
     held = grasp + [0.003, 0.0, 0.004]
     cmd = a.plan(_obs(held, carrying=4), med)
@@ -203,7 +204,7 @@ def test_a_box_a_neighbour_is_working_on_is_left_to_it():
     # level with it, the nearer agent has it; an equally near one with a lower id too
     a.plan(_obs([box[0] + 0.05, box[1], look], boxes=[box], box_ids=[0], nb_ids=[4],
                 nb_pos=[[box[0] + 0.08, box[1], look]]), _medium())
-    assert a.phase == Phase.FETCH and a.box_id == 0
+    assert a.phase == Phase.TO_BOX and a.box.id == 0
 
 
 def test_a_box_beside_the_structure_is_left_alone_but_one_on_top_of_a_stack_is_fetched():
@@ -218,7 +219,7 @@ def test_a_box_beside_the_structure_is_left_alone_but_one_on_top_of_a_stack_is_f
 def test_a_carrying_agent_climbs_before_the_structure_and_crosses_it_at_cruise_altitude():
     a = _agent()
     g = a.geo
-    a.holding, a.phase, a.strategy = True, Phase.SEEK_GOAL, Strategy.RANDOM
+    a.carry, a.phase, a.strategy = Carry(3, np.array([0.0, 0.0, -GH])), Phase.SEEK_GOAL, Strategy.RANDOM
     a.target = np.array([2.7, 0.5])
     med = _medium()
     floor = g.floor_altitude
@@ -251,24 +252,23 @@ def test_an_open_slot_is_served_from_above_and_marked_with_minus_one():
     med = _medium()
     a = _agent()
     g = a.geo
-    a.holding, a.phase = True, Phase.SEEK_GOAL
-    a.offset = np.array([0.004, -0.002, -0.066])                      # measured when it grasped
+    a.carry, a.phase = Carry(3, np.array([0.004, -0.002, -0.066])), Phase.SEEK_GOAL   # offset measured at the grasp
     a.target = np.array([2.6, 0.5])
     slot = SLOTS[1]
     p = np.array([g.structure.lo[:, 0].min() - g.standoff, 0.45, g.floor_altitude])
     assert _visible(p, slot)
     a.plan(_obs(p, carrying=3, slots=[slot], slot_ids=[1]), med)
-    assert a.phase == Phase.DELIVER and a.slot_id == 1
+    assert a.phase == Phase.TO_SLOT and a.slot.id == 1
     drop = slot + [0, 0, 0.004] - a.offset
     above = [drop[0], drop[1], g.cruise_altitude]
     cmd = a.plan(_obs(above, carrying=3), med)                          # out of view from up there: keeps it
-    assert a.phase == Phase.DELIVER and np.allclose(cmd.vector, drop) and cmd.action == Action.NONE
+    assert a.phase == Phase.DESCEND_SLOT and np.allclose(cmd.vector, drop) and cmd.action == Action.NONE
     cmd = a.plan(_obs(drop + [0.002, 0.0, 0.003], carrying=3, slots=[slot], slot_ids=[1]), med)
-    assert cmd.action == Action.RELEASE
+    assert cmd.action == Action.RELEASE and a.phase == Phase.RELEASING
     cmd = a.plan(_obs(drop + [0.002, 0.0, 0.003]), med)                 # the task let go of it
     med.step(0.1)
     assert med.sample(Layer.TASK.value, drop) == -1.0
-    assert a.phase == Phase.CLIMB and cmd.vector[2] == pytest.approx(g.cruise_altitude)
+    assert a.phase == Phase.SETTLING and cmd.vector[2] == pytest.approx(g.cruise_altitude)
     assert np.allclose(med.strongest(Layer.TASK.value, -1), med.centre(med.index(drop)))   # where it let go
 
 
@@ -277,31 +277,31 @@ def test_a_descent_pushed_off_its_column_climbs_straight_back_and_comes_over_the
     a = _agent()
     g = a.geo
     slot = SLOTS[4]                                                     # second layer, on top of slot 0's box
-    a.holding, a.phase, a.slot_id, a.slot_pos = True, Phase.DELIVER, 4, slot.copy()
-    a.descending, a.descent_start = True, 0.0
+    a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.DESCEND_SLOT, Sighting(4, slot.copy())
+    a.watch.descent_start = 0.0
     a.target = np.array([2.6, 0.2])
     drop = slot + [0.0, 0.0, a.clearance] - a.offset
     seen = dict(carrying=3, slots=[slot], slot_ids=[4])
     cmd = a.plan(_obs(drop + [0.03, 0.0, 0.05], **seen), med)          # 3 cm off: the descent goes on
-    assert a.descending and np.allclose(cmd.vector, drop)
+    assert a.phase == Phase.DESCEND_SLOT and np.allclose(cmd.vector, drop)
     low = drop + [0.08, 0.0, 0.04]                                      # pushed 8 cm behind the wall
     cmd = a.plan(_obs(low, **seen), med)
-    assert not a.descending and a.phase == Phase.DELIVER
+    assert a.phase == Phase.RECLIMB_SLOT
     assert np.allclose(cmd.vector, [low[0], low[1], g.cruise_altitude])   # straight up, not back across the stack
     cmd = a.plan(_obs([low[0], low[1], 0.35], **seen), med)
     assert np.allclose(cmd.vector[:2], low[:2])                         # still climbing where it is
     cmd = a.plan(_obs([low[0], low[1], g.cruise_altitude], **seen), med)   # up: over the slot again, at altitude
-    assert np.allclose(cmd.vector, [drop[0], drop[1], g.cruise_altitude]) and not a.descending
+    assert np.allclose(cmd.vector, [drop[0], drop[1], g.cruise_altitude]) and a.phase == Phase.TO_SLOT
     a.plan(_obs([drop[0], drop[1], g.cruise_altitude], **seen), med)
-    assert a.descending                                                 # over it: the descent starts again
+    assert a.phase == Phase.DESCEND_SLOT                                                 # over it: the descent starts again
 
 
 def test_a_slot_filled_meanwhile_is_given_up():
     a = _agent()
-    a.holding, a.phase, a.slot_id, a.slot_pos = True, Phase.DELIVER, 1, SLOTS[1].copy()
+    a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.TO_SLOT, Sighting(1, SLOTS[1].copy())
     a.target = np.array([2.0, 0.5])
     a.plan(_obs(SLOTS[1] + [0.0, 0.0, GH + 0.05], carrying=3), _medium())   # right there, not open any more
-    assert a.phase == Phase.SEEK_GOAL and a.slot_id == -1
+    assert a.phase == Phase.SEEK_GOAL and a.slot.id == -1
 
 
 # ----------------------------------------------------------------------------- layered
@@ -334,24 +334,23 @@ def test_layered_agent_passes_a_neighbour_beside_it_and_after_a_replan_detours_b
     med.deposit(Layer.PRESENCE.value, p + [0.0, 0.15, 0.0], 2.0, rule=DepositRule.SET, source=2)    # beside
     med.step(0.1)
     cmd = a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.0), med)
-    assert cmd.kind == CommandKind.POSITION and a.phase == Phase.FETCH
+    assert cmd.kind == CommandKind.POSITION and a.phase == Phase.TO_BOX
     med.deposit(Layer.PRESENCE.value, p + [0.12, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=2)    # now ahead
     med.step(0.1)
     assert a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.1), med).kind == CommandKind.HOLD
     # for as long as a mark lasts (2 / (2/s) = 1 s) it searches elsewhere instead of trying again
     a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.2), med)
-    assert a.phase == Phase.SEEK_BOX and a.box_id == -1
+    assert a.phase == Phase.SEEK_BOX and a.box.id == -1
     for _ in range(10):                                # the neighbour has gone: its marks fade
         med.step(0.1)
     a.plan(_obs(p, boxes=[box], box_ids=[4], t=2.2), med)
-    assert a.phase == Phase.FETCH and a.box_id == 4
+    assert a.phase == Phase.TO_BOX and a.box.id == 4
 
 
 def test_presence_marks_fade_in_a_second_and_a_carrying_agent_also_marks_its_box():
     med = _medium(layered=True)
     a = _agent(LayeredStigmergy, agent=1)
-    a.holding, a.phase, a.target = True, Phase.SEEK_GOAL, np.array([1.0, 0.5])
-    a.offset = np.array([0.0, 0.0, -0.115])
+    a.carry, a.phase, a.target = Carry(2, np.array([0.0, 0.0, -0.115])), Phase.SEEK_GOAL, np.array([1.0, 0.5])
     p = np.array([1.55, 0.55, 0.255])
     a.plan(_obs(p, carrying=2, agent=1), med)
     med.step(0.1)
