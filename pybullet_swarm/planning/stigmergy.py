@@ -62,7 +62,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -71,7 +71,7 @@ from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import Action, Command, CommandKind, Observation, TaskInfo, view_distance
-from pybullet_swarm.planning.params import Params, PlanContext, check_memory
+from pybullet_swarm.planning.params import Params, PlanContext, Preset, check_memory
 from pybullet_swarm.planning.pheromone_grid import DepositRule, LayerSpec, PheromoneGrid
 
 
@@ -149,6 +149,12 @@ class TieBreak(str, enum.Enum):
 
     RANDOM = "random"     # any, drawn with the agent's own generator (spreads the agents out)
     NEAREST = "nearest"   # the nearest to the agent
+    FIRST = "first"       # the first in the thesis's grid order (MATLAB's max over pheromones(:), appendix A)
+
+
+#: axes (x, y, z of the arena) from most to least significant in the thesis's grid order: its grid is
+#: (long side, vertical, short side) stored column-major, so the short side (our y) varies slowest
+THESIS_GRID_ORDER = (1, 2, 0)
 
 
 class Strategy(enum.IntEnum):
@@ -182,7 +188,9 @@ CLEARANCE_SIGMAS = 3.0
 SETTLE_S = 0.3
 """s: after a release, how long the box is given to come to rest before the agent judges where it lies."""
 DESCENT_TIMEOUT_S = 20.0
-"""s: a descent with a box that has not ended in a release by then is broken off (climb, look again)."""
+"""s: default of ``descent_timeout_s``."""
+THESIS_VIEW_M = 0.15
+"""m: the thesis's view window, two agent radii of its 15 cm airframe (Tables 3.2 and 5.1)."""
 MAX_STEPS = 6
 """Most phase steps an agent takes in one planner tick (a step that only changes the phase lets the next act)."""
 
@@ -194,12 +202,18 @@ def _field_error(name: str, message: str) -> ConfigError:
 
 
 class StigmergyParams(Params):
-    """Parameters of the 3-D stigmergy planner (defaults: thesis Tables 5.1 and 5.2).
+    """Parameters of the 3-D stigmergy planner (defaults: thesis Tables 5.1 and 5.2, plus our extensions).
 
     The floor, depot and cruise altitudes default (null) to values derived from the task layout
     (see ``FlightGeometry.from_task``); ``release_dwell_s`` defaults to 0 on the true state and
-    0.5 s when the agent flies on an estimate.
+    0.5 s when the agent flies on an estimate. Each extension of the thesis's algorithm is one
+    switch (``claims`` ... ``descent_timeout_s``), on by default; ``preset: thesis`` turns them
+    all off (the module's docstring has the table).
     """
+
+    preset: Preset | None = Field(None, strict=False,
+                                  description="thesis: every extension off, as the thesis's chapters and appendix "
+                                              "code write the algorithm (explicit values still win)")
 
     cell_size: float = Field(0.1, ge=0.01, le=1.0,
                              description="m, edge of a pheromone cell (thesis: 10 cm, a 30 x 10 x 10 grid)")
@@ -236,9 +250,36 @@ class StigmergyParams(Params):
                                                       "(null: 0, or 0.5 s flying on an estimate)")
     snapshot_s: float = Field(1.0, ge=0.0, le=1e4,
                               description="s, period of the pheromone snapshots kept for the figures (0: none)")
+    # ---- extensions of the thesis's algorithm (thesis value in brackets)
+    claims: bool = Field(True, description="leave a box or slot to a neighbour already working over it [false]")
+    wide_view: bool = Field(True, description="notice every object the task shows (view_radius + grasp height "
+                                              "around its grasp point); false: only within view_window [false]")
+    view_window: float = Field(THESIS_VIEW_M, gt=0.0, le=10.0,
+                               description="m, half-width (max-norm, horizontal, centre to centre) of the view "
+                                           "without wide_view: two radii of the thesis's 15 cm airframe")
+    layout_altitudes: bool = Field(True, description="floor and depot altitudes for seeing, search points over the "
+                                                     "structure moved to its edge, local search along its face "
+                                                     "[false: one altitude from the box size, points as drawn]")
+    leave_boxes_by_structure: bool = Field(True, description="leave alone boxes lying beside the structure, whose "
+                                                             "descent would scrape it [false]")
+    drift_breakoff: bool = Field(True, description="break off a descent pushed off its column and climb straight "
+                                                   "back [false]")
+    loose_box_check: bool = Field(True, description="never descend with a box onto a slot with a loose box in it "
+                                                    "[false]")
+    retake: bool = Field(True, description="take back a box let go that did not come to rest in its slot, and "
+                                           "serve the slot again [false]")
+    descent_timeout_s: float | None = Field(DESCENT_TIMEOUT_S, gt=0.0, le=1e4,
+                                            description="s, break off a descent with a box that has not ended in "
+                                                        "a release by then [null: never]")
 
     #: pheromone layers of the grid (sizes its memory)
     LAYERS: ClassVar[int] = 1
+    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.THESIS: {
+        "cell_size": 0.1, "grid_height": 1.0, "box_pheromone": 1.0, "goal_pheromone": -1.0, "trail_pheromone": 0.2,
+        "fatigue": 0.0, "local_radius": 0.2, "distance_scale": None, "ties": TieBreak.FIRST.value,
+        "claims": False, "wide_view": False, "view_window": THESIS_VIEW_M, "layout_altitudes": False,
+        "leave_boxes_by_structure": False, "drift_breakoff": False, "loose_box_check": False, "retake": False,
+        "descent_timeout_s": None}}
 
     def check_for(self, context: PlanContext) -> None:
         """Refuse a pheromone grid (with its snapshots) larger than the memory budget."""
@@ -261,9 +302,19 @@ class LayeredStigmergyParams(StigmergyParams):
                                     description="value units per second by which presence marks fade (2/s erases a "
                                                 "2 in 1 s)")
     lookahead: float = Field(0.2, gt=0.0, le=2.0,
-                             description="m, how far along its way an agent checks for other agents' marks")
+                             description="m, how far along its way an agent checks for other agents' marks "
+                                         "[0.1: the next cell]")
+    footprint: bool = Field(True, description="mark and check the airframe's extent (one agent radius) and the "
+                                              "carried box, not only the agent's own cell [false]")
+    ahead_cone: bool = Field(True, description="only marks ahead of the way block it (within AHEAD_DEG): an agent "
+                                               "may move away from a neighbour beside or behind it [false]")
+    detour: bool = Field(True, description="after a re-plan keep to the new search point for as long as a mark "
+                                           "lasts before going for a seen object again [false]")
 
     LAYERS: ClassVar[int] = 2
+    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.THESIS: {
+        **StigmergyParams.PRESETS[Preset.THESIS], "presence_pheromone": 2.0, "presence_fatigue": 2.0,
+        "lookahead": 0.1, "footprint": False, "ahead_cone": False, "detour": False}}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -362,12 +413,16 @@ class FlightGeometry:
         # and a carried box clears a box lying on the floor (one knocked out of the structure or let go
         # beside it lies where carriers stop to climb): a box caught on its edge pushes on the carried box
         # gh + bs/2 below the airframe's centre, a torque the attitude loop of a small airframe cannot hold
+        # (without ``layout_altitudes`` only the clearance: one altitude over the floor and a flat depot)
+        seeing = p.layout_altitudes
         floor = (p.floor_altitude if p.floor_altitude is not None
-                 else max(0.5 * (slot_grasp.min() + slot_grasp.max()), bs + carried_bottom + VERTICAL_CLEARANCE))
+                 else max(0.5 * (slot_grasp.min() + slot_grasp.max()) if seeing else 0.0,
+                          bs + carried_bottom + VERTICAL_CLEARANCE))
         ground_grasp = 0.5 * bs + gh
         depot_top = float(np.max(info.depot[:, 2])) + 0.5 * bs if len(info.depot) else bs
         look = (p.look_altitude if p.look_altitude is not None
-                else max(ground_grasp + 0.5 * view, depot_top + carried_bottom + VERTICAL_CLEARANCE))
+                else max(ground_grasp + 0.5 * view if seeing else floor,
+                         depot_top + carried_bottom + VERTICAL_CLEARANCE))
         top = float(np.max(info.slots[:, 2])) + 0.5 * bs
         cruise = (p.cruise_altitude if p.cruise_altitude is not None
                   else max(float(info.extra.get("search_height", 0.0)), top + carried_bottom + VERTICAL_CLEARANCE))
@@ -629,7 +684,7 @@ class Stigmergy:
             self._mark(medium, obs.position, self.params.goal_pheromone, "goals_found")
             self.column = obs.position[:2].copy()
             self.let_go = LetGo(self.carry.box, Sighting(self.slot.id, self.slot.pos.copy()), obs.time_s)
-            self.phase = Phase.SETTLING
+            self.phase = Phase.SETTLING if self.params.retake else Phase.CLIMB
         else:
             self.phase = Phase.CHOOSE_BOX
         self.carry = None
@@ -663,11 +718,14 @@ class Stigmergy:
     def _choose(self, obs: Observation, medium: PheromoneGrid | None, sign: int) -> None:
         """Next search point by the thesis's cycle: random, strongest pheromone, local random, random, ..."""
         p = obs.position
+        ties = self.params.ties
         best = None
         if medium is not None:
             best = medium.strongest(Layer.TASK.value, sign, near=p, distance_scale=self.params.distance_scale,
-                                    rng=self.rng if self.params.ties is TieBreak.RANDOM else None, by_column=True)
+                                    rng=self.rng if ties is TieBreak.RANDOM else None, by_column=True,
+                                    first_by=THESIS_GRID_ORDER if ties is TieBreak.FIRST else None)
         g = self.geo
+        layout = self.params.layout_altitudes
         if best is None or self.strategy == Strategy.LOCAL:
             self.strategy = Strategy.RANDOM
             xy = self.rng.uniform(g.arena_lo, g.arena_hi)
@@ -678,13 +736,14 @@ class Stigmergy:
             self.strategy = Strategy.LOCAL
             r = self.params.local_radius
             xy = p[:2] + self.rng.uniform(-r, r, size=2)
-            face = g.face_normal(p[:2], reach=g.standoff + self.params.arrive_tol + COLUMN_TOL)
+            face = g.face_normal(p[:2], reach=g.standoff + self.params.arrive_tol + COLUMN_TOL) if layout else None
             if face is not None:   # beside the structure: look along its face, where slots are in view
                 tangent = np.array([-face[1], face[0]]) / np.hypot(*face)
                 xy = p[:2] + self.rng.uniform(-r, r) * tangent + face * (1.0 + 1e-6) + 1e-3 * face / np.hypot(*face)
         # a point over the structure is searched from the edge of the keep-out zone, low, where the
         # agent sees slots of every layer (over the structure it flies too high to see the bottom one)
-        self.target = g.outside(np.clip(xy, g.arena_lo, g.arena_hi), p[:2])
+        xy = np.clip(xy, g.arena_lo, g.arena_hi)
+        self.target = g.outside(xy, p[:2]) if layout else xy
         if medium is not None:
             medium.tally(f"target_{self.strategy.name.lower()}")
 
@@ -711,8 +770,8 @@ class Stigmergy:
     def _step_seek_goal(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
         """SEEK_GOAL -> TO_SLOT (an open, empty slot in view) | CHOOSE_GOAL (search point reached)."""
         p = obs.position
-        s = self._pick(obs, obs.slot_ids, obs.slots, self.offset,
-                       skip=np.array([self._occupied(obs, q) for q in obs.slots], dtype=bool))
+        loose = [self._occupied(obs, q) for q in obs.slots] if self.params.loose_box_check else []
+        s = self._pick(obs, obs.slot_ids, obs.slots, self.offset, skip=np.array(loose, dtype=bool) if loose else None)
         if s >= 0:
             self.slot = Sighting(int(obs.slot_ids[s]), obs.slots[s].copy())
             self.phase = Phase.TO_SLOT
@@ -734,11 +793,14 @@ class Stigmergy:
         objects marked in ``skip`` (k,) are left alone too."""
         if len(ids) == 0 or self._ignoring_objects(obs):
             return -1
+        par = self.params
         cols = where[:, :2] - shift[:2]
-        free = np.array([not self._claimed(obs, c) for c in cols])
+        free = np.array([not (par.claims and self._claimed(obs, c)) for c in cols])
+        if not par.wide_view:   # the thesis's window: object centre to agent centre, largest horizontal difference
+            free &= np.max(np.abs(where[:, :2] - obs.position[:2]), axis=1) <= par.view_window
         if skip is not None:
             free &= ~skip
-        if boxes:
+        if boxes and par.leave_boxes_by_structure:
             free &= self.geo.clear_of_structure(cols)
         if not free.any():
             return -1
@@ -773,7 +835,7 @@ class Stigmergy:
         if seen.size:
             self.box.pos = obs.boxes[seen[0]].copy()
         if (not seen.size and self._gone(obs.position, self.box.pos)) or (
-                claims and self._claimed(obs, self.box.pos[:2])):
+                claims and self.params.claims and self._claimed(obs, self.box.pos[:2])):
             self.phase = Phase.SEEK_BOX          # taken or claimed by another agent: keep looking
             self.box = Sighting(-1, self.box.pos)
             return True
@@ -831,17 +893,18 @@ class Stigmergy:
         a neighbour works over it."""
         seen = bool(np.any(obs.slot_ids == self.slot.id))
         if (not seen and self._gone(obs.position, self.slot.pos)) or (
-                claims and self._claimed(obs, self.slot.pos[:2] - self.offset[:2])):
+                claims and self.params.claims and self._claimed(obs, self.slot.pos[:2] - self.offset[:2])):
             self.phase = Phase.SEEK_GOAL         # filled or claimed by another agent: keep looking
             self.slot = Sighting(-1, self.slot.pos)
             return True
         return False
 
     def _slot_blocked(self, obs: Observation, *, descending: bool) -> bool:
-        """-> SEEK_GOAL when a loose box lies in the slot, or (``descending``) the box could not be
-        set down within ``DESCENT_TIMEOUT_S``."""
-        if self._occupied(obs, self.slot.pos) or (
-                descending and obs.time_s - self.watch.descent_start > DESCENT_TIMEOUT_S):
+        """-> SEEK_GOAL when a loose box lies in the slot (``loose_box_check``), or (``descending``) the
+        box could not be set down within ``descent_timeout_s``."""
+        timeout = self.params.descent_timeout_s
+        if (self.params.loose_box_check and self._occupied(obs, self.slot.pos)) or (
+                descending and timeout is not None and obs.time_s - self.watch.descent_start > timeout):
             self.phase = Phase.SEEK_GOAL
             self.slot = Sighting(-1, self.slot.pos)
             self.watch.clear()
@@ -947,8 +1010,9 @@ class Stigmergy:
         return Command.goto([self.column[0], self.column[1], h])
 
     def _drifted(self, p: NDArray[np.float64], xy: NDArray[np.float64]) -> bool:
-        """True when a descent at ``p`` (3,) m has been pushed more than ``DRIFT_TOL`` off its column ``xy`` (2,) m."""
-        return bool(np.hypot(*(p[:2] - xy)) > DRIFT_TOL)
+        """True when a descent at ``p`` (3,) m has been pushed more than ``DRIFT_TOL`` off its column ``xy`` (2,) m
+        (never without ``drift_breakoff``: the descent goes on towards its point)."""
+        return self.params.drift_breakoff and bool(np.hypot(*(p[:2] - xy)) > DRIFT_TOL)
 
     def _break_off(self, obs: Observation, then: Phase) -> None:
         """Break off a descent pushed off its column (by a neighbour's avoidance, a gust, a snagged box):
@@ -1029,12 +1093,12 @@ class LayeredStigmergy(Stigmergy):
         if self.phase in TRAVELLING and self._blocked(obs, cmd, medium):
             medium.tally("presence_replans")
             self._replan()
-            # search elsewhere for as long as a mark lasts before going for a seen object again:
-            # two agents wanting to pass each other would otherwise block each other for ever
-            self.detour_until = obs.time_s + self.params.presence_pheromone / self.params.presence_fatigue
+            if self.params.detour:
+                # search elsewhere for as long as a mark lasts before going for a seen object again:
+                # two agents wanting to pass each other would otherwise block each other for ever
+                self.detour_until = obs.time_s + self.params.presence_pheromone / self.params.presence_fatigue
             cmd = Command.hold()
-        p = obs.position
-        marks = [p, p + self.offset] if self.holding else [p]
+        marks = self._origins(obs.position)
         for q in marks:
             medium.deposit(Layer.PRESENCE.value, q, self.params.presence_pheromone, rule=DepositRule.SET,
                            source=self.id)
@@ -1060,16 +1124,21 @@ class LayeredStigmergy(Stigmergy):
         step = 0.5 * self.params.cell_size
         s = np.arange(step, min(self.params.lookahead, dist) + step - 1e-9, step)   # (k,) m along the way
         swept = (np.outer(s, u)[:, None, :] + self._footprint[None, :, :]).reshape(-1, 3)   # offsets from a centre
-        origins = [p, p + self.offset] if self.holding else [p]                   # the agent, and its box
-        for o in origins:
+        for o in self._origins(p):
             pts = o + swept
             marked = pts[medium.values_at(Layer.PRESENCE.value, pts, exclude_source=self.id) > 0.0]
             if len(marked) == 0:
                 continue
+            if not self.params.ahead_cone:
+                return True
             rel = medium.centre(medium.index(marked)) - o                          # (m, 3) m
             if np.any(rel @ u > math.cos(math.radians(AHEAD_DEG)) * np.linalg.norm(rel, axis=1)):
                 return True
         return False
+
+    def _origins(self, p: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        """Points (3,) m the agent marks and checks from: itself, and with ``footprint`` its box."""
+        return [p, p + self.offset] if self.holding and self.params.footprint else [p]
 
     def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Start a run as agent ``agent_id`` (see ``Stigmergy.reset``)."""
@@ -1078,7 +1147,8 @@ class LayeredStigmergy(Stigmergy):
         r = info.agent_radius
         h = 0.5 * self.params.cell_size
         grid = np.array(np.meshgrid([-r, 0.0, r], [-r, 0.0, r], [-h, 0.0, h], indexing="ij"))
-        self._footprint = grid.reshape(3, -1).T   # (27, 3) m, offsets covering the airframe and its neighbourhood
+        # (27, 3) m, offsets covering the airframe and its neighbourhood; without ``footprint`` its centre only
+        self._footprint = grid.reshape(3, -1).T if self.params.footprint else np.zeros((1, 3))
 
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402

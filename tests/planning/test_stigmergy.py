@@ -381,7 +381,7 @@ def test_bad_parameters_are_refused_naming_the_field():
     assert _refused_field(StigmergyParams, goal_pheromone=1.0) == "goal_pheromone"
     assert _refused_field(LayeredStigmergyParams, lookahead=0.0) == "lookahead"
     assert _refused_field(StigmergyParams, lookahead=0.2) == "lookahead"    # a layered parameter only
-    assert _refused_field(StigmergyParams, ties="first") == "ties"
+    assert _refused_field(StigmergyParams, ties="last") == "ties"
     assert _refused_field(StigmergyParams, cell_size=float("nan")) == "cell_size"
     assert _refused_field(StigmergyParams, fatigue=True) == "fatigue"        # strict: a boolean is not a number
     assert StigmergyParams(ties="nearest").ties is TieBreak.NEAREST
