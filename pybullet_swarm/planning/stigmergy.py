@@ -23,39 +23,106 @@ a new search point by the cycle above (the thesis's "a search is recalculated ba
 pheromones in the 1st grid"), and keeps to it for as long as a mark lasts (1 s) before it goes
 for a seen object again. Its own marks it ignores (the grid remembers who marked each cell).
 
-What this platform needs beyond the thesis, whose agents moved boxes by being near them:
+What this platform needs beyond the thesis, whose agents moved boxes by being near them and
+flew through boxes, structure and each other (its collisions were "detected, but not simulated",
+Table 3.1): each item is either a need of physical boxes (kept under every preset) or an
+extension with its own switch (bold; the table below).
 
-* Altitudes. The task lets an agent see an object only near its grasp point (view radius 2
-  agent radii, as in the thesis), so agents fly low, at three levels derived from the layout every
-  agent is told (``TaskInfo.depot`` and ``slots``): over the open floor level with the middle of
-  the structure's grasp points, so that from beside the structure slots of every layer are in
-  view, and high enough for a carried box to clear a box lying on the floor (one knocked out of
-  the structure or let go beside it, which is left where it lies); over the depot high enough
-  for a carried box to clear the waiting boxes; over the
-  structure at the task's ``search_height``, clear of the finished structure. An agent climbs
-  before it enters a higher zone and descends after leaving it. A search point over the
-  structure is moved to the edge of its zone (on the agent's side), where the agent sees its
-  slots; a local search point of an agent beside the structure is spread along that edge
-  (the thesis's local square, turned to the wall), not back over the open floor, where no slot
-  is in view. The layout is used for nothing else: boxes and slots are still found by seeing them,
+* Altitudes. The task lets an agent see an object only near its grasp point, so agents fly low:
+  over the open floor and the depot high enough for a carried box to clear a box lying on the floor
+  or waiting in the depot, over the structure at the task's ``search_height``, clear of the finished
+  structure; an agent climbs straight up before it enters a higher zone and descends after leaving
+  it (needs). Without the extension below, floor and depot share one altitude, the box clearance
+  counted from where a climb ends (``ALTITUDE_TOL`` below the altitude: a carried box that clears
+  the depot's boxes only at the nominal altitude snags one as its carrier sets off, and a
+  layered agent held up there flips over). **layout_altitudes**: the floor altitude also level with the middle of the
+  structure's grasp points and the depot's half a view above the boxes' grasp points, so that slots
+  of every layer and the depot's boxes are in view; a search point over the structure moved to the
+  edge of its zone (on the agent's side), where the agent sees its slots; a local search point of an
+  agent beside the structure spread along that edge (the thesis's local square, turned to the
+  wall). The layout is used for nothing else: boxes and slots are still found by seeing them,
   guided by the pheromones.
-* Grasping and placing. An agent goes above the object, descends straight down, grasps within
-  60 % of the attach threshold, and places its box from ``release_clearance`` above the slot,
-  where the box hangs at the offset it had when grasped (measured from the box it saw then).
-  A descent pushed more than ``DRIFT_TOL`` off its column (by a neighbour's avoidance, say) is
-  broken off: the agent climbs straight back to its flying altitude and comes over the object
-  again, rather than sweeping what hangs under it diagonally through a neighbouring stack.
-  Boxes lying beside the structure, whose descent would scrape it, are left alone.
-* Claims. An agent leaves a box or slot to a neighbour already working over it (lower, or at
+* Grasping and placing (needs). An agent goes above the object, descends straight down, grasps
+  within 60 % of the attach threshold, and places its box from ``release_clearance`` above the
+  slot, where the box hangs at the offset it had when grasped (measured from the box it saw then).
+  **drift_breakoff**: a descent pushed more than ``DRIFT_TOL`` off its column (by a neighbour's
+  avoidance, say) is broken off; the agent climbs straight back and comes over the object again,
+  rather than sweeping what hangs under it diagonally through a neighbouring stack.
+  **leave_boxes_by_structure**: boxes lying beside the structure, whose descent would scrape it,
+  are left alone. **loose_box_check**: no agent descends with a box onto a slot with a loose box
+  in it. **retake**: a box that did not come to rest in its slot is still a free box: the agent that
+  let it go watches it for ``SETTLE_S``, takes it again and serves the slot once more.
+  **descent_timeout_s**: a descent that does not end in a release by then is broken off.
+* **claims**: an agent leaves a box or slot to a neighbour already working over it (lower, or at
   the same height and nearer), so two agents never descend onto one object.
+* **wide_view**: an agent notices every object the task shows it (grasp point within the task's
+  ``view_radius`` plus the grasp height, max-norm: 27.7 cm per axis for ``quad150``) instead of the
+  thesis's window of two agent radii (15 cm: its 15 cm airframe) from its centre to the object's.
+* **ties**: among equally strong cells one is drawn at random (spreading agents over every found
+  box) instead of the first in the thesis's grid order.
 * Flying on an estimate (``TaskInfo.extra["position_std"]``, the per-axis standard deviation the
-  agent's filter settles to). The box is let go ``CLEARANCE_SIGMAS`` standard deviations above
-  its slot at least (a box pressed onto what is under it sticks there and drags the agent), and
-  only once the estimate has stayed within ``release_tol`` of the drop point for
-  ``release_dwell_s``. A box that did not come to rest in its slot is still a free box: the agent
-  that let it go sees it, takes it again and serves the slot once more; no agent descends with a
-  box onto a slot with a loose box in it, and a descent that does not end in a release within
-  ``DESCENT_TIMEOUT_S`` is broken off.
+  agent's filter settles to; needs, the thesis's agents knew where they were). The box is let go
+  ``CLEARANCE_SIGMAS`` standard deviations above its slot at least (a box pressed onto what is
+  under it sticks there and drags the agent), and only once the estimate has stayed within
+  ``release_tol`` of the drop point for ``release_dwell_s``.
+* Layered only: **lookahead** (20 cm along the way instead of the next 10 cm cell),
+  **footprint** (the swept airframe, one agent radius around its centre, and the carried box are
+  marked and checked, not only the agent's own cell), **ahead_cone** (only marks within
+  ``AHEAD_DEG`` of the way block it: an agent may always move away from a neighbour beside or
+  behind it), **detour** (after a re-plan the agent keeps to its new search point for as long as a
+  mark lasts, 1 s, before going for a seen object again: two agents wanting to pass each other would
+  otherwise block each other for ever).
+
+**The thesis preset** (``planner.params.preset: thesis``) switches every extension off:
+
+============================  ==========  ==========  =================================================
+switch                        default     thesis      source of the thesis's value
+============================  ==========  ==========  =================================================
+``ties``                      random      first       appendix A: ``[maxval, maxind] = max(pheromones(:))``
+``claims``                    true        false       neither: a box is skipped only once carried
+``wide_view``                 true        false       Table 5.1 (2 x agent radius), appendix A (max-norm)
+``view_window``               0.15 m      0.15 m      Table 3.2: 15 x 15 cm airframe, radius 7.5 cm
+``layout_altitudes``          true        false       appendix A: one ``search_height``, points as drawn
+``leave_boxes_by_structure``  true        false       not in the thesis
+``drift_breakoff``            true        false       not in the thesis
+``loose_box_check``           true        false       not in the thesis
+``retake``                    true        false       appendix A: a box let go counts as placed
+``descent_timeout_s``         20 s        null        not in the thesis
+``lookahead``                 0.2 m       0.1 m       appendix B: the cells next to the agent's own
+``footprint``                 true        false       appendix B: the agent marks its own cell only
+``ahead_cone``                true        false       chapter 6.0.4: "any area they move into"
+``detour``                    true        false       not in the thesis
+============================  ==========  ==========  =================================================
+
+It also sets the thesis's numbers where they are parameters (Tables 5.1, 5.2, 6.1: 10 cm cells,
++1, -1, trail 0.2, fatigue 0, local square +-20 cm, presence 2 fading at 2/s, no distance effect);
+explicitly given values win over it. Where the thesis's chapters and its appendix code disagree,
+the preset follows:
+
+* The trail: Table 5.2 lays 0.2 "at any time" where the value is below 0.2; appendix A lays it
+  only while looking for a box (state 1), only in an empty cell (``cur_p_value == 0``) and not
+  once at the target. The appendix: the chapter's rule would overwrite every -1 goal mark (-1 <
+  0.2), and the appendix is the code that produced Table 5.3.
+* The search: section 5.2.5 names three reactions (limit the search space, strongest pheromone,
+  distance effects) and says a mix of all three is used; appendix A cycles random -> strongest
+  (global maximum) -> local random (+-20 cm) -> random, without distance effects or a limited
+  search space. The appendix (``distance_scale: null``), for the same reason.
+* The presence layer: Table 6.1 marks with 2 fading at 2/s, and section 6.0.4 forbids moving into
+  a marked area and re-plans from the first layer; appendix B marks with 1, has no fading code,
+  erases the 3 x 3 cells around the agent (its neighbours' marks included) and computes the marked
+  neighbours (``taken``) without ever using them: as printed it avoids nothing, which would make
+  layered stigmergy 3-D stigmergy, against the different results of Table 6.2. The chapter for the
+  values and the reaction; the appendix for the area checked (the cells next to the agent's own:
+  ``lookahead`` one cell, no ``footprint``), read with the chapter's "area they move into" (the
+  cells along its way, no cone needed).
+* The view: Table 5.1 gives "2 x agent-radius" and appendix A measures it in the max-norm from the
+  agent's centre to the object's (``dist = max(abs(object - agent))``) at the objects' level. Our
+  agents fly above the objects (physical boxes), so the window is measured horizontally and the
+  task's view bounds the vertical. With it an agent beside the structure sees no bottom slot: the
+  structure's keep-out zone (half a box, one agent radius and ``structure_margin``, 17.6 cm from a
+  column's centre) is wider than the 15 cm window, and from above, at the structure's altitude,
+  bottom slots are out of the task's view. So under the bare preset no box is ever placed (the
+  thesis's agents flew through the structure); ``wide_view: true`` on top of it builds.
 """
 from __future__ import annotations
 
@@ -259,7 +326,8 @@ class StigmergyParams(Params):
                                            "without wide_view: two radii of the thesis's 15 cm airframe")
     layout_altitudes: bool = Field(True, description="floor and depot altitudes for seeing, search points over the "
                                                      "structure moved to its edge, local search along its face "
-                                                     "[false: one altitude from the box size, points as drawn]")
+                                                     "[false: one altitude at which a carried box clears the "
+                                                     "boxes on the floor, points as drawn]")
     leave_boxes_by_structure: bool = Field(True, description="leave alone boxes lying beside the structure, whose "
                                                              "descent would scrape it [false]")
     drift_breakoff: bool = Field(True, description="break off a descent pushed off its column and climb straight "
@@ -413,16 +481,17 @@ class FlightGeometry:
         # and a carried box clears a box lying on the floor (one knocked out of the structure or let go
         # beside it lies where carriers stop to climb): a box caught on its edge pushes on the carried box
         # gh + bs/2 below the airframe's centre, a torque the attitude loop of a small airframe cannot hold
-        # (without ``layout_altitudes`` only the clearance: one altitude over the floor and a flat depot)
+        # (without ``layout_altitudes`` only the clearance, one altitude over the floor and a flat depot,
+        # counted from where a climb ends: ALTITUDE_TOL below the altitude)
         seeing = p.layout_altitudes
         floor = (p.floor_altitude if p.floor_altitude is not None
-                 else max(0.5 * (slot_grasp.min() + slot_grasp.max()) if seeing else 0.0,
-                          bs + carried_bottom + VERTICAL_CLEARANCE))
+                 else max(0.5 * (slot_grasp.min() + slot_grasp.max()), bs + carried_bottom + VERTICAL_CLEARANCE)
+                 if seeing else bs + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL)
         ground_grasp = 0.5 * bs + gh
         depot_top = float(np.max(info.depot[:, 2])) + 0.5 * bs if len(info.depot) else bs
         look = (p.look_altitude if p.look_altitude is not None
-                else max(ground_grasp + 0.5 * view if seeing else floor,
-                         depot_top + carried_bottom + VERTICAL_CLEARANCE))
+                else max(ground_grasp + 0.5 * view, depot_top + carried_bottom + VERTICAL_CLEARANCE) if seeing
+                else max(floor, depot_top + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL))
         top = float(np.max(info.slots[:, 2])) + 0.5 * bs
         cruise = (p.cruise_altitude if p.cruise_altitude is not None
                   else max(float(info.extra.get("search_height", 0.0)), top + carried_bottom + VERTICAL_CLEARANCE))
