@@ -86,15 +86,16 @@ def table_rows(planner: str, configs: Sequence[tuple[str, dict[str, Any]]], rows
     for label, params in configs:
         cell = plain_cell(params)
         mine = [r for r in rows if r.get("planner.params") == cell and r.get("exit_status") != "error"]
-        runs = [{"completed": r.get("exit_status") == "completed", "sim_time_s": _number(r.get("sim_time_s")),
-                 "completion_time_s": _number(r.get("completion_time_s")),
-                 "collisions": _number(r.get(collisions)), "utility_of_space": _number(r.get("utility_of_space")),
-                 "boxes_placed": _number(r.get("boxes_placed")), "seed": r.get("seed")} for r in mine]
+        runs: list[dict[str, Any]] = [
+            {"completed": r.get("exit_status") == "completed", "sim_time_s": _number(r.get("sim_time_s")),
+             "completion_time_s": _number(r.get("completion_time_s")), "collisions": _number(r.get(collisions)),
+             "utility_of_space": _number(r.get("utility_of_space")), "boxes_placed": _number(r.get("boxes_placed")),
+             "seed": r.get("seed")} for r in mine]
         runs_by.append((label, runs))
         rec: dict[str, Any] = {"planner": planner, "configuration": label, "params": params, "runs": len(runs),
                                "completed": sum(r["completed"] for r in runs)}
         for key in ("completion_time_s", "collisions", "utility_of_space", "boxes_placed"):
-            vals = [r[key] for r in runs if key != "completion_time_s" or r["completed"]]
+            vals = [float(r[key]) for r in runs if key != "completion_time_s" or r["completed"]]
             s = describe(vals, ci=ci)
             rec.update({f"{key}_n": s.n, f"{key}_mean": s.mean, f"{key}_ci95_low": s.ci95_low,
                         f"{key}_ci95_high": s.ci95_high, f"{key}_median": s.median})

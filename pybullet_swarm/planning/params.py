@@ -61,10 +61,10 @@ class Params(pydantic.BaseModel):
         if "preset" not in cls.model_fields or not cls.PRESETS:
             raise ParamRuleError("preset", f"these parameters have no presets, got {_quoted(name)}")
         try:
-            preset = Preset(name) if isinstance(name, str) else name
+            preset: Preset | None = Preset(name)
         except ValueError:
             preset = None
-        if preset not in cls.PRESETS:
+        if preset is None or preset not in cls.PRESETS:
             choices = " | ".join(p.value for p in cls.PRESETS)
             raise ParamRuleError("preset", f"must be one of {choices}, got {_quoted(name)}")
         return {**cls.PRESETS[preset], **data}
