@@ -9,6 +9,13 @@ The scenario validates ``planner.params`` and ``avoidance_params`` against these
 is loaded; the tuner reads the ranges from them (``describe``); ``pybullet-swarm list`` prints
 them. Checks that need the scenario (the arena's size for a grid, the number of agents for an
 adjacency matrix) go in ``check_for``, called at load with a ``PlanContext``.
+
+A model may offer **presets**: named sets of values (``PRESETS``), chosen with its ``preset``
+field (``planner.params.preset: thesis``). The preset's values are defaults: a parameter given
+explicitly beside the preset keeps its given value (``{preset: thesis, claims: true}`` is the
+thesis preset with neighbour claims switched back on). A preset is refused at load by a model
+that has none. The validated model holds ``preset`` and every value, so a resolved scenario
+names both (and reproduces the run: its explicit values equal the preset's).
 """
 from __future__ import annotations
 
@@ -16,7 +23,7 @@ import dataclasses
 import enum
 import types
 import typing
-from typing import Any, Literal, Union
+from typing import Any, ClassVar, Literal, Mapping, Union
 
 import annotated_types
 import pydantic
@@ -29,13 +36,63 @@ default; a configuration that needs more is refused at load, saying how much it 
 scenario passes the configured budget (``pybullet_swarm.memory.memory_budget``) in ``PlanContext``."""
 
 
+class Preset(str, enum.Enum):
+    """Named sets of parameter values (a model's ``preset`` field)."""
+
+    THESIS = "thesis"   # the thesis's algorithms as its chapters and appendix code write them: every extension off
+
+
 class Params(pydantic.BaseModel):
-    """Base of every parameter model: frozen, strict, no unknown names, finite numbers only."""
+    """Base of every parameter model: frozen, strict, no unknown names, finite numbers only.
+
+    A model with presets declares a ``preset: Preset | None`` field and ``PRESETS`` (preset ->
+    ``{field: value}``); see the module's docstring for how a preset is applied.
+    """
 
     model_config = pydantic.ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
 
+    #: preset -> values of the fields it sets (plain data, validated like given values)
+    PRESETS: ClassVar[Mapping[Preset, Mapping[str, Any]]] = {}
+
+    @pydantic.model_validator(mode="before")
+    @classmethod
+    def _apply_preset(cls, data: Any) -> Any:
+        """Fill the fields a chosen preset sets and that are not given explicitly."""
+        if not isinstance(data, dict) or data.get("preset") is None:
+            return data
+        name = data["preset"]
+        if "preset" not in cls.model_fields or not cls.PRESETS:
+            raise ParamRuleError("preset", f"these parameters have no presets, got {_quoted(name)}")
+        try:
+            preset: Preset | None = Preset(name)
+        except ValueError:
+            preset = None
+        if preset is None or preset not in cls.PRESETS:
+            choices = " | ".join(p.value for p in cls.PRESETS)
+            raise ParamRuleError("preset", f"must be one of {choices}, got {_quoted(name)}")
+        return {**cls.PRESETS[preset], **data}
+
     def check_for(self, context: PlanContext) -> None:
         """Refuse values that do not fit the scenario (raise ``ParamRuleError``); none by default."""
+
+
+def _quoted(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def preset_values(model: type[Params], preset: Preset | str) -> dict[str, Any]:
+    """Every value a model takes under ``preset`` with nothing else given (plain data)."""
+    return model.model_validate({"preset": Preset(preset).value}).model_dump(mode="json")
+
+
+def extensions(model: type[Params], preset: Preset | str = Preset.THESIS) -> dict[str, tuple[Any, Any]]:
+    """The fields a preset sets to a value other than the default: ``{field: (preset value, default)}``
+    (plain data), in the model's field order. For the thesis preset: the model's extensions of the thesis."""
+    chosen = preset_values(model, preset)
+    default = model().model_dump(mode="json")
+    return {k: (chosen[k], default[k]) for k in model.model_fields
+            if k != "preset" and k in model.PRESETS.get(Preset(preset), {}) and chosen[k] != default[k]}
 
 
 class NoParams(Params):
@@ -223,5 +280,5 @@ def _plain(value: Any) -> Any:
     return value
 
 
-__all__ = ["MEMORY_BUDGET_BYTES", "NoParams", "ParamInfo", "ParamRuleError", "Params", "PlanContext",
-           "check_memory", "describe", "field_info", "type_text"]
+__all__ = ["MEMORY_BUDGET_BYTES", "NoParams", "ParamInfo", "ParamRuleError", "Params", "PlanContext", "Preset",
+           "check_memory", "describe", "extensions", "field_info", "preset_values", "type_text"]

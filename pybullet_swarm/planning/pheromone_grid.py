@@ -171,7 +171,8 @@ class PheromoneGrid:
 
     def strongest(self, layer: str, sign: int = +1, *, near: ArrayLike | None = None,
                   distance_scale: float | None = None,
-                  rng: np.random.Generator | None = None, by_column: bool = False) -> NDArray[np.float64] | None:
+                  rng: np.random.Generator | None = None, by_column: bool = False,
+                  first_by: tuple[int, ...] | None = None) -> NDArray[np.float64] | None:
         """Centre (3,) m of the cell with the strongest value of the given sign, or None when no cell has one.
 
         Args:
@@ -185,6 +186,8 @@ class PheromoneGrid:
             by_column: equally strong cells stacked in one vertical column count once (the lowest
                 stands for them) in the random draw, so that a column marked at several
                 altitudes is not drawn more often than one marked once.
+            first_by: axes from most to least significant (e.g. ``(1, 2, 0)``); when given (and no
+                ``rng``), the first of equally strong cells in that order wins, whatever ``near`` is.
         """
         self._check(layer)
         if sign not in (-1, 1):
@@ -210,6 +213,8 @@ class PheromoneGrid:
         centres = self.centre(idx)
         if rng is not None:
             return centres[int(rng.integers(len(centres)))]
+        if first_by is not None:
+            return centres[int(np.lexsort(tuple(idx[:, a] for a in reversed(first_by)))[0])]
         if near is None:
             return centres[0]
         return centres[int(np.argmin(np.linalg.norm(centres - np.asarray(near, dtype=float), axis=1)))]

@@ -17,17 +17,36 @@ of it (the target moves by the box's remaining error), it is let go ``CLEARANCE_
 standard deviations above its slot at least and only after it has stayed within ``release_tol``
 for ``RELEASE_DWELL_S``. A slot whose box came to rest off it is served again, with the box
 lying in it if there is one.
+
+Extensions of the thesis's baseline (chapter 3.5: "directs the agents to move in a straight line
+from the boxes to their desired location, until all boxes have been placed correctly"), each a
+switch of ``ShortestPathParams``, on by default, off under ``preset: thesis``:
+
+==================  =======  ======  ===========================================================
+switch              default  thesis  what it does
+==================  =======  ======  ===========================================================
+``altitude_step``   0.2 m    0       agent i cruises ``i * altitude_step`` above the search height,
+                                     so that loaded airframes do not meet at one cruise altitude
+``retry_slots``     true     false   a slot whose box came to rest off it is served again (with
+                                     the box lying in it first, if there is one)
+==================  =======  ======  ===========================================================
+
+The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
+chapter 3.5 is all the preset follows. The climb to the cruise altitude before flying, the
+straight descent and the wait for an open slot are needs of this platform's physical boxes (the
+thesis's passed through each other and through the structure), as is everything above about
+flying on estimates (the thesis's agents knew their positions); they stay under the preset.
 """
 from __future__ import annotations
 
 import enum
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from pydantic import Field
 
 from pybullet_swarm.planning.base import Action, Command, TaskInfo, WorldView
-from pybullet_swarm.planning.params import Params
+from pybullet_swarm.planning.params import Params, Preset
 
 CLEARANCE_SIGMAS = 3.0
 """Least release clearance, in standard deviations of an agent's own position estimate."""
@@ -53,7 +72,12 @@ class Phase(enum.IntEnum):
 
 
 class ShortestPathParams(Params):
-    """Parameters of the ``shortest_path`` baseline (scenario ``planner.params``)."""
+    """Parameters of the ``shortest_path`` baseline (scenario ``planner.params``); see the module's
+    docstring for the extensions and ``preset: thesis``."""
+
+    preset: Preset | None = Field(None, strict=False,
+                                  description="thesis: every extension off, as the thesis's chapter 3.5 describes "
+                                              "the baseline (explicit values still win)")
 
     arrive_tol: float = Field(0.01, gt=0.0, le=1.0,
                               description="m, horizontal distance at which a waypoint counts as reached")
@@ -62,6 +86,9 @@ class ShortestPathParams(Params):
                                  description="m, agent i cruises at search_height + i * altitude_step")
     release_tol: float = Field(0.005, gt=0.0, le=0.5,
                                description="m, per-axis error of a held box within which it is let go on estimates")
+    retry_slots: bool = Field(True, description="serve again a slot whose box came to rest off it [false]")
+
+    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.THESIS: {"altitude_step": 0.0, "retry_slots": False}}
 
 
 class ShortestPath:
@@ -109,7 +136,8 @@ class ShortestPath:
         taken_boxes = set(self.box[self.box >= 0].tolist())
         while self.next_slot < len(self.order) and view.slot_filled[self.order[self.next_slot]] >= 0:
             self.next_slot += 1
-        k = self._retry_slot(view)     # a slot passed over earlier that is empty again (its box came to rest off it)
+        # a slot passed over earlier that is empty again (its box came to rest off it)
+        k = self._retry_slot(view) if self.params.retry_slots else -1
         if k < 0 and self.next_slot >= len(self.order):
             self.phase[i] = Phase.DONE
             return
@@ -118,7 +146,7 @@ class ShortestPath:
             self.phase[i] = Phase.DONE
             return
         s = self.order[k if k >= 0 else self.next_slot]
-        loose = [b for b in free if self._in_slot(view.box_positions[b], s)]
+        loose = [b for b in free if self.params.retry_slots and self._in_slot(view.box_positions[b], s)]
         if loose:              # the box lying in the slot goes first: nothing is set down onto it
             self.box[i] = loose[0]
         else:

@@ -23,46 +23,113 @@ a new search point by the cycle above (the thesis's "a search is recalculated ba
 pheromones in the 1st grid"), and keeps to it for as long as a mark lasts (1 s) before it goes
 for a seen object again. Its own marks it ignores (the grid remembers who marked each cell).
 
-What this platform needs beyond the thesis, whose agents moved boxes by being near them:
+What this platform needs beyond the thesis, whose agents moved boxes by being near them and
+flew through boxes, structure and each other (its collisions were "detected, but not simulated",
+Table 3.1): each item is either a need of physical boxes (kept under every preset) or an
+extension with its own switch (bold; the table below).
 
-* Altitudes. The task lets an agent see an object only near its grasp point (view radius 2
-  agent radii, as in the thesis), so agents fly low, at three levels derived from the layout every
-  agent is told (``TaskInfo.depot`` and ``slots``): over the open floor level with the middle of
-  the structure's grasp points, so that from beside the structure slots of every layer are in
-  view, and high enough for a carried box to clear a box lying on the floor (one knocked out of
-  the structure or let go beside it, which is left where it lies); over the depot high enough
-  for a carried box to clear the waiting boxes; over the
-  structure at the task's ``search_height``, clear of the finished structure. An agent climbs
-  before it enters a higher zone and descends after leaving it. A search point over the
-  structure is moved to the edge of its zone (on the agent's side), where the agent sees its
-  slots; a local search point of an agent beside the structure is spread along that edge
-  (the thesis's local square, turned to the wall), not back over the open floor, where no slot
-  is in view. The layout is used for nothing else: boxes and slots are still found by seeing them,
+* Altitudes. The task lets an agent see an object only near its grasp point, so agents fly low:
+  over the open floor and the depot high enough for a carried box to clear a box lying on the floor
+  or waiting in the depot, over the structure at the task's ``search_height``, clear of the finished
+  structure; an agent climbs straight up before it enters a higher zone and descends after leaving
+  it (needs). Without the extension below, floor and depot share one altitude, the box clearance
+  counted from where a climb ends (``ALTITUDE_TOL`` below the altitude: a carried box that clears
+  the depot's boxes only at the nominal altitude snags one as its carrier sets off, and a
+  layered agent held up there flips over). **layout_altitudes**: the floor altitude also level with the middle of the
+  structure's grasp points and the depot's half a view above the boxes' grasp points, so that slots
+  of every layer and the depot's boxes are in view; a search point over the structure moved to the
+  edge of its zone (on the agent's side), where the agent sees its slots; a local search point of an
+  agent beside the structure spread along that edge (the thesis's local square, turned to the
+  wall). The layout is used for nothing else: boxes and slots are still found by seeing them,
   guided by the pheromones.
-* Grasping and placing. An agent goes above the object, descends straight down, grasps within
-  60 % of the attach threshold, and places its box from ``release_clearance`` above the slot,
-  where the box hangs at the offset it had when grasped (measured from the box it saw then).
-  A descent pushed more than ``DRIFT_TOL`` off its column (by a neighbour's avoidance, say) is
-  broken off: the agent climbs straight back to its flying altitude and comes over the object
-  again, rather than sweeping what hangs under it diagonally through a neighbouring stack.
-  Boxes lying beside the structure, whose descent would scrape it, are left alone.
-* Claims. An agent leaves a box or slot to a neighbour already working over it (lower, or at
+* Grasping and placing (needs). An agent goes above the object, descends straight down, grasps
+  within 60 % of the attach threshold, and places its box from ``release_clearance`` above the
+  slot, where the box hangs at the offset it had when grasped (measured from the box it saw then).
+  **drift_breakoff**: a descent pushed more than ``DRIFT_TOL`` off its column (by a neighbour's
+  avoidance, say) is broken off; the agent climbs straight back and comes over the object again,
+  rather than sweeping what hangs under it diagonally through a neighbouring stack.
+  **leave_boxes_by_structure**: boxes lying beside the structure, whose descent would scrape it,
+  are left alone. **loose_box_check**: no agent descends with a box onto a slot with a loose box
+  in it. **retake**: a box that did not come to rest in its slot is still a free box: the agent that
+  let it go watches it for ``SETTLE_S``, takes it again and serves the slot once more.
+  **descent_timeout_s**: a descent that does not end in a release by then is broken off.
+* **claims**: an agent leaves a box or slot to a neighbour already working over it (lower, or at
   the same height and nearer), so two agents never descend onto one object.
+* **wide_view**: an agent notices every object the task shows it (grasp point within the task's
+  ``view_radius`` plus the grasp height, max-norm: 27.7 cm per axis for ``quad150``) instead of the
+  thesis's window of two agent radii (15 cm: its 15 cm airframe) from its centre to the object's.
+* **ties**: among equally strong cells one is drawn at random (spreading agents over every found
+  box) instead of the first in the thesis's grid order.
 * Flying on an estimate (``TaskInfo.extra["position_std"]``, the per-axis standard deviation the
-  agent's filter settles to). The box is let go ``CLEARANCE_SIGMAS`` standard deviations above
-  its slot at least (a box pressed onto what is under it sticks there and drags the agent), and
-  only once the estimate has stayed within ``release_tol`` of the drop point for
-  ``release_dwell_s``. A box that did not come to rest in its slot is still a free box: the agent
-  that let it go sees it, takes it again and serves the slot once more; no agent descends with a
-  box onto a slot with a loose box in it, and a descent that does not end in a release within
-  ``DESCENT_TIMEOUT_S`` is broken off.
+  agent's filter settles to; needs, the thesis's agents knew where they were). The box is let go
+  ``CLEARANCE_SIGMAS`` standard deviations above its slot at least (a box pressed onto what is
+  under it sticks there and drags the agent), and only once the estimate has stayed within
+  ``release_tol`` of the drop point for ``release_dwell_s``.
+* Layered only: **lookahead** (20 cm along the way instead of the next 10 cm cell),
+  **footprint** (the swept airframe, one agent radius around its centre, and the carried box are
+  marked and checked, not only the agent's own cell), **ahead_cone** (only marks within
+  ``AHEAD_DEG`` of the way block it: an agent may always move away from a neighbour beside or
+  behind it), **detour** (after a re-plan the agent keeps to its new search point for as long as a
+  mark lasts, 1 s, before going for a seen object again: two agents wanting to pass each other would
+  otherwise block each other for ever).
+
+**The thesis preset** (``planner.params.preset: thesis``) switches every extension off:
+
+============================  ==========  ==========  =================================================
+switch                        default     thesis      source of the thesis's value
+============================  ==========  ==========  =================================================
+``ties``                      random      first       appendix A: ``[maxval, maxind] = max(pheromones(:))``
+``claims``                    true        false       neither: a box is skipped only once carried
+``wide_view``                 true        false       Table 5.1 (2 x agent radius), appendix A (max-norm)
+``view_window``               0.15 m      0.15 m      Table 3.2: 15 x 15 cm airframe, radius 7.5 cm
+``layout_altitudes``          true        false       appendix A: one ``search_height``, points as drawn
+``leave_boxes_by_structure``  true        false       not in the thesis
+``drift_breakoff``            true        false       not in the thesis
+``loose_box_check``           true        false       not in the thesis
+``retake``                    true        false       appendix A: a box let go counts as placed
+``descent_timeout_s``         20 s        null        not in the thesis
+``lookahead``                 0.2 m       0.1 m       appendix B: the cells next to the agent's own
+``footprint``                 true        false       appendix B: the agent marks its own cell only
+``ahead_cone``                true        false       chapter 6.0.4: "any area they move into"
+``detour``                    true        false       not in the thesis
+============================  ==========  ==========  =================================================
+
+It also sets the thesis's numbers where they are parameters (Tables 5.1, 5.2, 6.1: 10 cm cells,
++1, -1, trail 0.2, fatigue 0, local square +-20 cm, presence 2 fading at 2/s, no distance effect);
+explicitly given values win over it. Where the thesis's chapters and its appendix code disagree,
+the preset follows:
+
+* The trail: Table 5.2 lays 0.2 "at any time" where the value is below 0.2; appendix A lays it
+  only while looking for a box (state 1), only in an empty cell (``cur_p_value == 0``) and not
+  once at the target. The appendix: the chapter's rule would overwrite every -1 goal mark (-1 <
+  0.2), and the appendix is the code that produced Table 5.3.
+* The search: section 5.2.5 names three reactions (limit the search space, strongest pheromone,
+  distance effects) and says a mix of all three is used; appendix A cycles random -> strongest
+  (global maximum) -> local random (+-20 cm) -> random, without distance effects or a limited
+  search space. The appendix (``distance_scale: null``), for the same reason.
+* The presence layer: Table 6.1 marks with 2 fading at 2/s, and section 6.0.4 forbids moving into
+  a marked area and re-plans from the first layer; appendix B marks with 1, has no fading code,
+  erases the 3 x 3 cells around the agent (its neighbours' marks included) and computes the marked
+  neighbours (``taken``) without ever using them: as printed it avoids nothing, which would make
+  layered stigmergy 3-D stigmergy, against the different results of Table 6.2. The chapter for the
+  values and the reaction; the appendix for the area checked (the cells next to the agent's own:
+  ``lookahead`` one cell, no ``footprint``), read with the chapter's "area they move into" (the
+  cells along its way, no cone needed).
+* The view: Table 5.1 gives "2 x agent-radius" and appendix A measures it in the max-norm from the
+  agent's centre to the object's (``dist = max(abs(object - agent))``) at the objects' level. Our
+  agents fly above the objects (physical boxes), so the window is measured horizontally and the
+  task's view bounds the vertical. With it an agent beside the structure sees no bottom slot: the
+  structure's keep-out zone (half a box, one agent radius and ``structure_margin``, 17.6 cm from a
+  column's centre) is wider than the 15 cm window, and from above, at the structure's altitude,
+  bottom slots are out of the task's view. So under the bare preset no box is ever placed (the
+  thesis's agents flew through the structure); ``wide_view: true`` on top of it builds.
 """
 from __future__ import annotations
 
 import dataclasses
 import enum
 import math
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -71,7 +138,7 @@ from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import Action, Command, CommandKind, Observation, TaskInfo, view_distance
-from pybullet_swarm.planning.params import Params, PlanContext, check_memory
+from pybullet_swarm.planning.params import Params, PlanContext, Preset, check_memory
 from pybullet_swarm.planning.pheromone_grid import DepositRule, LayerSpec, PheromoneGrid
 
 
@@ -83,16 +150,65 @@ class Layer(str, enum.Enum):
 
 
 class Phase(enum.IntEnum):
-    """Where an agent is in its cycle (thesis Fig. 5.1: states 0-3, with the flying steps split out)."""
+    """Where an agent is in its cycle: thesis Fig. 5.1 (states 0-3), with every flying step explicit.
 
-    CHOOSE_BOX = 0    # thesis state 0: choose where to look for a box
-    SEEK_BOX = 1      # thesis state 1: fly there, watching for a free box
-    FETCH = 2         # a box is in view: above it, straight down, grasp
-    LIFT = 3          # holding a box: climb back to the flying altitude
-    CHOOSE_GOAL = 4   # thesis state 2: choose where to look for an open slot
-    SEEK_GOAL = 5     # thesis state 3: fly there, watching for an open slot
-    DELIVER = 6       # an open slot in view: above it, straight down, release
-    CLIMB = 7         # box placed: climb back
+    ==============  =================================================  ==========================================
+    phase           what the agent does                                next phase (the method that decides)
+    ==============  =================================================  ==========================================
+    CHOOSE_BOX      thesis state 0: next search point for a box        SEEK_BOX (``_step_choose_box``)
+    SEEK_BOX        thesis state 1: fly there, trail 0.2, watch        TO_BOX: a free box in view; CHOOSE_BOX:
+                                                                       point reached (``_step_seek_box``)
+    TO_BOX          fly over the box at the flying altitude            DESCEND_BOX: over it, settled; SEEK_BOX:
+                                                                       gone or claimed (``_step_to_box``)
+    DESCEND_BOX     straight down to its grasp point                   GRASPING: there, steady; RECLIMB_BOX:
+                                                                       pushed off the column; SEEK_BOX: gone
+                                                                       (``_step_descend_box``)
+    RECLIMB_BOX     straight back up after a broken-off descent        TO_BOX: at the flying altitude; SEEK_BOX
+                                                                       (``_step_reclimb_box``)
+    GRASPING        GRASP asked                                        LIFT (+1 marked) or TO_SLOT (a box taken
+                                                                       back): held; DESCEND_BOX: not (``_sync``)
+    LIFT            straight up with the box                           CHOOSE_GOAL: at the flying altitude
+    CHOOSE_GOAL     thesis state 2: next search point for a slot       SEEK_GOAL
+    SEEK_GOAL       thesis state 3: fly there, watch for open slots    TO_SLOT: an open, empty slot in view;
+                                                                       CHOOSE_GOAL: point reached
+    TO_SLOT         fly over the slot at the flying altitude           DESCEND_SLOT: over it, settled; SEEK_GOAL:
+                                                                       filled, claimed or a loose box in it
+    DESCEND_SLOT    straight down to the drop point                    RELEASING: settled there; RECLIMB_SLOT:
+                                                                       pushed off; SEEK_GOAL: filled, loose box
+                                                                       in it, or ``DESCENT_TIMEOUT_S`` passed
+    RECLIMB_SLOT    straight back up after a broken-off descent        TO_SLOT; SEEK_GOAL
+    RELEASING       RELEASE asked                                      SETTLING (-1 marked): let go;
+                                                                       DESCEND_SLOT: still held (``_sync``)
+    SETTLING        climb, give the box ``SETTLE_S`` to come to rest   DESCEND_BOX: it lies loose beside its slot
+                                                                       (take it back); CLIMB; CHOOSE_BOX: up
+    CLIMB           straight up from the release                       CHOOSE_BOX: at the flying altitude
+    ==============  =================================================  ==========================================
+
+    A held box slipping out of the grip sends any holding phase to CHOOSE_BOX (``_sync``); a
+    layered agent that meets another's presence mark while travelling goes to CHOOSE_BOX or
+    CHOOSE_GOAL (``_replan``).
+    """
+
+    CHOOSE_BOX = 0
+    SEEK_BOX = 1
+    TO_BOX = 2
+    DESCEND_BOX = 3
+    RECLIMB_BOX = 4
+    GRASPING = 5
+    LIFT = 6
+    CHOOSE_GOAL = 7
+    SEEK_GOAL = 8
+    TO_SLOT = 9
+    DESCEND_SLOT = 10
+    RECLIMB_SLOT = 11
+    RELEASING = 12
+    SETTLING = 13
+    CLIMB = 14
+
+
+#: phases in which an agent travels (searching, heading for an object, or back up to its altitude)
+TRAVELLING = frozenset({Phase.SEEK_BOX, Phase.SEEK_GOAL, Phase.TO_BOX, Phase.TO_SLOT, Phase.RECLIMB_BOX,
+                        Phase.RECLIMB_SLOT})
 
 
 class TieBreak(str, enum.Enum):
@@ -100,6 +216,12 @@ class TieBreak(str, enum.Enum):
 
     RANDOM = "random"     # any, drawn with the agent's own generator (spreads the agents out)
     NEAREST = "nearest"   # the nearest to the agent
+    FIRST = "first"       # the first in the thesis's grid order (MATLAB's max over pheromones(:), appendix A)
+
+
+#: axes (x, y, z of the arena) from most to least significant in the thesis's grid order: its grid is
+#: (long side, vertical, short side) stored column-major, so the short side (our y) varies slowest
+THESIS_GRID_ORDER = (1, 2, 0)
 
 
 class Strategy(enum.IntEnum):
@@ -133,7 +255,11 @@ CLEARANCE_SIGMAS = 3.0
 SETTLE_S = 0.3
 """s: after a release, how long the box is given to come to rest before the agent judges where it lies."""
 DESCENT_TIMEOUT_S = 20.0
-"""s: a descent with a box that has not ended in a release by then is broken off (climb, look again)."""
+"""s: default of ``descent_timeout_s``."""
+THESIS_VIEW_M = 0.15
+"""m: the thesis's view window, two agent radii of its 15 cm airframe (Tables 3.2 and 5.1)."""
+MAX_STEPS = 6
+"""Most phase steps an agent takes in one planner tick (a step that only changes the phase lets the next act)."""
 
 
 def _field_error(name: str, message: str) -> ConfigError:
@@ -143,12 +269,18 @@ def _field_error(name: str, message: str) -> ConfigError:
 
 
 class StigmergyParams(Params):
-    """Parameters of the 3-D stigmergy planner (defaults: thesis Tables 5.1 and 5.2).
+    """Parameters of the 3-D stigmergy planner (defaults: thesis Tables 5.1 and 5.2, plus our extensions).
 
     The floor, depot and cruise altitudes default (null) to values derived from the task layout
     (see ``FlightGeometry.from_task``); ``release_dwell_s`` defaults to 0 on the true state and
-    0.5 s when the agent flies on an estimate.
+    0.5 s when the agent flies on an estimate. Each extension of the thesis's algorithm is one
+    switch (``claims`` ... ``descent_timeout_s``), on by default; ``preset: thesis`` turns them
+    all off (the module's docstring has the table).
     """
+
+    preset: Preset | None = Field(None, strict=False,
+                                  description="thesis: every extension off, as the thesis's chapters and appendix "
+                                              "code write the algorithm (explicit values still win)")
 
     cell_size: float = Field(0.1, ge=0.01, le=1.0,
                              description="m, edge of a pheromone cell (thesis: 10 cm, a 30 x 10 x 10 grid)")
@@ -185,9 +317,37 @@ class StigmergyParams(Params):
                                                       "(null: 0, or 0.5 s flying on an estimate)")
     snapshot_s: float = Field(1.0, ge=0.0, le=1e4,
                               description="s, period of the pheromone snapshots kept for the figures (0: none)")
+    # ---- extensions of the thesis's algorithm (thesis value in brackets)
+    claims: bool = Field(True, description="leave a box or slot to a neighbour already working over it [false]")
+    wide_view: bool = Field(True, description="notice every object the task shows (view_radius + grasp height "
+                                              "around its grasp point); false: only within view_window [false]")
+    view_window: float = Field(THESIS_VIEW_M, gt=0.0, le=10.0,
+                               description="m, half-width (max-norm, horizontal, centre to centre) of the view "
+                                           "without wide_view: two radii of the thesis's 15 cm airframe")
+    layout_altitudes: bool = Field(True, description="floor and depot altitudes for seeing, search points over the "
+                                                     "structure moved to its edge, local search along its face "
+                                                     "[false: one altitude at which a carried box clears the "
+                                                     "boxes on the floor, points as drawn]")
+    leave_boxes_by_structure: bool = Field(True, description="leave alone boxes lying beside the structure, whose "
+                                                             "descent would scrape it [false]")
+    drift_breakoff: bool = Field(True, description="break off a descent pushed off its column and climb straight "
+                                                   "back [false]")
+    loose_box_check: bool = Field(True, description="never descend with a box onto a slot with a loose box in it "
+                                                    "[false]")
+    retake: bool = Field(True, description="take back a box let go that did not come to rest in its slot, and "
+                                           "serve the slot again [false]")
+    descent_timeout_s: float | None = Field(DESCENT_TIMEOUT_S, gt=0.0, le=1e4,
+                                            description="s, break off a descent with a box that has not ended in "
+                                                        "a release by then [null: never]")
 
     #: pheromone layers of the grid (sizes its memory)
     LAYERS: ClassVar[int] = 1
+    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.THESIS: {
+        "cell_size": 0.1, "grid_height": 1.0, "box_pheromone": 1.0, "goal_pheromone": -1.0, "trail_pheromone": 0.2,
+        "fatigue": 0.0, "local_radius": 0.2, "distance_scale": None, "ties": TieBreak.FIRST.value,
+        "claims": False, "wide_view": False, "view_window": THESIS_VIEW_M, "layout_altitudes": False,
+        "leave_boxes_by_structure": False, "drift_breakoff": False, "loose_box_check": False, "retake": False,
+        "descent_timeout_s": None}}
 
     def check_for(self, context: PlanContext) -> None:
         """Refuse a pheromone grid (with its snapshots) larger than the memory budget."""
@@ -210,9 +370,19 @@ class LayeredStigmergyParams(StigmergyParams):
                                     description="value units per second by which presence marks fade (2/s erases a "
                                                 "2 in 1 s)")
     lookahead: float = Field(0.2, gt=0.0, le=2.0,
-                             description="m, how far along its way an agent checks for other agents' marks")
+                             description="m, how far along its way an agent checks for other agents' marks "
+                                         "[0.1: the next cell]")
+    footprint: bool = Field(True, description="mark and check the airframe's extent (one agent radius) and the "
+                                              "carried box, not only the agent's own cell [false]")
+    ahead_cone: bool = Field(True, description="only marks ahead of the way block it (within AHEAD_DEG): an agent "
+                                               "may move away from a neighbour beside or behind it [false]")
+    detour: bool = Field(True, description="after a re-plan keep to the new search point for as long as a mark "
+                                           "lasts before going for a seen object again [false]")
 
     LAYERS: ClassVar[int] = 2
+    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.THESIS: {
+        **StigmergyParams.PRESETS[Preset.THESIS], "presence_pheromone": 2.0, "presence_fatigue": 2.0,
+        "lookahead": 0.1, "footprint": False, "ahead_cone": False, "detour": False}}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -311,12 +481,17 @@ class FlightGeometry:
         # and a carried box clears a box lying on the floor (one knocked out of the structure or let go
         # beside it lies where carriers stop to climb): a box caught on its edge pushes on the carried box
         # gh + bs/2 below the airframe's centre, a torque the attitude loop of a small airframe cannot hold
+        # (without ``layout_altitudes`` only the clearance, one altitude over the floor and a flat depot,
+        # counted from where a climb ends: ALTITUDE_TOL below the altitude)
+        seeing = p.layout_altitudes
         floor = (p.floor_altitude if p.floor_altitude is not None
-                 else max(0.5 * (slot_grasp.min() + slot_grasp.max()), bs + carried_bottom + VERTICAL_CLEARANCE))
+                 else max(0.5 * (slot_grasp.min() + slot_grasp.max()), bs + carried_bottom + VERTICAL_CLEARANCE)
+                 if seeing else bs + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL)
         ground_grasp = 0.5 * bs + gh
         depot_top = float(np.max(info.depot[:, 2])) + 0.5 * bs if len(info.depot) else bs
         look = (p.look_altitude if p.look_altitude is not None
-                else max(ground_grasp + 0.5 * view, depot_top + carried_bottom + VERTICAL_CLEARANCE))
+                else max(ground_grasp + 0.5 * view, depot_top + carried_bottom + VERTICAL_CLEARANCE) if seeing
+                else max(floor, depot_top + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL))
         top = float(np.max(info.slots[:, 2])) + 0.5 * bs
         cruise = (p.cruise_altitude if p.cruise_altitude is not None
                   else max(float(info.extra.get("search_height", 0.0)), top + carried_bottom + VERTICAL_CLEARANCE))
@@ -388,8 +563,80 @@ class FlightGeometry:
         return np.all(d >= self.clearance, axis=1) | np.any(d <= COLUMN_TOL + 0.02, axis=1)
 
 
+@dataclasses.dataclass
+class Sighting:
+    """An object an agent works on.
+
+    Attributes:
+        id: the box or slot id, -1 for none.
+        pos: (3,) m, its centre where the agent last saw it.
+    """
+
+    id: int = -1
+    pos: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(3))
+
+
+@dataclasses.dataclass(frozen=True)
+class Carry:
+    """The box an agent holds.
+
+    Attributes:
+        box: its id.
+        offset: (3,) m, its centre relative to the agent's (measured when it was grasped).
+    """
+
+    box: int
+    offset: NDArray[np.float64]
+
+
+@dataclasses.dataclass(frozen=True)
+class LetGo:
+    """A box an agent let go over a slot (watched while ``SETTLING``, then maybe taken back).
+
+    Attributes:
+        box: the box's id.
+        slot: the slot it was let go over.
+        time_s: s, when it was let go.
+    """
+
+    box: int
+    slot: Sighting
+    time_s: float
+
+
+@dataclasses.dataclass
+class ReleaseWatch:
+    """How long an agent descending onto a slot has been ready to let go.
+
+    Attributes:
+        descent_start: s, when the descent onto the slot started.
+        since: s, since when the agent's position has stayed within ``release_tol`` of the drop
+            point (None: it is not).
+        window: (time s, position (3,) m) samples since then (the dwell's average).
+    """
+
+    descent_start: float = math.inf
+    since: float | None = None
+    window: list[tuple[float, NDArray[np.float64]]] = dataclasses.field(default_factory=list)
+
+    def clear(self) -> None:
+        """Not ready to let go (the dwell starts again)."""
+        self.since = None
+
+
 class Stigmergy:
     """3-D stigmergy (thesis chapter 5): one instance per agent, the pheromone grid shared.
+
+    Each agent is a state machine over ``Phase``; each phase's step is one method
+    (``_step_<phase>``) that returns a command, or None after a transition when the next phase
+    should act in the same tick (at most ``MAX_STEPS`` steps a tick). The outcome of the last
+    GRASP or RELEASE is noticed first (``_sync``), since the task applies them between ticks.
+
+    Per-agent state besides the phase: the search (``strategy``, ``target``), the box and slot
+    worked on (``box``, ``slot``: ``Sighting``), the box held (``carry``), the column the agent
+    climbs straight up on (``column``), the point it latched to climb before a higher zone
+    (``climb_at``), the release dwell (``watch``), a box it let go (``let_go``) and one it is taking
+    back (``retake``).
 
     Args:
         params: validated ``StigmergyParams`` (default: the defaults).
@@ -403,6 +650,16 @@ class Stigmergy:
         self.params = params if params is not None else self.Params()
         if not isinstance(self.params, self.Params):
             raise TypeError(f"{self.name}: expected {self.Params.__name__}, got {type(self.params).__name__}")
+        self._steps = {
+            Phase.CHOOSE_BOX: self._step_choose_box, Phase.SEEK_BOX: self._step_seek_box,
+            Phase.TO_BOX: self._step_to_box, Phase.RECLIMB_BOX: self._step_reclimb_box,
+            Phase.DESCEND_BOX: self._step_descend_box, Phase.GRASPING: self._step_descend_box,
+            Phase.LIFT: self._step_lift, Phase.CHOOSE_GOAL: self._step_choose_goal,
+            Phase.SEEK_GOAL: self._step_seek_goal, Phase.TO_SLOT: self._step_to_slot,
+            Phase.RECLIMB_SLOT: self._step_reclimb_slot, Phase.DESCEND_SLOT: self._step_descend_slot,
+            Phase.RELEASING: self._step_descend_slot, Phase.SETTLING: self._step_settling,
+            Phase.CLIMB: self._step_climb,
+        }
 
     # ------------------------------------------------------------- the medium
     @classmethod
@@ -426,115 +683,118 @@ class Stigmergy:
         self.info = info
         self.geo = FlightGeometry.from_task(info, self.params)
         self.attach = float(info.extra.get("attach_threshold", 0.02))
-        self.phase = Phase.CHOOSE_BOX
-        self.strategy = Strategy.RANDOM      # the thesis starts every agent in mode 0 ("random")
-        self.target = np.zeros(2)            # m, current search point
-        self.box_id = -1
-        self.box_pos = np.zeros(3)           # m, last seen centre of the box being fetched
-        self.slot_id = -1
-        self.slot_pos = np.zeros(3)          # m, centre of the slot being served
-        self.descending = False
-        self.column = np.zeros(2)            # m, where the agent climbs after a grasp or release
-        self.climb_xy: NDArray[np.float64] | None = None   # m, where it climbs before a higher zone
-        self.reclimb: NDArray[np.float64] | None = None    # m, where it climbs back after a broken-off descent
-        self.holding = False
-        self.released = False
-        self.grasp_offset: NDArray[np.float64] | None = None
-        self.offset = np.array([0.0, 0.0, -info.grasp_height])   # m, held box centre relative to the agent
-        self.detour_until = -math.inf        # s, until then the agent keeps to its search point (layered variant)
         sigma = float(info.extra.get("position_std", 0.0))   # m, per-axis std of the agent's own position estimate
         self.clearance = max(self.params.release_clearance, CLEARANCE_SIGMAS * sigma)   # m
         dwell = self.params.release_dwell_s
         self.dwell = (0.5 if sigma > 0.0 else 0.0) if dwell is None else float(dwell)   # s
-        self.within_since: float | None = None   # s, since when the estimate is within release_tol of the drop
-        self.descent_start = math.inf            # s, when the current descent with a box started
-        self.held_id = -1                        # box held
-        self.let_go: tuple[int, int, NDArray[np.float64], float] | None = None   # box, slot, slot centre, time
-        self.again: tuple[int, NDArray[np.float64]] | None = None   # slot to serve again with the box taken back
+        self.phase = Phase.CHOOSE_BOX
+        self.strategy = Strategy.RANDOM      # the thesis starts every agent in mode 0 ("random")
+        self.target = np.zeros(2)            # m, current search point
+        self.box = Sighting()                # the box being fetched
+        self.slot = Sighting()               # the slot being served
+        self.carry: Carry | None = None      # the box held
+        self.grasp_offset = np.zeros(3)      # m, box centre relative to the agent when it asked to GRASP
+        self.column = np.zeros(2)            # m, where the agent climbs straight up (LIFT, SETTLING, CLIMB, RECLIMB_*)
+        self.climb_at: NDArray[np.float64] | None = None   # m, where it latched to climb before a higher zone
+        self.watch = ReleaseWatch()
+        self.let_go: LetGo | None = None     # the box let go last, watched while SETTLING
+        self.retake: LetGo | None = None     # a box let go beside its slot, taken back to serve that slot again
+
+    @property
+    def holding(self) -> bool:
+        """True while the agent holds a box (from the grasp the task applied to the release)."""
+        return self.carry is not None
+
+    @property
+    def offset(self) -> NDArray[np.float64]:
+        """(3,) m, the held box's centre relative to the agent (straight under it when not holding)."""
+        return self.carry.offset if self.carry is not None else np.array([0.0, 0.0, -self.info.grasp_height])
 
     def plan(self, obs: Observation, medium: PheromoneGrid | None) -> Command:
         """The agent's command for the next planner period."""
         self._sync(obs, medium)
-        return self._act(obs, medium)
+        for _ in range(MAX_STEPS):   # a step returns None when it changed the phase and the next one should act now
+            cmd = self._steps[self.phase](obs, medium)
+            if cmd is not None:
+                return cmd
+        return Command.goto(obs.position)
 
-    # ------------------------------------------------------------- state
+    # ------------------------------------------------------------- outcome of the last action
     def _sync(self, obs: Observation, medium: PheromoneGrid | None) -> None:
         """Notice the outcome of the last GRASP or RELEASE (the task applies them between ticks)."""
-        p = obs.position
-        if obs.carrying >= 0 and not self.holding:
-            self.holding = True
-            self.held_id = int(obs.carrying)
-            if self.grasp_offset is not None:
-                self.offset = self.grasp_offset
-            self.column = p[:2].copy()
-            self.box_id = -1
-            if self.again is not None and self.let_go is not None and self.let_go[0] == self.held_id:
-                # the box taken back from beside its slot: serve that slot again (from above, as always)
-                self.slot_id, self.slot_pos = self.again[0], self.again[1].copy()
-                self.phase = Phase.DELIVER
-                self.descending = False
-                self.descent_start = math.inf
-            else:
-                self._mark(medium, p, self.params.box_pheromone, "boxes_found")
-                self.phase = Phase.LIFT
-            self.again = None
-            self.let_go = None
-        elif obs.carrying < 0 and self.holding:
-            self.holding = False
-            if self.released:
-                self._mark(medium, p, self.params.goal_pheromone, "goals_found")
-                self.column = p[:2].copy()
-                self.phase = Phase.CLIMB
-                self.let_go = (self.held_id, self.slot_id, self.slot_pos.copy(), obs.time_s)
-            else:                        # the box slipped out of the grip: look for one again
-                self.phase = Phase.CHOOSE_BOX
-            self.released = False
-            self.held_id = -1
-            self.slot_id = -1
-            self.descending = False
-            self.within_since = None
-        self.grasp_offset = None
+        if obs.carrying >= 0 and self.carry is None:
+            self._grasped(obs, medium)
+        elif obs.carrying < 0 and self.carry is not None:
+            self._let_go(obs, medium)
+        elif self.phase is Phase.GRASPING:      # the grasp did not take: keep at it
+            self.phase = Phase.DESCEND_BOX
+        elif self.phase is Phase.RELEASING:     # the box is still held: keep at it
+            self.phase = Phase.DESCEND_SLOT
+
+    def _grasped(self, obs: Observation, medium: PheromoneGrid | None) -> None:
+        """GRASPING -> LIFT (+1 in the agent's cell), or -> TO_SLOT with a box taken back from beside its slot."""
+        self.carry = Carry(int(obs.carrying), self.grasp_offset if self.phase is Phase.GRASPING else self.offset)
+        self.column = obs.position[:2].copy()
+        self.box = Sighting(-1, self.box.pos)
+        if self.retake is not None and self.retake.box == self.carry.box:
+            # the box taken back from beside its slot: serve that slot again (from above, as always)
+            self.slot = Sighting(self.retake.slot.id, self.retake.slot.pos.copy())
+            self.phase = Phase.TO_SLOT
+        else:
+            self._mark(medium, obs.position, self.params.box_pheromone, "boxes_found")
+            self.phase = Phase.LIFT
+        self.retake = None
+        self.let_go = None
+
+    def _let_go(self, obs: Observation, medium: PheromoneGrid | None) -> None:
+        """RELEASING -> SETTLING (-1 in the agent's cell); a box that slipped out of the grip -> CHOOSE_BOX."""
+        assert self.carry is not None
+        if self.phase is Phase.RELEASING:
+            self._mark(medium, obs.position, self.params.goal_pheromone, "goals_found")
+            self.column = obs.position[:2].copy()
+            self.let_go = LetGo(self.carry.box, Sighting(self.slot.id, self.slot.pos.copy()), obs.time_s)
+            self.phase = Phase.SETTLING if self.params.retake else Phase.CLIMB
+        else:
+            self.phase = Phase.CHOOSE_BOX
+        self.carry = None
+        self.slot = Sighting(-1, self.slot.pos)
+        self.watch.clear()
 
     def _mark(self, medium: PheromoneGrid | None, p: NDArray[np.float64], value: float, tally: str) -> None:
         if medium is not None:
             medium.deposit(Layer.TASK.value, p, value, rule=DepositRule.SET, source=self.id)
             medium.tally(tally)
 
-    def _act(self, obs: Observation, medium: PheromoneGrid | None) -> Command:
-        steps = {Phase.SEEK_BOX: self._seek_box, Phase.FETCH: self._fetch, Phase.LIFT: self._lift,
-                 Phase.SEEK_GOAL: self._seek_goal, Phase.DELIVER: self._deliver, Phase.CLIMB: self._climb}
-        for _ in range(6):   # a step returns None when it changed the phase and the next one should act now
-            if self.phase not in (Phase.FETCH, Phase.DELIVER):
-                self.reclimb = None
-            if self.phase == Phase.CHOOSE_BOX:
-                self._choose(obs, medium, +1)
-                self.phase = Phase.SEEK_BOX
-                continue
-            if self.phase == Phase.CHOOSE_GOAL:
-                self._choose(obs, medium, -1)
-                self.phase = Phase.SEEK_GOAL
-                continue
-            cmd = steps[self.phase](obs, medium)
-            if cmd is not None:
-                return cmd
-        return Command.goto(obs.position)
-
     def _replan(self) -> None:
         """Drop the current search point and object; choose again (by the strategy cycle)."""
         self.phase = Phase.CHOOSE_GOAL if self.holding else Phase.CHOOSE_BOX
-        self.box_id = -1
-        self.slot_id = -1
-        self.descending = False
+        self.box = Sighting(-1, self.box.pos)
+        self.slot = Sighting(-1, self.slot.pos)
 
-    # ------------------------------------------------------------- search
+    # ------------------------------------------------------------- search (thesis states 0-3)
+    def _step_choose_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """CHOOSE_BOX -> SEEK_BOX: the next search point for a box."""
+        self._choose(obs, medium, +1)
+        self.phase = Phase.SEEK_BOX
+        return None
+
+    def _step_choose_goal(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """CHOOSE_GOAL -> SEEK_GOAL: the next search point for an open slot."""
+        self._choose(obs, medium, -1)
+        self.phase = Phase.SEEK_GOAL
+        return None
+
     def _choose(self, obs: Observation, medium: PheromoneGrid | None, sign: int) -> None:
         """Next search point by the thesis's cycle: random, strongest pheromone, local random, random, ..."""
         p = obs.position
+        ties = self.params.ties
         best = None
         if medium is not None:
             best = medium.strongest(Layer.TASK.value, sign, near=p, distance_scale=self.params.distance_scale,
-                                    rng=self.rng if self.params.ties is TieBreak.RANDOM else None, by_column=True)
+                                    rng=self.rng if ties is TieBreak.RANDOM else None, by_column=True,
+                                    first_by=THESIS_GRID_ORDER if ties is TieBreak.FIRST else None)
         g = self.geo
+        layout = self.params.layout_altitudes
         if best is None or self.strategy == Strategy.LOCAL:
             self.strategy = Strategy.RANDOM
             xy = self.rng.uniform(g.arena_lo, g.arena_hi)
@@ -545,13 +805,14 @@ class Stigmergy:
             self.strategy = Strategy.LOCAL
             r = self.params.local_radius
             xy = p[:2] + self.rng.uniform(-r, r, size=2)
-            face = g.face_normal(p[:2], reach=g.standoff + self.params.arrive_tol + COLUMN_TOL)
+            face = g.face_normal(p[:2], reach=g.standoff + self.params.arrive_tol + COLUMN_TOL) if layout else None
             if face is not None:   # beside the structure: look along its face, where slots are in view
                 tangent = np.array([-face[1], face[0]]) / np.hypot(*face)
                 xy = p[:2] + self.rng.uniform(-r, r) * tangent + face * (1.0 + 1e-6) + 1e-3 * face / np.hypot(*face)
         # a point over the structure is searched from the edge of the keep-out zone, low, where the
         # agent sees slots of every layer (over the structure it flies too high to see the bottom one)
-        self.target = g.outside(np.clip(xy, g.arena_lo, g.arena_hi), p[:2])
+        xy = np.clip(xy, g.arena_lo, g.arena_hi)
+        self.target = g.outside(xy, p[:2]) if layout else xy
         if medium is not None:
             medium.tally(f"target_{self.strategy.name.lower()}")
 
@@ -559,14 +820,13 @@ class Stigmergy:
         return bool(np.hypot(*(p[:2] - xy)) <= self.params.arrive_tol
                     and abs(p[2] - self.geo.altitude(xy)) <= 0.05)
 
-    def _seek_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_seek_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """SEEK_BOX -> TO_BOX (a free box in view) | CHOOSE_BOX (search point reached); trail 0.2 on the way."""
         p = obs.position
         b = self._pick(obs, obs.box_ids, obs.boxes, np.zeros(3), boxes=True)
         if b >= 0:
-            self.box_id = int(obs.box_ids[b])
-            self.box_pos = obs.boxes[b].copy()
-            self.phase = Phase.FETCH
-            self.descending = False
+            self.box = Sighting(int(obs.box_ids[b]), obs.boxes[b].copy())
+            self.phase = Phase.TO_BOX
             return None
         trail = self.params.trail_pheromone
         if medium is not None and trail > 0 and medium.sample(Layer.TASK.value, p) == 0.0:
@@ -576,20 +836,23 @@ class Stigmergy:
             return None
         return self._travel(p, self.target)
 
-    def _seek_goal(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_seek_goal(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """SEEK_GOAL -> TO_SLOT (an open, empty slot in view) | CHOOSE_GOAL (search point reached)."""
         p = obs.position
-        s = self._pick(obs, obs.slot_ids, obs.slots, self.offset,
-                       skip=np.array([self._occupied(obs, q) for q in obs.slots], dtype=bool))
+        loose = [self._occupied(obs, q) for q in obs.slots] if self.params.loose_box_check else []
+        s = self._pick(obs, obs.slot_ids, obs.slots, self.offset, skip=np.array(loose, dtype=bool) if loose else None)
         if s >= 0:
-            self.slot_id = int(obs.slot_ids[s])
-            self.slot_pos = obs.slots[s].copy()
-            self.phase = Phase.DELIVER
-            self.descending = False
+            self.slot = Sighting(int(obs.slot_ids[s]), obs.slots[s].copy())
+            self.phase = Phase.TO_SLOT
             return None
         if self._arrived(p, self.target):
             self.phase = Phase.CHOOSE_GOAL
             return None
         return self._travel(p, self.target)
+
+    def _ignoring_objects(self, obs: Observation) -> bool:
+        """True while the agent keeps to its search point whatever it sees (none in 3-D stigmergy)."""
+        return False
 
     def _pick(self, obs: Observation, ids: NDArray[np.int64], where: NDArray[np.float64],
               shift: NDArray[np.float64], *, boxes: bool = False, skip: NDArray[np.bool_] | None = None) -> int:
@@ -597,13 +860,16 @@ class Stigmergy:
         ``shift`` (3,) m moves an object's centre to where the agent's column over it is; with
         ``boxes``, boxes beside the structure (whose descent would scrape it) are left alone;
         objects marked in ``skip`` (k,) are left alone too."""
-        if len(ids) == 0 or obs.time_s < self.detour_until:
+        if len(ids) == 0 or self._ignoring_objects(obs):
             return -1
+        par = self.params
         cols = where[:, :2] - shift[:2]
-        free = np.array([not self._claimed(obs, c) for c in cols])
+        free = np.array([not (par.claims and self._claimed(obs, c)) for c in cols])
+        if not par.wide_view:   # the thesis's window: object centre to agent centre, largest horizontal difference
+            free &= np.max(np.abs(where[:, :2] - obs.position[:2]), axis=1) <= par.view_window
         if skip is not None:
             free &= ~skip
-        if boxes:
+        if boxes and par.leave_boxes_by_structure:
             free &= self.geo.clear_of_structure(cols)
         if not free.any():
             return -1
@@ -630,61 +896,128 @@ class Stigmergy:
         grasp = obj + [0.0, 0.0, self.info.grasp_height]
         return bool(view_distance(grasp - p, self.info.extra.get("view_norm", "chebyshev")) <= 0.9 * self.geo.view_range)
 
-    # ------------------------------------------------------------- boxes and slots
-    def _fetch(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
-        p = obs.position
-        seen = np.flatnonzero(obs.box_ids == self.box_id)
+    # ------------------------------------------------------------- a box: over it, down, grasp, up
+    def _box_lost(self, obs: Observation, *, claims: bool) -> bool:
+        """-> SEEK_BOX when the box is gone from where it should be seen, or (with ``claims``) a
+        neighbour works over it; otherwise its position is updated from what is seen."""
+        seen = np.flatnonzero(obs.box_ids == self.box.id)
         if seen.size:
-            self.box_pos = obs.boxes[seen[0]].copy()
-        if (not seen.size and self._gone(p, self.box_pos)) or (
-                not self.descending and self._claimed(obs, self.box_pos[:2])):
+            self.box.pos = obs.boxes[seen[0]].copy()
+        if (not seen.size and self._gone(obs.position, self.box.pos)) or (
+                claims and self.params.claims and self._claimed(obs, self.box.pos[:2])):
             self.phase = Phase.SEEK_BOX          # taken or claimed by another agent: keep looking
-            self.box_id = -1
+            self.box = Sighting(-1, self.box.pos)
+            return True
+        return False
+
+    def _grasp_point(self) -> NDArray[np.float64]:
+        return self.box.pos + [0.0, 0.0, self.info.grasp_height]
+
+    def _step_to_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """TO_BOX -> DESCEND_BOX (over it at the flying altitude) | SEEK_BOX (lost)."""
+        if self._box_lost(obs, claims=True):
             return None
-        grasp = self.box_pos + [0.0, 0.0, self.info.grasp_height]
-        self._break_off_if_drifted(p, grasp[:2])
-        if not self.descending:
-            back = self._climb_back(p)
-            if back is not None:
-                return back
-            if self._over(obs, grasp[:2]):
-                self.descending = True
-            else:
-                return self._travel(p, grasp[:2])
+        return self._approach_box(obs)
+
+    def _approach_box(self, obs: Observation) -> Command:
+        grasp = self._grasp_point()
+        if self._over(obs, grasp[:2]):
+            self.phase = Phase.DESCEND_BOX
+            return self._grasp(obs, grasp)
+        return self._travel(obs.position, grasp[:2])
+
+    def _step_reclimb_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """RECLIMB_BOX -> TO_BOX (back at the flying altitude) | SEEK_BOX (lost)."""
+        if self._box_lost(obs, claims=True):
+            return None
+        return self._reclimb(obs, Phase.TO_BOX) or self._approach_box(obs)
+
+    def _step_descend_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """DESCEND_BOX -> GRASPING (at the grasp point, steady) | RECLIMB_BOX (pushed off the column) | SEEK_BOX."""
+        if self._box_lost(obs, claims=False):
+            return None
+        grasp = self._grasp_point()
+        if self._drifted(obs.position, grasp[:2]):
+            self._break_off(obs, Phase.RECLIMB_BOX)
+            return self._reclimb(obs, Phase.TO_BOX) or self._approach_box(obs)
+        return self._grasp(obs, grasp)
+
+    def _grasp(self, obs: Observation, grasp: NDArray[np.float64]) -> Command:
+        """Down to the grasp point (3,) m; GRASP there once steady (-> GRASPING)."""
+        p = obs.position
         steady = self.dwell == 0.0 or np.linalg.norm(obs.velocity) < SETTLED_SPEED   # a tilted grasp skews the offset
         if np.linalg.norm(p - grasp) <= GRASP_FRACTION * self.attach and steady:
-            self.grasp_offset = self.box_pos - p
+            self.grasp_offset = self.box.pos - p
+            self.phase = Phase.GRASPING
             return Command.goto(grasp, Action.GRASP)
         return Command.goto(grasp)
 
-    def _deliver(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
-        p = obs.position
-        seen = bool(np.any(obs.slot_ids == self.slot_id))
-        if (not seen and self._gone(p, self.slot_pos)) or (
-                not self.descending and self._claimed(obs, self.slot_pos[:2] - self.offset[:2])):
+    def _step_lift(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """LIFT -> CHOOSE_GOAL: straight up from the grasp to the flying altitude."""
+        return self._rise(obs, Phase.CHOOSE_GOAL)
+
+    # ------------------------------------------------------------- a slot: over it, down, release, up
+    def _slot_lost(self, obs: Observation, *, claims: bool) -> bool:
+        """-> SEEK_GOAL when the slot is no longer open where it should be seen, or (with ``claims``)
+        a neighbour works over it."""
+        seen = bool(np.any(obs.slot_ids == self.slot.id))
+        if (not seen and self._gone(obs.position, self.slot.pos)) or (
+                claims and self.params.claims and self._claimed(obs, self.slot.pos[:2] - self.offset[:2])):
             self.phase = Phase.SEEK_GOAL         # filled or claimed by another agent: keep looking
-            self.slot_id = -1
-            self.descending = False
+            self.slot = Sighting(-1, self.slot.pos)
+            return True
+        return False
+
+    def _slot_blocked(self, obs: Observation, *, descending: bool) -> bool:
+        """-> SEEK_GOAL when a loose box lies in the slot (``loose_box_check``), or (``descending``) the
+        box could not be set down within ``descent_timeout_s``."""
+        timeout = self.params.descent_timeout_s
+        if (self.params.loose_box_check and self._occupied(obs, self.slot.pos)) or (
+                descending and timeout is not None and obs.time_s - self.watch.descent_start > timeout):
+            self.phase = Phase.SEEK_GOAL
+            self.slot = Sighting(-1, self.slot.pos)
+            self.watch.clear()
+            return True
+        return False
+
+    def _drop_point(self) -> NDArray[np.float64]:
+        """(3,) m, the agent's centre when the box it holds hangs ``clearance`` above its slot."""
+        return self.slot.pos + [0.0, 0.0, self.clearance] - self.offset
+
+    def _step_to_slot(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """TO_SLOT -> DESCEND_SLOT (over it at the flying altitude) | SEEK_GOAL (lost, or a loose box in it)."""
+        if self._slot_lost(obs, claims=True) or self._slot_blocked(obs, descending=False):
             return None
-        if self._occupied(obs, self.slot_pos) or (self.descending and obs.time_s - self.descent_start > DESCENT_TIMEOUT_S):
-            self.phase = Phase.SEEK_GOAL         # a loose box lies in the slot, or the box cannot be set down
-            self.slot_id = -1
-            self.descending = False
-            self.within_since = None
+        return self._approach_slot(obs)
+
+    def _approach_slot(self, obs: Observation) -> Command:
+        drop = self._drop_point()
+        if self._over(obs, drop[:2]):
+            self.phase = Phase.DESCEND_SLOT
+            self.watch.descent_start = obs.time_s
+            return self._release(obs, drop)
+        return self._travel(obs.position, drop[:2])
+
+    def _step_reclimb_slot(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """RECLIMB_SLOT -> TO_SLOT (back at the flying altitude) | SEEK_GOAL."""
+        if self._slot_lost(obs, claims=True) or self._slot_blocked(obs, descending=False):
             return None
-        drop = self.slot_pos + [0.0, 0.0, self.clearance] - self.offset   # agent centre at release
-        self._break_off_if_drifted(p, drop[:2])
-        if not self.descending:
-            back = self._climb_back(p)
-            if back is not None:
-                return back
-            if self._over(obs, drop[:2]):
-                self.descending = True
-                self.descent_start = obs.time_s
-            else:
-                return self._travel(p, drop[:2])
+        return self._reclimb(obs, Phase.TO_SLOT) or self._approach_slot(obs)
+
+    def _step_descend_slot(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """DESCEND_SLOT -> RELEASING (settled at the drop point) | RECLIMB_SLOT (pushed off) | SEEK_GOAL."""
+        if self._slot_lost(obs, claims=False) or self._slot_blocked(obs, descending=True):
+            return None
+        drop = self._drop_point()
+        if self._drifted(obs.position, drop[:2]):
+            self._break_off(obs, Phase.RECLIMB_SLOT)
+            return self._reclimb(obs, Phase.TO_SLOT) or self._approach_slot(obs)
+        return self._release(obs, drop)
+
+    def _release(self, obs: Observation, drop: NDArray[np.float64]) -> Command:
+        """Down to the drop point (3,) m; RELEASE there once settled (-> RELEASING)."""
         if self._settled_at(obs, drop):
-            self.released = True
+            self.phase = Phase.RELEASING
             return Command.goto(drop, Action.RELEASE)
         return Command.goto(drop)
 
@@ -693,18 +1026,19 @@ class Stigmergy:
         over the last ``dwell`` s (an estimate's jitter averages out, a drift does not), within
         ``release_tol`` per axis of it, while never more than twice that off during the dwell."""
         tol = self.params.release_tol
+        w = self.watch
         err = np.abs(obs.position - drop)
         if np.linalg.norm(obs.velocity) >= RELEASE_SPEED or np.any(err > (2.0 * tol if self.dwell > 0 else tol)):
-            self.within_since = None
+            w.clear()
             return False
-        if self.within_since is None:
-            self.within_since = obs.time_s
-            self.window: list[tuple[float, NDArray[np.float64]]] = []
-        self.window.append((obs.time_s, obs.position.copy()))
-        if obs.time_s - self.within_since < self.dwell - 1e-9:
+        if w.since is None:
+            w.since = obs.time_s
+            w.window = []
+        w.window.append((obs.time_s, obs.position.copy()))
+        if obs.time_s - w.since < self.dwell - 1e-9:
             return False
-        self.window = [(t, q) for t, q in self.window if t >= obs.time_s - self.dwell - 1e-9]
-        mean = np.mean([q for _, q in self.window], axis=0)
+        w.window = [(t, q) for t, q in w.window if t >= obs.time_s - self.dwell - 1e-9]
+        mean = np.mean([q for _, q in w.window], axis=0)
         return bool(np.all(np.abs(mean - drop) <= tol))
 
     def _occupied(self, obs: Observation, slot: NDArray[np.float64]) -> bool:
@@ -714,26 +1048,57 @@ class Stigmergy:
         d = np.abs(obs.boxes - slot)
         return bool(np.any(np.all(d[:, :2] < self.info.box_size, axis=1) & (d[:, 2] < self.info.box_size)))
 
-    def _break_off_if_drifted(self, p: NDArray[np.float64], xy: NDArray[np.float64]) -> None:
-        """Break off a descent at ``p`` (3,) m that has been pushed more than ``DRIFT_TOL`` off its column
-        ``xy`` (2,) m (by a neighbour's avoidance, a gust, a snagged box): the agent then climbs straight
-        back from where it is (``_climb_back``) and comes over the object again."""
-        if not self.descending or np.hypot(*(p[:2] - xy)) <= DRIFT_TOL:
-            return
-        self.descending = False
-        self.descent_start = math.inf
-        self.within_since = None
-        self.reclimb = p[:2].copy()
+    def _step_settling(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """SETTLING -> DESCEND_BOX (the box lies loose beside its slot: take it back) | CLIMB | CHOOSE_BOX.
 
-    def _climb_back(self, p: NDArray[np.float64]) -> Command | None:
-        """After a broken-off descent: straight up to the flying altitude there, or None once there."""
-        if self.reclimb is None:
+        The agent climbs from where it let go; after ``SETTLE_S`` it looks whether the box came to rest.
+        """
+        assert self.let_go is not None
+        if obs.time_s - self.let_go.time_s >= SETTLE_S - 1e-9:
+            seen = np.flatnonzero(obs.box_ids == self.let_go.box)
+            if seen.size and self.let_go.slot.id >= 0:   # the box lies loose beside its slot: take it back
+                self.box = Sighting(self.let_go.box, obs.boxes[seen[0]].copy())
+                self.retake = self.let_go
+                self.phase = Phase.DESCEND_BOX           # straight down: the agent is over it
+                return None
+            self.let_go = None
+            self.phase = Phase.CLIMB
+        return self._rise(obs, Phase.CHOOSE_BOX)
+
+    def _step_climb(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+        """CLIMB -> CHOOSE_BOX: straight up from the release to the flying altitude."""
+        return self._rise(obs, Phase.CHOOSE_BOX)
+
+    # ------------------------------------------------------------- straight up and down
+    def _rise(self, obs: Observation, then: Phase) -> Command | None:
+        """Climb straight up over ``column`` to the flying altitude there; at it -> ``then``."""
+        h = self.geo.altitude(self.column)
+        if abs(obs.position[2] - h) <= ALTITUDE_TOL:
+            self.phase = then
             return None
-        h = self.geo.altitude(self.reclimb)
-        if p[2] >= h - ALTITUDE_TOL:
-            self.reclimb = None
+        return Command.goto([self.column[0], self.column[1], h])
+
+    def _drifted(self, p: NDArray[np.float64], xy: NDArray[np.float64]) -> bool:
+        """True when a descent at ``p`` (3,) m has been pushed more than ``DRIFT_TOL`` off its column ``xy`` (2,) m
+        (never without ``drift_breakoff``: the descent goes on towards its point)."""
+        return self.params.drift_breakoff and bool(np.hypot(*(p[:2] - xy)) > DRIFT_TOL)
+
+    def _break_off(self, obs: Observation, then: Phase) -> None:
+        """Break off a descent pushed off its column (by a neighbour's avoidance, a gust, a snagged box):
+        the agent climbs straight back from where it is (``then``: a RECLIMB phase) and comes over the
+        object again (a diagonal way back would sweep its box through a neighbouring stack)."""
+        self.watch.descent_start = math.inf
+        self.watch.clear()
+        self.column = obs.position[:2].copy()
+        self.phase = then
+
+    def _reclimb(self, obs: Observation, then: Phase) -> Command | None:
+        """RECLIMB_*: straight up over ``column`` to the flying altitude; once there -> ``then`` and None."""
+        h = self.geo.altitude(self.column)
+        if obs.position[2] >= h - ALTITUDE_TOL:
+            self.phase = then
             return None
-        return Command.goto([self.reclimb[0], self.reclimb[1], h])
+        return Command.goto([self.column[0], self.column[1], h])
 
     def _over(self, obs: Observation, xy: NDArray[np.float64]) -> bool:
         """True when the agent hovers over ``xy`` (2,) m at its flying altitude, ready to descend."""
@@ -741,38 +1106,13 @@ class Stigmergy:
         return bool(np.hypot(*(p[:2] - xy)) <= COLUMN_TOL and abs(p[2] - self.geo.altitude(xy)) <= ALTITUDE_TOL
                     and np.linalg.norm(obs.velocity) < SETTLED_SPEED)
 
-    def _lift(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
-        return self._rise(obs, Phase.CHOOSE_GOAL)
-
-    def _climb(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
-        if self.let_go is not None and obs.time_s - self.let_go[3] >= SETTLE_S - 1e-9:
-            box, slot, centre, _ = self.let_go
-            seen = np.flatnonzero(obs.box_ids == box)
-            if seen.size and slot >= 0:         # the box lies loose beside its slot: take it back
-                self.box_id = box
-                self.box_pos = obs.boxes[seen[0]].copy()
-                self.again = (slot, centre)
-                self.phase = Phase.FETCH
-                self.descending = True          # straight down: the agent is over it
-                return None
-            self.let_go = None
-        return self._rise(obs, Phase.CHOOSE_BOX)
-
-    def _rise(self, obs: Observation, then: Phase) -> Command | None:
-        """Climb straight up from the last grasp or release to the flying altitude there."""
-        h = self.geo.altitude(self.column)
-        if abs(obs.position[2] - h) <= ALTITUDE_TOL:
-            self.phase = then
-            return None
-        return Command.goto([self.column[0], self.column[1], h])
-
     # ------------------------------------------------------------- flight
     def _travel(self, p: NDArray[np.float64], dest: NDArray[np.float64]) -> Command:
         """Fly towards the point ``dest`` (2,) m at the flying altitude of the way there, stopping short
         of a higher zone to climb straight up before entering it."""
         cmd, climbing = self._route(p, dest)
         if not climbing:
-            self.climb_xy = None
+            self.climb_at = None
         return cmd
 
     def _route(self, p: NDArray[np.float64], dest: NDArray[np.float64]) -> tuple[Command, bool]:
@@ -787,14 +1127,14 @@ class Stigmergy:
         t, zone = min(higher, key=lambda tz: tz[0])
         way = dest - xy
         entry = xy + t * way
-        if self.climb_xy is None and t > 0.0 and np.hypot(*(entry - xy)) > g.standoff + COLUMN_TOL:
+        if self.climb_at is None and t > 0.0 and np.hypot(*(entry - xy)) > g.standoff + COLUMN_TOL:
             before = entry - g.standoff * way / np.linalg.norm(way)
             if np.hypot(*(before - xy)) > COLUMN_TOL:
                 h_now = max([g.floor_altitude, *(z.altitude for _, z in hits if z.altitude <= p[2] + ALTITUDE_TOL)])
                 return Command.goto([before[0], before[1], h_now]), False
-        if self.climb_xy is None:         # latch where to climb: chasing the measured position would drift
-            self.climb_xy = xy.copy()
-        return Command.goto([self.climb_xy[0], self.climb_xy[1], zone.altitude]), True
+        if self.climb_at is None:         # latch where to climb: chasing the measured position would drift
+            self.climb_at = xy.copy()
+        return Command.goto([self.climb_at[0], self.climb_at[1], zone.altitude]), True
 
 
 class LayeredStigmergy(Stigmergy):
@@ -819,24 +1159,23 @@ class LayeredStigmergy(Stigmergy):
         cmd = super().plan(obs, medium)
         if medium is None:
             return cmd
-        if self._moving() and self._blocked(obs, cmd, medium):
+        if self.phase in TRAVELLING and self._blocked(obs, cmd, medium):
             medium.tally("presence_replans")
             self._replan()
-            # search elsewhere for as long as a mark lasts before going for a seen object again:
-            # two agents wanting to pass each other would otherwise block each other for ever
-            self.detour_until = obs.time_s + self.params.presence_pheromone / self.params.presence_fatigue
+            if self.params.detour:
+                # search elsewhere for as long as a mark lasts before going for a seen object again:
+                # two agents wanting to pass each other would otherwise block each other for ever
+                self.detour_until = obs.time_s + self.params.presence_pheromone / self.params.presence_fatigue
             cmd = Command.hold()
-        p = obs.position
-        marks = [p, p + self.offset] if self.holding else [p]
+        marks = self._origins(obs.position)
         for q in marks:
             medium.deposit(Layer.PRESENCE.value, q, self.params.presence_pheromone, rule=DepositRule.SET,
                            source=self.id)
         return cmd
 
-    def _moving(self) -> bool:
-        """True while the agent travels (searching or heading for an object, not in a straight descent or climb)."""
-        return self.phase in (Phase.SEEK_BOX, Phase.SEEK_GOAL) or (
-            self.phase in (Phase.FETCH, Phase.DELIVER) and not self.descending)
+    def _ignoring_objects(self, obs: Observation) -> bool:
+        """True during a detour after a presence re-plan (the agent keeps to its new search point)."""
+        return obs.time_s < self.detour_until
 
     def _blocked(self, obs: Observation, cmd: Command, medium: PheromoneGrid) -> bool:
         """True when another agent's presence mark lies in the area the agent is about to move into:
@@ -854,24 +1193,31 @@ class LayeredStigmergy(Stigmergy):
         step = 0.5 * self.params.cell_size
         s = np.arange(step, min(self.params.lookahead, dist) + step - 1e-9, step)   # (k,) m along the way
         swept = (np.outer(s, u)[:, None, :] + self._footprint[None, :, :]).reshape(-1, 3)   # offsets from a centre
-        origins = [p, p + self.offset] if self.holding else [p]                   # the agent, and its box
-        for o in origins:
+        for o in self._origins(p):
             pts = o + swept
             marked = pts[medium.values_at(Layer.PRESENCE.value, pts, exclude_source=self.id) > 0.0]
             if len(marked) == 0:
                 continue
+            if not self.params.ahead_cone:
+                return True
             rel = medium.centre(medium.index(marked)) - o                          # (m, 3) m
             if np.any(rel @ u > math.cos(math.radians(AHEAD_DEG)) * np.linalg.norm(rel, axis=1)):
                 return True
         return False
 
+    def _origins(self, p: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        """Points (3,) m the agent marks and checks from: itself, and with ``footprint`` its box."""
+        return [p, p + self.offset] if self.holding and self.params.footprint else [p]
+
     def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Start a run as agent ``agent_id`` (see ``Stigmergy.reset``)."""
         super().reset(agent_id, rng, info)
+        self.detour_until = -math.inf        # s, until then the agent keeps to its search point
         r = info.agent_radius
         h = 0.5 * self.params.cell_size
         grid = np.array(np.meshgrid([-r, 0.0, r], [-r, 0.0, r], [-h, 0.0, h], indexing="ij"))
-        self._footprint = grid.reshape(3, -1).T   # (27, 3) m, offsets covering the airframe and its neighbourhood
+        # (27, 3) m, offsets covering the airframe and its neighbourhood; without ``footprint`` its centre only
+        self._footprint = grid.reshape(3, -1).T if self.params.footprint else np.zeros((1, 3))
 
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402

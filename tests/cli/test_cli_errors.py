@@ -444,8 +444,8 @@ ORCA = ["hover", "--set", "avoidance=orca"]
      "construction.yaml: planner.params.fatigue: must be >= 0.0, got -1"),
     ([*STIGMERGY, "--set", "planner.params.cell_size=.nan"],
      "construction.yaml: planner.params.cell_size: must be a finite number, got nan"),
-    ([*STIGMERGY, "--set", "planner.params.ties=first"],
-     "construction.yaml: planner.params.ties: must be 'random' or 'nearest', got 'first'"),
+    ([*STIGMERGY, "--set", "planner.params.ties=last"],
+     "construction.yaml: planner.params.ties: must be 'random', 'nearest' or 'first', got 'last'"),
     ([*ORCA, "--set", "avoidance_params.horizon=2"], "hover.yaml: avoidance_params.horizon: unknown field, got 2"),
     ([*ORCA, "--set", "avoidance_params.max_neighbours=2.5"],
      "hover.yaml: avoidance_params.max_neighbours: must be a valid integer, got 2.5"),
@@ -483,7 +483,8 @@ def test_check_prints_every_parameter_resolved(capsys: pytest.CaptureFixture[str
     assert data["avoidance"] == "orca" and data["avoidance_params"] == OrcaParams().model_dump(mode="json")
     code, out, _ = run_cli(capsys, ["check", "construction"])   # no planner named: the task's default, resolved
     assert yaml.safe_load(out)["planner"] == {"name": "shortest_path", "params": {
-        "arrive_tol": 0.01, "release_clearance": 0.004, "altitude_step": 0.2, "release_tol": 0.005}}
+        "preset": None, "arrive_tol": 0.01, "release_clearance": 0.004, "altitude_step": 0.2, "release_tol": 0.005,
+        "retry_slots": True}}
 
 
 # ------------------------------------------------------------ real processes

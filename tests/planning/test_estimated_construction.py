@@ -8,7 +8,7 @@ import pytest
 from pybullet_swarm.planning.base import Action, Observation, TaskInfo, WorldView
 from pybullet_swarm.planning.shortest_path import Phase as SPPhase
 from pybullet_swarm.planning.shortest_path import ShortestPath
-from pybullet_swarm.planning.stigmergy import CLEARANCE_SIGMAS, Phase, Stigmergy
+from pybullet_swarm.planning.stigmergy import CLEARANCE_SIGMAS, Carry, Phase, Sighting, Stigmergy
 
 GH = 0.065            # m, grasp height of quad150 with 10 cm boxes
 R = 0.106             # m, quad150 radius
@@ -38,9 +38,8 @@ def _delivering(sigma: float | None = SIGMA) -> tuple[Stigmergy, np.ndarray]:
     """An agent descending over slot 1 with box 3; returns it and its drop point (3,) m."""
     a = Stigmergy()
     a.reset(0, np.random.default_rng(0), _info(sigma))
-    a.holding, a.held_id, a.phase, a.slot_id, a.slot_pos = True, 3, Phase.DELIVER, 1, SLOTS[1].copy()
-    a.offset = np.array([0.0, 0.0, -GH])
-    a.descending, a.descent_start = True, 0.0
+    a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.DESCEND_SLOT, Sighting(1, SLOTS[1].copy())
+    a.watch.descent_start = 0.0
     return a, SLOTS[1] + [0.0, 0.0, a.clearance] + [0.0, 0.0, GH]
 
 
@@ -92,14 +91,14 @@ def test_a_box_that_came_to_rest_off_its_slot_is_taken_back_and_the_slot_served_
     t = 0.1 * k
     off = SLOTS[1] + [0.013, 0.0, 0.0]                 # 13 mm off: free, the slot still open
     a.plan(_obs(drop, t=t + 0.1, boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1]), None)
-    assert a.phase == Phase.CLIMB
+    assert a.phase == Phase.SETTLING
     cmd = a.plan(_obs(drop + [0, 0, 0.02], t=t + 0.5, boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1]),
                  None)
-    assert a.phase == Phase.FETCH and a.box_id == 3
+    assert a.phase == Phase.DESCEND_BOX and a.box.id == 3
     assert np.allclose(cmd.vector, off + [0, 0, GH])       # straight back down onto it
     a.plan(_obs(off + [0, 0, GH], t=t + 1.5, boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1]), None)
     a.plan(_obs(off + [0, 0, GH], t=t + 1.6, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), None)
-    assert a.phase == Phase.DELIVER and a.slot_id == 1
+    assert a.phase == Phase.TO_SLOT and a.slot.id == 1
 
 
 def test_no_descent_with_a_box_onto_a_slot_with_a_loose_box_in_it():
@@ -107,7 +106,7 @@ def test_no_descent_with_a_box_onto_a_slot_with_a_loose_box_in_it():
     loose = SLOTS[1] + [0.02, 0.01, 0.0]
     a.plan(_obs(drop + [0, 0, 0.1], t=0.0, carrying=3, boxes=[loose], box_ids=[5], slots=[SLOTS[1]],
                 slot_ids=[1]), None)
-    assert a.phase != Phase.DELIVER and a.slot_id == -1
+    assert a.phase not in (Phase.TO_SLOT, Phase.DESCEND_SLOT) and a.slot.id == -1
 
 
 def _view(t, positions, carrying, box_positions, box_state, slot_filled) -> WorldView:

@@ -111,6 +111,12 @@ def test_strongest_cell_by_sign_with_ties_to_the_nearest_and_optional_distance_e
     rng = np.random.default_rng(0)
     picks = {tuple(np.round(g.strongest("task", +1, near=[0.0, 0.3, 0.3], rng=rng), 2)) for _ in range(40)}
     assert picks == {(0.45, 0.35, 0.15), (0.85, 0.55, 0.15)}
+    # the first in a given axis order, whatever ``near`` is: y most significant, then z, then x
+    assert np.allclose(g.strongest("task", +1, near=[0.9, 0.6, 0.1], first_by=(1, 2, 0)), [0.45, 0.35, 0.15])
+    g.deposit("task", [0.15, 0.35, 0.5], 1.0, rule=DepositRule.SET)   # same y, higher: z decides before x
+    g.step(0.1)
+    assert np.allclose(g.strongest("task", +1, first_by=(1, 2, 0)), [0.45, 0.35, 0.15])
+    assert np.allclose(g.strongest("task", +1, first_by=(0, 1, 2)), [0.15, 0.35, 0.55])
 
 
 def test_a_column_marked_at_several_altitudes_is_drawn_as_often_as_one_marked_once():

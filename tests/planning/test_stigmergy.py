@@ -14,8 +14,8 @@ from pybullet_swarm.planning.base import Action, CommandKind, Observation, TaskI
 from pybullet_swarm.planning.pheromone_grid import DepositRule, PheromoneGrid
 from pybullet_swarm.planning.registry import planners
 from pybullet_swarm.planning.stigmergy import (
-    FlightGeometry, Layer, LayeredStigmergy, LayeredStigmergyParams, Phase, Stigmergy, StigmergyParams, Strategy,
-    TieBreak)
+    Carry, FlightGeometry, Layer, LayeredStigmergy, LayeredStigmergyParams, Phase, Sighting, Stigmergy, StigmergyParams,
+    Strategy, TieBreak)
 from pybullet_swarm.types import ExitStatus
 
 GH = 0.065            # m, grasp height of quad150 with 10 cm boxes
@@ -175,14 +175,15 @@ def test_a_seen_box_is_fetched_grasped_and_marked_with_plus_one():
     box = DEPOT[4]
     near = [box[0] + 0.1, box[1], look]
     cmd = a.plan(_obs(near, boxes=[box], box_ids=[4]), med)
-    assert a.phase == Phase.FETCH
+    assert a.phase == Phase.TO_BOX
     assert np.allclose(cmd.vector, [box[0], box[1], look])              # above it first
     above = [box[0], box[1], look]
     cmd = a.plan(_obs(above, boxes=[box], box_ids=[4]), med)
     grasp = box + [0, 0, GH]
     assert np.allclose(cmd.vector, grasp) and cmd.action == Action.NONE  # then straight down
+    assert a.phase == Phase.DESCEND_BOX
     cmd = a.plan(_obs(grasp + [0.003, 0.0, 0.004], boxes=[box], box_ids=[4]), med)
-    assert cmd.action == Action.GRASP
+    assert cmd.action == Action.GRASP and a.phase == Phase.GRASPING
     # the task attached it: +1 in the agent's cell, the box hangs where it was seen, climb back
     held = grasp + [0.003, 0.0, 0.004]
     cmd = a.plan(_obs(held, carrying=4), med)
@@ -203,7 +204,7 @@ def test_a_box_a_neighbour_is_working_on_is_left_to_it():
     # level with it, the nearer agent has it; an equally near one with a lower id too
     a.plan(_obs([box[0] + 0.05, box[1], look], boxes=[box], box_ids=[0], nb_ids=[4],
                 nb_pos=[[box[0] + 0.08, box[1], look]]), _medium())
-    assert a.phase == Phase.FETCH and a.box_id == 0
+    assert a.phase == Phase.TO_BOX and a.box.id == 0
 
 
 def test_a_box_beside_the_structure_is_left_alone_but_one_on_top_of_a_stack_is_fetched():
@@ -218,7 +219,7 @@ def test_a_box_beside_the_structure_is_left_alone_but_one_on_top_of_a_stack_is_f
 def test_a_carrying_agent_climbs_before_the_structure_and_crosses_it_at_cruise_altitude():
     a = _agent()
     g = a.geo
-    a.holding, a.phase, a.strategy = True, Phase.SEEK_GOAL, Strategy.RANDOM
+    a.carry, a.phase, a.strategy = Carry(3, np.array([0.0, 0.0, -GH])), Phase.SEEK_GOAL, Strategy.RANDOM
     a.target = np.array([2.7, 0.5])
     med = _medium()
     floor = g.floor_altitude
@@ -251,24 +252,23 @@ def test_an_open_slot_is_served_from_above_and_marked_with_minus_one():
     med = _medium()
     a = _agent()
     g = a.geo
-    a.holding, a.phase = True, Phase.SEEK_GOAL
-    a.offset = np.array([0.004, -0.002, -0.066])                      # measured when it grasped
+    a.carry, a.phase = Carry(3, np.array([0.004, -0.002, -0.066])), Phase.SEEK_GOAL   # offset measured at the grasp
     a.target = np.array([2.6, 0.5])
     slot = SLOTS[1]
     p = np.array([g.structure.lo[:, 0].min() - g.standoff, 0.45, g.floor_altitude])
     assert _visible(p, slot)
     a.plan(_obs(p, carrying=3, slots=[slot], slot_ids=[1]), med)
-    assert a.phase == Phase.DELIVER and a.slot_id == 1
+    assert a.phase == Phase.TO_SLOT and a.slot.id == 1
     drop = slot + [0, 0, 0.004] - a.offset
     above = [drop[0], drop[1], g.cruise_altitude]
     cmd = a.plan(_obs(above, carrying=3), med)                          # out of view from up there: keeps it
-    assert a.phase == Phase.DELIVER and np.allclose(cmd.vector, drop) and cmd.action == Action.NONE
+    assert a.phase == Phase.DESCEND_SLOT and np.allclose(cmd.vector, drop) and cmd.action == Action.NONE
     cmd = a.plan(_obs(drop + [0.002, 0.0, 0.003], carrying=3, slots=[slot], slot_ids=[1]), med)
-    assert cmd.action == Action.RELEASE
+    assert cmd.action == Action.RELEASE and a.phase == Phase.RELEASING
     cmd = a.plan(_obs(drop + [0.002, 0.0, 0.003]), med)                 # the task let go of it
     med.step(0.1)
     assert med.sample(Layer.TASK.value, drop) == -1.0
-    assert a.phase == Phase.CLIMB and cmd.vector[2] == pytest.approx(g.cruise_altitude)
+    assert a.phase == Phase.SETTLING and cmd.vector[2] == pytest.approx(g.cruise_altitude)
     assert np.allclose(med.strongest(Layer.TASK.value, -1), med.centre(med.index(drop)))   # where it let go
 
 
@@ -277,31 +277,31 @@ def test_a_descent_pushed_off_its_column_climbs_straight_back_and_comes_over_the
     a = _agent()
     g = a.geo
     slot = SLOTS[4]                                                     # second layer, on top of slot 0's box
-    a.holding, a.phase, a.slot_id, a.slot_pos = True, Phase.DELIVER, 4, slot.copy()
-    a.descending, a.descent_start = True, 0.0
+    a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.DESCEND_SLOT, Sighting(4, slot.copy())
+    a.watch.descent_start = 0.0
     a.target = np.array([2.6, 0.2])
     drop = slot + [0.0, 0.0, a.clearance] - a.offset
     seen = dict(carrying=3, slots=[slot], slot_ids=[4])
     cmd = a.plan(_obs(drop + [0.03, 0.0, 0.05], **seen), med)          # 3 cm off: the descent goes on
-    assert a.descending and np.allclose(cmd.vector, drop)
+    assert a.phase == Phase.DESCEND_SLOT and np.allclose(cmd.vector, drop)
     low = drop + [0.08, 0.0, 0.04]                                      # pushed 8 cm behind the wall
     cmd = a.plan(_obs(low, **seen), med)
-    assert not a.descending and a.phase == Phase.DELIVER
+    assert a.phase == Phase.RECLIMB_SLOT
     assert np.allclose(cmd.vector, [low[0], low[1], g.cruise_altitude])   # straight up, not back across the stack
     cmd = a.plan(_obs([low[0], low[1], 0.35], **seen), med)
     assert np.allclose(cmd.vector[:2], low[:2])                         # still climbing where it is
     cmd = a.plan(_obs([low[0], low[1], g.cruise_altitude], **seen), med)   # up: over the slot again, at altitude
-    assert np.allclose(cmd.vector, [drop[0], drop[1], g.cruise_altitude]) and not a.descending
+    assert np.allclose(cmd.vector, [drop[0], drop[1], g.cruise_altitude]) and a.phase == Phase.TO_SLOT
     a.plan(_obs([drop[0], drop[1], g.cruise_altitude], **seen), med)
-    assert a.descending                                                 # over it: the descent starts again
+    assert a.phase == Phase.DESCEND_SLOT                                                 # over it: the descent starts again
 
 
 def test_a_slot_filled_meanwhile_is_given_up():
     a = _agent()
-    a.holding, a.phase, a.slot_id, a.slot_pos = True, Phase.DELIVER, 1, SLOTS[1].copy()
+    a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.TO_SLOT, Sighting(1, SLOTS[1].copy())
     a.target = np.array([2.0, 0.5])
     a.plan(_obs(SLOTS[1] + [0.0, 0.0, GH + 0.05], carrying=3), _medium())   # right there, not open any more
-    assert a.phase == Phase.SEEK_GOAL and a.slot_id == -1
+    assert a.phase == Phase.SEEK_GOAL and a.slot.id == -1
 
 
 # ----------------------------------------------------------------------------- layered
@@ -334,24 +334,23 @@ def test_layered_agent_passes_a_neighbour_beside_it_and_after_a_replan_detours_b
     med.deposit(Layer.PRESENCE.value, p + [0.0, 0.15, 0.0], 2.0, rule=DepositRule.SET, source=2)    # beside
     med.step(0.1)
     cmd = a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.0), med)
-    assert cmd.kind == CommandKind.POSITION and a.phase == Phase.FETCH
+    assert cmd.kind == CommandKind.POSITION and a.phase == Phase.TO_BOX
     med.deposit(Layer.PRESENCE.value, p + [0.12, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=2)    # now ahead
     med.step(0.1)
     assert a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.1), med).kind == CommandKind.HOLD
     # for as long as a mark lasts (2 / (2/s) = 1 s) it searches elsewhere instead of trying again
     a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.2), med)
-    assert a.phase == Phase.SEEK_BOX and a.box_id == -1
+    assert a.phase == Phase.SEEK_BOX and a.box.id == -1
     for _ in range(10):                                # the neighbour has gone: its marks fade
         med.step(0.1)
     a.plan(_obs(p, boxes=[box], box_ids=[4], t=2.2), med)
-    assert a.phase == Phase.FETCH and a.box_id == 4
+    assert a.phase == Phase.TO_BOX and a.box.id == 4
 
 
 def test_presence_marks_fade_in_a_second_and_a_carrying_agent_also_marks_its_box():
     med = _medium(layered=True)
     a = _agent(LayeredStigmergy, agent=1)
-    a.holding, a.phase, a.target = True, Phase.SEEK_GOAL, np.array([1.0, 0.5])
-    a.offset = np.array([0.0, 0.0, -0.115])
+    a.carry, a.phase, a.target = Carry(2, np.array([0.0, 0.0, -0.115])), Phase.SEEK_GOAL, np.array([1.0, 0.5])
     p = np.array([1.55, 0.55, 0.255])
     a.plan(_obs(p, carrying=2, agent=1), med)
     med.step(0.1)
@@ -382,7 +381,7 @@ def test_bad_parameters_are_refused_naming_the_field():
     assert _refused_field(StigmergyParams, goal_pheromone=1.0) == "goal_pheromone"
     assert _refused_field(LayeredStigmergyParams, lookahead=0.0) == "lookahead"
     assert _refused_field(StigmergyParams, lookahead=0.2) == "lookahead"    # a layered parameter only
-    assert _refused_field(StigmergyParams, ties="first") == "ties"
+    assert _refused_field(StigmergyParams, ties="last") == "ties"
     assert _refused_field(StigmergyParams, cell_size=float("nan")) == "cell_size"
     assert _refused_field(StigmergyParams, fatigue=True) == "fatigue"        # strict: a boolean is not a number
     assert StigmergyParams(ties="nearest").ties is TieBreak.NEAREST
@@ -463,3 +462,180 @@ def test_both_planners_finish_the_thesis_task_within_its_time_limit(planner, see
     assert m["exit_status"] == "completed", (planner, seed, m["exit_status"])
     assert m["completion_time_s"] < 500.0
     assert m["boxes_placed"] == 9
+
+
+# ----------------------------------------------------------------------------- extensions (each switch matters)
+def _seeking(**params) -> Stigmergy:
+    a = _agent(**params)
+    a.phase, a.target = Phase.SEEK_BOX, np.array([1.5, 0.5])
+    return a
+
+
+def test_wide_view_notices_a_box_the_thesis_window_does_not():
+    """The task shows a box 20 cm aside; the thesis's window (15 cm, centre to centre) does not notice
+    it, and notices one 10 cm aside."""
+    box = DEPOT[4]
+    for params, seen in ((dict(), True), (dict(wide_view=False), False), (dict(preset="thesis"), False)):
+        a = _seeking(**params)
+        p = [box[0] + 0.2, box[1], a.geo.look_altitude]
+        assert _visible(p, box)                                        # the task would show it
+        a.plan(_obs(p, boxes=[box], box_ids=[4]), _medium())
+        assert (a.phase == Phase.TO_BOX) == seen, params
+    a = _seeking(preset="thesis")
+    a.plan(_obs([box[0] + 0.1, box[1], a.geo.look_altitude], boxes=[box], box_ids=[4]), _medium())
+    assert a.phase == Phase.TO_BOX
+
+
+def test_without_claims_a_box_a_neighbour_descends_onto_is_fetched_all_the_same():
+    box = DEPOT[0]
+    below = [box[0] + 0.01, box[1], 0.15]
+    for claims, phase in ((True, Phase.SEEK_BOX), (False, Phase.TO_BOX)):
+        a = _agent(agent=2, claims=claims)
+        a.plan(_obs([box[0] + 0.15, box[1], a.geo.look_altitude], boxes=[box], box_ids=[0], nb_ids=[1],
+                    nb_pos=[below]), _medium())
+        assert a.phase == phase
+
+
+def test_without_layout_altitudes_one_altitude_over_floor_and_depot_and_search_points_as_drawn():
+    d, t = _agent().geo, _agent(layout_altitudes=False).geo
+    # a carried box clears a box on the floor by 3 cm from where a climb ends (3 cm below the altitude)
+    clear = 0.10 + GH + 0.05 + 0.03 + 0.03
+    assert t.floor_altitude == pytest.approx(clear) and t.look_altitude == pytest.approx(clear)
+    assert d.look_altitude != t.look_altitude and d.cruise_altitude == t.cruise_altitude
+    med = _medium()
+    med.deposit(Layer.TASK.value, [2.75, 0.45, 0.2], -1.0, rule=DepositRule.SET)   # a goal mark over the wall
+    med.step(0.1)
+    targets = {}
+    for layout in (True, False):
+        a = _agent(layout_altitudes=layout)
+        a.strategy = Strategy.RANDOM                                   # the next choice is the pheromone one
+        a._choose(_obs([1.5, 0.5, a.geo.floor_altitude], carrying=2), med, -1)
+        targets[layout] = a.target
+    assert np.allclose(targets[False], [2.75, 0.45]) and _agent().geo.inside(targets[False])
+    assert np.allclose(targets[True], [d.structure.lo[:, 0].min() - d.standoff, 0.45])   # at the zone's edge
+
+
+def test_first_ties_follow_the_thesis_grid_order_random_ties_spread():
+    """MATLAB's max over pheromones(:) takes the first cell in column-major order of its (long side,
+    vertical, short side) grid: the smallest y first, whatever x is."""
+    med = _medium()
+    for q in ([0.45, 0.75, 0.3], [2.05, 0.25, 0.3]):
+        med.deposit(Layer.TASK.value, q, 1.0, rule=DepositRule.SET)
+    med.step(0.1)
+    p = np.array([1.0, 0.5, 0.25])
+    firsts, drawn = set(), set()
+    for seed in range(8):
+        for ties, out in ((TieBreak.FIRST, firsts), (TieBreak.RANDOM, drawn)):
+            a = _agent(seed=seed, ties=ties.value)
+            a.strategy = Strategy.RANDOM
+            a._choose(_obs(p), med, +1)
+            out.add(tuple(np.round(a.target, 6)))
+    assert firsts == {(2.05, 0.25)}
+    assert drawn == {(2.05, 0.25), (0.45, 0.75)}
+
+
+def test_a_box_beside_the_structure_is_fetched_without_leave_boxes_by_structure():
+    beside = np.array([2.81, 0.4, 0.05])
+    for leave, phase in ((True, Phase.SEEK_BOX), (False, Phase.TO_BOX)):
+        a = _seeking(leave_boxes_by_structure=leave)
+        a.plan(_obs([2.81, 0.5, 0.2], boxes=[beside], box_ids=[7]), _medium())
+        assert a.phase == phase
+
+
+def _descending_onto(slot_id: int, **params) -> tuple[Stigmergy, np.ndarray]:
+    a = _agent(**params)
+    a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.DESCEND_SLOT, Sighting(
+        slot_id, SLOTS[slot_id].copy())
+    a.watch.descent_start = 0.0
+    a.target = np.array([2.6, 0.2])
+    return a, SLOTS[slot_id] + [0.0, 0.0, a.clearance] - a.offset
+
+
+def test_without_drift_breakoff_a_descent_pushed_off_its_column_goes_on_towards_its_point():
+    for breakoff, phase in ((True, Phase.RECLIMB_SLOT), (False, Phase.DESCEND_SLOT)):
+        a, drop = _descending_onto(4, drift_breakoff=breakoff)
+        cmd = a.plan(_obs(drop + [0.08, 0.0, 0.04], carrying=3, slots=[SLOTS[4]], slot_ids=[4]), _medium())
+        assert a.phase == phase
+        assert np.allclose(cmd.vector, drop) == (not breakoff)
+
+
+def test_without_loose_box_check_an_agent_descends_onto_a_slot_with_a_loose_box_in_it():
+    loose = SLOTS[1] + [0.02, 0.01, 0.0]
+    for check, phase in ((True, Phase.SEEK_GOAL), (False, Phase.DESCEND_SLOT)):
+        a, drop = _descending_onto(1, loose_box_check=check)
+        a.plan(_obs(drop + [0, 0, 0.05], carrying=3, boxes=[loose], box_ids=[5], slots=[SLOTS[1]], slot_ids=[1]),
+               _medium())
+        assert a.phase == phase
+
+
+def test_without_retake_a_box_let_go_off_its_slot_is_left_where_it_lies():
+    off = SLOTS[1] + [0.013, 0.0, 0.0]                                  # came to rest 13 mm off its slot
+    seen = dict(boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1])
+    for retake, after_release, after_settle in ((True, Phase.SETTLING, Phase.DESCEND_BOX),
+                                                (False, Phase.CLIMB, Phase.CLIMB)):
+        a, drop = _descending_onto(1, retake=retake)
+        assert a.plan(_obs(drop, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), _medium()).action == Action.RELEASE
+        a.plan(_obs(drop, t=0.1, **seen), _medium())
+        assert a.phase == after_release
+        a.plan(_obs(drop + [0, 0, 0.02], t=0.5, **seen), _medium())
+        assert a.phase == after_settle and (a.box.id == 3) == retake
+
+
+def test_without_descent_timeout_a_descent_that_cannot_end_goes_on():
+    for timeout in (20.0, None):
+        a, drop = _descending_onto(1, descent_timeout_s=timeout)
+        a.plan(_obs(drop + [0, 0, 0.03], t=25.0, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), _medium())
+        # broken off after 20 s (the slot, still in view, is chosen again: from above, as always)
+        assert (a.phase == Phase.DESCEND_SLOT) == (timeout is None)
+
+
+def _travelling_layered(**params) -> tuple[Stigmergy, np.ndarray, PheromoneGrid]:
+    a = _agent(LayeredStigmergy, **params)
+    a.phase, a.target = Phase.SEEK_BOX, np.array([2.0, 0.55])
+    return a, np.array([1.05, 0.55, a.geo.look_altitude]), _medium(layered=True)
+
+
+def _blocked_by(mark_offset, **params) -> bool:
+    a, p, med = _travelling_layered(**params)
+    med.deposit(Layer.PRESENCE.value, p + mark_offset, 2.0, rule=DepositRule.SET, source=3)
+    med.step(0.1)
+    return a.plan(_obs(p), med).kind == CommandKind.HOLD
+
+
+def test_layered_lookahead_footprint_and_cone_each_change_what_blocks_the_way():
+    # a mark 15 cm ahead: within a 20 cm lookahead, not within the thesis's next cell (10 cm)
+    assert _blocked_by([0.15, 0.0, 0.0], footprint=False)
+    assert not _blocked_by([0.15, 0.0, 0.0], footprint=False, lookahead=0.1)
+    # a mark ahead and 9 cm aside: in the swept airframe, not on the centre line
+    assert _blocked_by([0.10, 0.09, 0.0])
+    assert not _blocked_by([0.10, 0.09, 0.0], footprint=False)
+    # a mark behind, touched by the swept airframe: ignored within the cone, blocking without it
+    assert not _blocked_by([-0.15, 0.0, 0.0])
+    assert _blocked_by([-0.15, 0.0, 0.0], ahead_cone=False)
+
+
+def test_layered_without_footprint_marks_only_its_own_cell_not_its_box():
+    for footprint in (True, False):
+        a = _agent(LayeredStigmergy, agent=1, footprint=footprint)
+        a.carry, a.phase, a.target = Carry(2, np.array([0.0, 0.0, -0.115])), Phase.SEEK_GOAL, np.array([1.0, 0.5])
+        med = _medium(layered=True)
+        p = np.array([1.55, 0.55, 0.255])
+        a.plan(_obs(p, carrying=2, agent=1), med)
+        med.step(0.1)
+        assert med.sample(Layer.PRESENCE.value, p) == 2.0
+        assert med.sample(Layer.PRESENCE.value, p + a.offset) == (2.0 if footprint else 0.0)
+
+
+def test_layered_without_detour_goes_for_a_seen_box_right_after_a_replan():
+    box = DEPOT[4]
+    for detour, phase in ((True, Phase.SEEK_BOX), (False, Phase.TO_BOX)):
+        a = _agent(LayeredStigmergy, detour=detour)
+        med = _medium(layered=True)
+        p = np.array([box[0] - 0.25, box[1] - 0.01, a.geo.look_altitude])
+        med.deposit(Layer.PRESENCE.value, p + [0.12, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=2)   # ahead
+        med.step(0.1)
+        assert a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.0), med).kind == CommandKind.HOLD
+        for _ in range(10):                                            # the neighbour's mark fades
+            med.step(0.1)
+        a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.2), med)
+        assert a.phase == phase

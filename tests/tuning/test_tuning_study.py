@@ -173,7 +173,7 @@ def _never(spec: RunSpec) -> dict[str, Any]:
     ("construction", "stigmergy", None, "planner.params.cell_size=0.001:0.1:log",
      "planner.params.cell_size: the range 0.001:0.1 leaves the parameter's range [0.01, 1]"),
     ("construction", "stigmergy", None, "planner.params.ties=0:1", "planner.params.ties: is not a number "
-                                                                   "(random | nearest) and cannot be tuned"),
+                                                                   "(random | nearest | first) and cannot be tuned"),
     ("construction", "stigmergy", None, "planner.params.nosuch=0:1", "planner.params.nosuch: names no field"),
     ("hover", None, "orca", "avoidance_params.max_neighbours=2:8", "avoidance_params.max_neighbours: is an integer: "
                                                                    "give its range with :int"),
