@@ -17,6 +17,7 @@ M = TypeVar("M", bound=pydantic.BaseModel)
 MAX_DEPTH = 32          # deepest nesting of mappings and lists accepted in a configuration file
 MAX_INT_BITS = 64       # largest integer of a configuration: 64 bits (a seed takes 63)
 MAX_FLOAT = 1e12        # largest magnitude of a real number of a configuration (beyond, geometry overflows)
+MIN_FLOAT = 1e-12       # smallest magnitude of a non-zero real number (below, its inverse overflows)
 MAX_BYTES = 1 << 20     # largest configuration file read, bytes (a 10,000-point tour takes about 300 KB)
 MAX_NODES = 250_000     # most values a document may hold with its aliases expanded
 
@@ -155,8 +156,9 @@ def check_plain(data: Any, *, source: str | None, max_depth: int = MAX_DEPTH, fi
 
     YAML aliases can build a list that contains itself, nesting can be deep enough to overflow
     the validators and serialisers, integers can be too large to print, and (with ``finite``) a
-    ``.nan``, an ``.inf`` or a real number beyond ``MAX_FLOAT`` (whose squares overflow in the
-    geometry) means nothing anywhere in a configuration: each is a ``ConfigError``
+    ``.nan``, an ``.inf``, a real number beyond ``MAX_FLOAT`` (whose squares overflow in the
+    geometry) or a non-zero one below ``MIN_FLOAT`` (whose inverse overflows) means nothing anywhere
+    in a configuration: each is a ``ConfigError``
     naming the field. Checking every number here also covers sections whose models are written
     elsewhere (task and planner models).
     """
@@ -168,6 +170,9 @@ def check_plain(data: Any, *, source: str | None, max_depth: int = MAX_DEPTH, fi
             raise ConfigError(f"must be a finite number, got {node!r}", source=source, field=path or None)
         if finite and isinstance(node, float) and abs(node) > MAX_FLOAT:
             raise ConfigError(f"must be a number of magnitude at most {MAX_FLOAT:g}, got {node!r}", source=source,
+                              field=path or None)
+        if finite and isinstance(node, float) and node != 0.0 and abs(node) < MIN_FLOAT:
+            raise ConfigError(f"must be 0 or a number of magnitude at least {MIN_FLOAT:g}, got {node!r}", source=source,
                               field=path or None)
         if isinstance(node, int) and not isinstance(node, bool) and node.bit_length() > MAX_INT_BITS:
             raise ConfigError(f"must be an integer of at most {MAX_INT_BITS} bits, got {_short(node)}",

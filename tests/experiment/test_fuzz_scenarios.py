@@ -177,7 +177,7 @@ WRONG_TYPES = st.one_of(st.text(max_size=8), st.booleans(), st.none(), st.lists(
                         st.dictionaries(st.text(max_size=4), st.integers(), min_size=1, max_size=2))
 NON_FINITE = st.sampled_from([math.nan, math.inf, -math.inf])
 HUGE = st.sampled_from([1e308, -1e308, 1e30, -1e30, 10**30, -(10**30), 2**63, 1e15, 1e6, -1e6, 10**4000])
-TINY = st.sampled_from([1e-300, -1e-300, 5e-324, 1e-12, 0, 0.0, -0.0, 1, -1])
+TINY = st.sampled_from([1e-300, -1e-300, 5e-324, 1e-13, 1e-12, 1e-9, 0, 0.0, -0.0, 1, -1])
 FACTORS = st.sampled_from([-1.0, 0.5, 2.0, 10.0, 100.0, 1000.0])
 TAGS = st.sampled_from(["!!int abc", "!!float x", "!!binary AAAA", "!!python/object:os.system ls", "!!timestamp 1",
                         "!!set {a}", "!!omap [a: 1]", "!!str 1", "!!null ''", "!!bool maybe"])

@@ -117,6 +117,10 @@ def test_2_coordinates_are_bounded() -> None:
     tour = yaml.safe_load((scenarios_dir() / "tour.yaml").read_text())
     err = bad(with_(tour, task__points=[[1.0, 1.0, 1e308]]))
     assert err.field == "task.points[0][2]" and "must be a number of magnitude at most 1e+12" in err.detail
+    # and a non-zero one below 1e-12 (a range sensor of 5e-324 m overflowed when readings were scaled)
+    err = bad(with_(HOVER, sensing__range__range_m=5e-324))
+    assert err.field == "sensing.range.range_m" and "must be 0 or a number of magnitude at least 1e-12" in err.detail
+    assert load_scenario("hover", {"sensing.range.range_m": 1e-12}).sensing.range.range_m == 1e-12
 
 
 def test_2_raised_obstacle_compares_vertical_extents() -> None:
