@@ -256,6 +256,9 @@ def _cmd_check(args: argparse.Namespace) -> int:
     from pybullet_swarm.experiment.scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.overrides)
+    from pybullet_swarm.experiment.runner import build_run
+
+    build_run(scenario)   # what a run refuses when it starts, check refuses too
     if not args.quiet:
         print(yaml.safe_dump(dict(scenario.data), sort_keys=False), end="")
     return 0

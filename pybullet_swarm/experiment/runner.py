@@ -70,6 +70,18 @@ def run(
     return result
 
 
+def build_run(scenario: Scenario) -> None:
+    """Build the run ``scenario`` describes (world, task, controller, planner, avoidance layer) and
+    close it without stepping: what a run refuses when it starts (a planner's rule that needs the
+    task's geometry, say) is refused here too. ``pybullet-swarm check`` calls it.
+
+    Raises:
+        ConfigError: one line naming the file and the field.
+    """
+    with Simulation(scenario):
+        pass
+
+
 def _watch(sim: Simulation, speed: float) -> RunResult:
     """Run in the Bullet GUI, one control period at a time, paced to ``speed`` x real time."""
     from pybullet_swarm.experiment.gui import GuiViewer

@@ -233,12 +233,14 @@ def plan_sweep(sweep: Sweep, out: str | Path, *, plots: bool = False) -> Plan:
 
     Each configuration (planner x avoidance x grid point) is the scenario file with the planner and
     avoidance choices applied (``scenario.apply_choices``), then the sweep's overrides, then the
-    grid values, validated: its planner and avoidance parameters are checked against their models.
+    grid values, validated: its planner and avoidance parameters are checked against their models,
+    and its run is built once without stepping (``runner.build_run``).
 
     Raises:
         ConfigError: a grid value, planner or avoidance layer that cannot be used (one line
             naming the configuration), before anything runs.
     """
+    from pybullet_swarm.experiment.runner import build_run
     from pybullet_swarm.planning.registry import avoidance_layers, planners
 
     out = Path(out).resolve()
@@ -257,6 +259,7 @@ def plan_sweep(sweep: Sweep, out: str | Path, *, plots: bool = False) -> Plan:
         for p, a in itertools.product(sweep.planners, sweep.avoidance):
             try:
                 scenario = _configuration(raw, source, sweep, p, a, point)
+                build_run(scenario)   # what a run refuses when it starts is refused before the sweep
             except ConfigError as exc:
                 where = ", ".join(f"{k}={plain_cell(v)}" for k, v in point)
                 if exc.field == "planner.name" and p is not None:

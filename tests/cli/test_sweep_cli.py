@@ -76,18 +76,35 @@ def test_sweep_then_plot_and_compare_read_the_results(tmp_path: Path, capsys: py
     assert (tmp_path / "cmp" / "summary.csv").is_file() and (tmp_path / "cmp" / "time_vs_collisions.png").is_file()
 
 
-def test_failed_runs_are_recorded_and_the_exit_code_says_so(tmp_path: Path,
-                                                           capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_rule_only_the_task_layout_shows_is_refused_before_anything_runs(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "sw"
-    # flying altitudes that do not rise from floor to depot: only the task's layout shows it, when a run starts
+    # flying altitudes that do not rise from floor to depot: only the task's layout shows it, when a run is
+    # built; every configuration's run is built once (not stepped) before the sweep starts
     code, stdout, stderr = run_cli(capsys, ["sweep", "construction_single", "--planners", "stigmergy", "--seeds", "2",
                                             "--set", "planner.params.floor_altitude=0.9", "--set",
                                             "task.time_limit_s=1", "--out", str(out), "--quiet", "--no-plots"])
+    assert code == 2 and stdout == "" and stderr.count("\n") == 1
+    assert stderr.startswith(PREFIX + "construction_single.yaml: planner.params.cruise_altitude: altitudes must rise")
+    assert not (out / "runs.csv").exists()
+
+
+def test_failed_runs_are_recorded_and_the_exit_code_says_so(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    from pybullet_swarm.experiment.results import RunsTable
+
+    out = tmp_path / "sw"
+    argv = ["sweep", "construction_single", "--seeds", "2", "--set", "task.time_limit_s=0.5", "--out", str(out),
+            "--quiet", "--no-plots"]
+    assert run_cli(capsys, argv)[0] == 0
+    table = RunsTable(out / "runs.csv")   # as if both runs had raised (a bug): rows recorded as errors
+    for r in table.rows:
+        r.update(exit_status="error", error="RuntimeError: boom")
+    table.save()
+    code, stdout, stderr = run_cli(capsys, argv)   # resumed: nothing to run, the failures are reported
     assert code == 1 and stdout == ""
     assert stderr.strip().splitlines()[-1].startswith(PREFIX + "2 of 2 runs failed")
-    recorded = rows(out)
-    assert [r["exit_status"] for r in recorded] == ["error", "error"]
-    assert all("planner.params.cruise_altitude: altitudes must rise" in r["error"] for r in recorded)
+    assert [r["exit_status"] for r in rows(out)] == ["error", "error"]
 
 
 def test_bad_planner_parameters_are_refused_before_anything_runs(tmp_path: Path,
