@@ -24,8 +24,8 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
-import io
 import math
+import tempfile
 import warnings
 from pathlib import Path
 from typing import Any, Callable
@@ -288,12 +288,16 @@ def try_mutant(text: str, workdir: Path, *, plots: bool = False) -> Outcome:
 
     path = workdir / FILE
     path.write_text(text, encoding="utf-8")
-    out, err = io.StringIO(), io.StringIO()
-    with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stdout(out), \
-            contextlib.redirect_stderr(err):
-        warnings.simplefilter("always")
-        code = main(["check", str(path), "--quiet"])
-    outcome = Outcome(code, err.getvalue(), out.getvalue(), _visible(caught))
+    # real files (with a file descriptor), as a terminal or a pipe would be: what Bullet's C code
+    # prints is silenced at the descriptor, as in the command
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stdout(out), \
+                contextlib.redirect_stderr(err):
+            warnings.simplefilter("always")
+            code = main(["check", str(path), "--quiet"])
+        out.seek(0)
+        err.seek(0)
+        outcome = Outcome(code, err.read(), out.read(), _visible(caught))
     if code != 0:
         return outcome
     with warnings.catch_warnings(record=True) as caught:
