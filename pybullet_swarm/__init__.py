@@ -7,6 +7,7 @@ Scripted use::
     result = ps.run(scenario, seed=1)            # nothing written unless out= is given
     result.exit_status, result.metrics["tracking_rmse_m"], result.timeseries.positions.shape
 """
+
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any

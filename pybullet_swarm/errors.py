@@ -1,4 +1,5 @@
 """Project errors: every bad input becomes one line naming the file, the field and the expectation."""
+
 from __future__ import annotations
 
 

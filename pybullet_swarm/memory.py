@@ -11,6 +11,7 @@ The budget is ``DEFAULT_BUDGET`` (4 GiB) unless the environment variable
 ``PYBULLET_SWARM_MEMORY_BUDGET`` says otherwise: a number of MiB (``8192``) or a size with a unit
 (``512M``, ``16G``, ``16GiB``).
 """
+
 from __future__ import annotations
 
 import math
@@ -20,7 +21,7 @@ import re
 from pybullet_swarm.errors import ConfigError
 
 ENV_VAR = "PYBULLET_SWARM_MEMORY_BUDGET"
-DEFAULT_BUDGET = 4 << 30   # bytes
+DEFAULT_BUDGET = 4 << 30  # bytes
 
 _UNITS = {"": 1 << 20, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
 
@@ -63,8 +64,12 @@ def check_budget(need: float, what: str, *, source: str | None, field: str | Non
     """
     budget = memory_budget()
     if need > budget:
-        raise ConfigError(f"{what} would need about {format_bytes(need)}, above the memory budget of "
-                          f"{format_bytes(budget)} (set {ENV_VAR} to allow more)", source=source, field=field)
+        raise ConfigError(
+            f"{what} would need about {format_bytes(need)}, above the memory budget of "
+            f"{format_bytes(budget)} (set {ENV_VAR} to allow more)",
+            source=source,
+            field=field,
+        )
 
 
 def colony_bytes(n: int, *, ants: int, iterations: int, candidates: int | None) -> float:

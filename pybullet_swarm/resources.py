@@ -4,6 +4,7 @@ The data live in the checkout's top-level ``urdf/`` and ``scenarios/`` folders, 
 links as ``pybullet_swarm/urdf`` and ``pybullet_swarm/scenarios``; an installed package carries
 copies of them at the same place. Both are found the same way, with ``importlib.resources``.
 """
+
 from __future__ import annotations
 
 import functools

@@ -4,6 +4,7 @@ A stream depends on the seed and the consumer's stable name only (``"start_jitte
 ``"planner/3"``, ``"range_noise"`` ...), never on which other consumers exist or in which order
 they were built: turning a sensor on does not change any planner's draws.
 """
+
 from __future__ import annotations
 
 import hashlib

@@ -1,4 +1,5 @@
 """Values that cross layers: swarm state, references, exit status, events."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -14,10 +15,10 @@ class ExitStatus(str, enum.Enum):
     """How a simulation ended."""
 
     RUNNING = "running"
-    COMPLETED = "completed"   # the task's completion condition held
-    TIMEOUT = "timeout"       # the time limit was reached first
-    CRASHED = "crashed"       # an agent flipped over or hit the ground hard
-    DIVERGED = "diverged"     # a state became non-finite or left the world
+    COMPLETED = "completed"  # the task's completion condition held
+    TIMEOUT = "timeout"  # the time limit was reached first
+    CRASHED = "crashed"  # an agent flipped over or hit the ground hard
+    DIVERGED = "diverged"  # a state became non-finite or left the world
 
 
 @dataclasses.dataclass(frozen=True)
@@ -164,7 +165,7 @@ class Perception:
         if self.nb_ids.size == 0 or k < 1:
             return out
         owner = np.repeat(np.arange(n), counts)
-        order = np.lexsort((self.nb_ids, self.nb_distances, owner))   # by agent, then distance
+        order = np.lexsort((self.nb_ids, self.nb_distances, owner))  # by agent, then distance
         rank = np.arange(order.size) - np.repeat(self.nb_start[:-1], counts)
         keep = rank < k
         out[owner[keep], rank[keep]] = self.nb_ids[order][keep]

@@ -1,4 +1,5 @@
 """Turn pydantic validation errors and YAML syntax errors into one-line ``ConfigError``s."""
+
 from __future__ import annotations
 
 import math
@@ -14,12 +15,12 @@ from pybullet_swarm.errors import ConfigError
 M = TypeVar("M", bound=pydantic.BaseModel)
 
 
-MAX_DEPTH = 32          # deepest nesting of mappings and lists accepted in a configuration file
-MAX_INT_BITS = 64       # largest integer of a configuration: 64 bits (a seed takes 63)
-MAX_FLOAT = 1e12        # largest magnitude of a real number of a configuration (beyond, geometry overflows)
-MIN_FLOAT = 1e-12       # smallest magnitude of a non-zero real number (below, its inverse overflows)
-MAX_BYTES = 1 << 20     # largest configuration file read, bytes (a 10,000-point tour takes about 300 KB)
-MAX_NODES = 250_000     # most values a document may hold with its aliases expanded
+MAX_DEPTH = 32  # deepest nesting of mappings and lists accepted in a configuration file
+MAX_INT_BITS = 64  # largest integer of a configuration: 64 bits (a seed takes 63)
+MAX_FLOAT = 1e12  # largest magnitude of a real number of a configuration (beyond, geometry overflows)
+MIN_FLOAT = 1e-12  # smallest magnitude of a non-zero real number (below, its inverse overflows)
+MAX_BYTES = 1 << 20  # largest configuration file read, bytes (a 10,000-point tour takes about 300 KB)
+MAX_NODES = 250_000  # most values a document may hold with its aliases expanded
 
 
 def _short(value: Any, limit: int = 60) -> str:
@@ -111,8 +112,9 @@ def _rule_field(err: Any) -> tuple[str, ...]:
     return (field,) if err.get("type") == "value_error" and isinstance(field, str) and field else ()
 
 
-def from_pydantic(exc: pydantic.ValidationError, *, source: str | None, prefix: str = "",
-                  data: Any = None) -> ConfigError:
+def from_pydantic(
+    exc: pydantic.ValidationError, *, source: str | None, prefix: str = "", data: Any = None
+) -> ConfigError:
     """The first error of ``exc`` as a one-line ``ConfigError``.
 
     ``data`` (what was validated) tells field names from union-member tags. When the first field
@@ -138,7 +140,7 @@ def from_pydantic(exc: pydantic.ValidationError, *, source: str | None, prefix: 
     path = _field_path(loc)
     if prefix:
         path = f"{prefix}.{path}" if path else prefix
-    if err.get("type") == "missing" or _rule_field(err):   # a rule's message says what it got
+    if err.get("type") == "missing" or _rule_field(err):  # a rule's message says what it got
         return ConfigError(expect, source=source, field=path or None)
     return ConfigError(f"{expect}, got {_short(err.get('input'))}", source=source, field=path or None)
 
@@ -162,30 +164,39 @@ def check_plain(data: Any, *, source: str | None, max_depth: int = MAX_DEPTH, fi
     naming the field. Checking every number here also covers sections whose models are written
     elsewhere (task and planner models).
     """
-    done: dict[int, int] = {}   # id of a container checked -> depth it was checked at
+    done: dict[int, int] = {}  # id of a container checked -> depth it was checked at
     on_path: set[int] = set()
 
     def walk(node: Any, path: str, depth: int) -> None:
         if finite and isinstance(node, float) and not math.isfinite(node):
             raise ConfigError(f"must be a finite number, got {node!r}", source=source, field=path or None)
         if finite and isinstance(node, float) and abs(node) > MAX_FLOAT:
-            raise ConfigError(f"must be a number of magnitude at most {MAX_FLOAT:g}, got {node!r}", source=source,
-                              field=path or None)
+            raise ConfigError(
+                f"must be a number of magnitude at most {MAX_FLOAT:g}, got {node!r}", source=source, field=path or None
+            )
         if finite and isinstance(node, float) and node != 0.0 and abs(node) < MIN_FLOAT:
-            raise ConfigError(f"must be 0 or a number of magnitude at least {MIN_FLOAT:g}, got {node!r}", source=source,
-                              field=path or None)
+            raise ConfigError(
+                f"must be 0 or a number of magnitude at least {MIN_FLOAT:g}, got {node!r}",
+                source=source,
+                field=path or None,
+            )
         if isinstance(node, int) and not isinstance(node, bool) and node.bit_length() > MAX_INT_BITS:
-            raise ConfigError(f"must be an integer of at most {MAX_INT_BITS} bits, got {_short(node)}",
-                              source=source, field=path or None)
+            raise ConfigError(
+                f"must be an integer of at most {MAX_INT_BITS} bits, got {_short(node)}",
+                source=source,
+                field=path or None,
+            )
         if not isinstance(node, (dict, list, tuple, set, frozenset)):
             return
         key = id(node)
         if key in on_path:
-            raise ConfigError(f"must not contain itself (a cyclic YAML alias), got {_short(node)}", source=source,
-                              field=path or None)
+            raise ConfigError(
+                f"must not contain itself (a cyclic YAML alias), got {_short(node)}", source=source, field=path or None
+            )
         if depth > max_depth:
-            raise ConfigError(f"must be nested at most {max_depth} levels deep, got more", source=source,
-                              field=path or None)
+            raise ConfigError(
+                f"must be nested at most {max_depth} levels deep, got more", source=source, field=path or None
+            )
         if done.get(key, -1) >= depth:
             return  # a shared (aliased) container already checked at this depth or deeper
         on_path.add(key)
@@ -227,10 +238,16 @@ class _UniqueKeyLoader(yaml.SafeLoader):
             # PyYAML's constructors: report the value and where it is
             tag = str(node.tag).replace("tag:yaml.org,2002:", "!!")
             value = node.value if isinstance(node, yaml.ScalarNode) else f"<{type(node).__name__}>"
-            reason = "not a value of this type" if isinstance(exc, (KeyError, AttributeError, IndexError)) else \
-                " ".join(str(exc).split(";")[0].split()) or exc.__class__.__name__
-            raise YamlValueError(f"cannot read {tag} {_short(value, 30)} ({reason[:100]})", node.start_mark,
-                                 _node_path(getattr(self, "_root", None), node)) from None
+            reason = (
+                "not a value of this type"
+                if isinstance(exc, (KeyError, AttributeError, IndexError))
+                else " ".join(str(exc).split(";")[0].split()) or exc.__class__.__name__
+            )
+            raise YamlValueError(
+                f"cannot read {tag} {_short(value, 30)} ({reason[:100]})",
+                node.start_mark,
+                _node_path(getattr(self, "_root", None), node),
+            ) from None
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:  # type: ignore[override]
         if isinstance(node, yaml.MappingNode):
@@ -245,8 +262,11 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                     continue  # unhashable: the base class reports it
                 if duplicate:
                     raise yaml.constructor.ConstructorError(
-                        "while constructing a mapping", node.start_mark, f"found duplicate key {key!r}",
-                        key_node.start_mark)
+                        "while constructing a mapping",
+                        node.start_mark,
+                        f"found duplicate key {key!r}",
+                        key_node.start_mark,
+                    )
                 seen.add(key)
         return super().construct_mapping(node, deep=deep)
 
@@ -328,11 +348,14 @@ def _check_expansion(root: yaml.Node, limit: int | None = None) -> int:
             total = 1 + sum(size.get(id(c), 1) for c in children)
             size[key] = total
             if total > limit:
-                raise YamlTooLarge(f"the document expands to more than {limit} values (YAML aliases or anchors "
-                                   f"repeated); at most {limit} are accepted", node.start_mark)
+                raise YamlTooLarge(
+                    f"the document expands to more than {limit} values (YAML aliases or anchors "
+                    f"repeated); at most {limit} are accepted",
+                    node.start_mark,
+                )
             continue
         if key in size or key in on_path:
-            continue   # measured already, or a recursive alias (counted as one value)
+            continue  # measured already, or a recursive alias (counted as one value)
         on_path.add(key)
         stack.append((node, True))
         stack.extend((c, False) for c in children if id(c) not in size and id(c) not in on_path)
@@ -344,8 +367,10 @@ def parse_yaml(text: str, *, source: str | None) -> Any:
     ``!!int abc``) and documents too large (``MAX_BYTES``, ``MAX_NODES`` with aliases expanded)
     become one-line ``ConfigError``s naming ``source``."""
     if len(text) > MAX_BYTES:
-        raise ConfigError(f"too large: more than {MAX_BYTES} characters (a configuration file holds at most "
-                          f"{MAX_BYTES // 1024} KiB)", source=source)
+        raise ConfigError(
+            f"too large: more than {MAX_BYTES} characters (a configuration file holds at most {MAX_BYTES // 1024} KiB)",
+            source=source,
+        )
     try:
         return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
     except YamlTooLarge as exc:
@@ -377,8 +402,10 @@ def read_yaml(path: Path) -> Any:
     except OSError as exc:
         raise ConfigError(f"cannot read file ({exc.__class__.__name__})", source=str(path)) from None
     if len(raw) > MAX_BYTES:
-        raise ConfigError(f"too large: more than {MAX_BYTES} bytes (a configuration file holds at most "
-                          f"{MAX_BYTES // 1024} KiB)", source=path.name)
+        raise ConfigError(
+            f"too large: more than {MAX_BYTES} bytes (a configuration file holds at most {MAX_BYTES // 1024} KiB)",
+            source=path.name,
+        )
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -18,6 +18,7 @@ of each is kept.
  Prints one row per N and writes a JSON list of objects with at least ``agents`` and
 ``real_time_factor``. Figures depend on the machine; nothing here is asserted.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,14 +36,17 @@ from pybullet_swarm.experiment.simulation import Simulation
 
 def hover_scenario(n: int):
     """hover_swarm with n cf2x agents starting in the air at 1 m, holding position."""
-    return load_scenario("hover_swarm", {
-        "agents.count": n,
-        "agents.vehicle": "cf2x",
-        "agents.spacing": 0.3,
-        "task.time_limit_s": 1e5,
-        "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 0.0]}],
-        "task.hold_s": 1e4,
-    })
+    return load_scenario(
+        "hover_swarm",
+        {
+            "agents.count": n,
+            "agents.vehicle": "cf2x",
+            "agents.spacing": 0.3,
+            "task.time_limit_s": 1e5,
+            "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 0.0]}],
+            "task.hold_s": 1e4,
+        },
+    )
 
 
 def start_hovering(sim: Simulation) -> None:
@@ -75,10 +79,15 @@ def bench_floor(sim: Simulation, sim_seconds: float) -> float:
     import pybullet as pb
 
     world = sim.world
-    cid = world._cid            # the benchmark measures the World's own client, on purpose
+    cid = world._cid  # the benchmark measures the World's own client, on purpose
     bodies = list(world.agent_bodies)
-    gp, gv, af, at, st = (pb.getBasePositionAndOrientation, pb.getBaseVelocity, pb.applyExternalForce,
-                          pb.applyExternalTorque, pb.stepSimulation)
+    gp, gv, af, at, st = (
+        pb.getBasePositionAndOrientation,
+        pb.getBaseVelocity,
+        pb.applyExternalForce,
+        pb.applyExternalTorque,
+        pb.stepSimulation,
+    )
     wf = pb.WORLD_FRAME
     f = [0.0, 0.0, sim.params.mass * sim.scenario.sim.gravity]
     zero = [0.0, 0.0, 0.0]
@@ -112,7 +121,7 @@ def bench_env(counts: list[int], sim_seconds: float, repeats: int, period: str) 
         actions = {a: np.zeros(3, dtype=np.float32) for a in env.agents}
         plain = Simulation(scenario)
         start_hovering(plain)
-        chunk = int(round(env.dt * plain.physics_hz))   # physics steps per environment step
+        chunk = int(round(env.dt * plain.physics_hz))  # physics steps per environment step
         steps = max(1, int(round(sim_seconds / max(repeats, 1) / env.dt)))
 
         def run_env() -> float:
@@ -127,12 +136,12 @@ def bench_env(counts: list[int], sim_seconds: float, repeats: int, period: str) 
                 plain.step(chunk)
             return time.perf_counter() - t0
 
-        warm = max(1, int(round(0.5 / env.dt)))          # warm-up: compiled kernels loaded, caches hot
+        warm = max(1, int(round(0.5 / env.dt)))  # warm-up: compiled kernels loaded, caches hot
         for _ in range(warm):
             env.step(actions)
             plain.step(chunk)
         env_walls, plain_walls = [], []
-        for _ in range(max(repeats, 1)):                 # alternate, so both see the same machine state
+        for _ in range(max(repeats, 1)):  # alternate, so both see the same machine state
             env_walls.append(run_env())
             plain_walls.append(run_plain())
         if env.sim.exit_status.value != "running" or plain.exit_status.value != "running":
@@ -152,8 +161,11 @@ def bench_env(counts: list[int], sim_seconds: float, repeats: int, period: str) 
         env.close()
         plain.close()
         rows.append(row)
-        print(f"{n:>5} {env.dt:>9.4f} {env_rate:>12.1f} {plain_rate:>14.1f} {row['ratio_to_plain']:>10.2f} "
-              f"{row['env_real_time_factor']:>8.1f}", flush=True)
+        print(
+            f"{n:>5} {env.dt:>9.4f} {env_rate:>12.1f} {plain_rate:>14.1f} {row['ratio_to_plain']:>10.2f} "
+            f"{row['env_real_time_factor']:>8.1f}",
+            flush=True,
+        )
     return rows
 
 
@@ -161,13 +173,24 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--agents", default="1,5,50,100,200", help="comma-separated agent counts")
     ap.add_argument("--sim-seconds", type=float, default=10.0, help="simulated seconds per measurement")
-    ap.add_argument("--repeats", type=int, default=3,
-                    help="alternate full and floor measurements this many times; the best of each is kept")
+    ap.add_argument(
+        "--repeats",
+        type=int,
+        default=3,
+        help="alternate full and floor measurements this many times; the best of each is kept",
+    )
     ap.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the results as JSON")
-    ap.add_argument("--env", action="store_true",
-                    help="environment steps per second of SwarmParallelEnv vs the plain simulation (default agents 1,5,50)")
-    ap.add_argument("--env-period", default="planner", choices=("planner", "control", "physics"),
-                    help="simulated time of one environment step in --env mode")
+    ap.add_argument(
+        "--env",
+        action="store_true",
+        help="environment steps per second of SwarmParallelEnv vs the plain simulation (default agents 1,5,50)",
+    )
+    ap.add_argument(
+        "--env-period",
+        default="planner",
+        choices=("planner", "control", "physics"),
+        help="simulated time of one environment step in --env mode",
+    )
     args = ap.parse_args(argv)
     if args.env and args.agents == ap.get_default("agents"):
         args.agents = "1,5,50"
@@ -183,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     for n in counts:
         sim = Simulation(hover_scenario(n))
         start_hovering(sim)
-        sim.step(sim.physics_hz // 2)          # warm-up: compiled kernels loaded, caches hot
+        sim.step(sim.physics_hz // 2)  # warm-up: compiled kernels loaded, caches hot
         part = args.sim_seconds / max(args.repeats, 1)
         walls, floors = [], []
         for _ in range(max(args.repeats, 1)):  # alternate, so both see the same machine state
@@ -204,9 +227,12 @@ def main(argv: list[str] | None = None) -> int:
             "ratio_to_floor": floor / wall,
         }
         rows.append(row)
-        print(f"{n:>5} {row['real_time_factor']:>10.1f} {row['us_per_drone_step']:>14.2f} "
-              f"{row['floor_real_time_factor']:>10.1f} {row['floor_us_per_drone_step']:>13.2f} "
-              f"{row['ratio_to_floor']:>10.2f}", flush=True)
+        print(
+            f"{n:>5} {row['real_time_factor']:>10.1f} {row['us_per_drone_step']:>14.2f} "
+            f"{row['floor_real_time_factor']:>10.1f} {row['floor_us_per_drone_step']:>13.2f} "
+            f"{row['ratio_to_floor']:>10.2f}",
+            flush=True,
+        )
     if args.json is not None:
         meta = {"python": sys.version.split()[0], "machine": platform.machine(), "numpy": np.__version__}
         for r in rows:

@@ -6,6 +6,7 @@
 Nothing is written but the figure: ``pybullet_swarm.run`` keeps results in memory unless
 ``out=`` is given.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,8 +28,10 @@ def main() -> None:
     scenario = ps.load_scenario(args.scenario)
     result = ps.run(scenario, seed=args.seed)
     m = result.metrics
-    print(f"{scenario.name}: {m['exit_status']} at {m['sim_time_s']:.1f} s, "
-          f"tracking RMS {m['tracking_rmse_m'] * 100:.2f} cm, {m['real_time_factor']:.0f}x real time")
+    print(
+        f"{scenario.name}: {m['exit_status']} at {m['sim_time_s']:.1f} s, "
+        f"tracking RMS {m['tracking_rmse_m'] * 100:.2f} cm, {m['real_time_factor']:.0f}x real time"
+    )
 
     ts = result.timeseries
     start = ts.positions[0, 0].astype(float)
@@ -36,7 +39,7 @@ def main() -> None:
     fig = Figure(figsize=(8, 6), layout="constrained")
     ax1, ax2 = fig.subplots(2, 1, sharex=True, height_ratios=[2, 1])
     for k, name in enumerate("xyz"):
-        line, = ax1.plot(ts.t, ts.positions[:, 0, k] - start[k], label=f"{name}")
+        (line,) = ax1.plot(ts.t, ts.positions[:, 0, k] - start[k], label=f"{name}")
         ax1.plot(ts.t, ts.ref_positions[:, 0, k] - start[k], "--", color=line.get_color(), lw=0.9)
     ax1.set_ylabel("offset from start [m]")
     ax1.set_title(f"{scenario.name} ({result.metrics['vehicle']}): position (solid) vs shaped reference (dashed)")

@@ -11,6 +11,7 @@ refused, how many it accepted and how their runs ended, and every violation of t
 
 Needs the test extra (hypothesis).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -52,8 +53,12 @@ def main() -> int:
     parser.add_argument("--examples", type=int, default=500, help="mutants to try (default 500)")
     parser.add_argument("--seed", type=int, default=None, help="seed of the mutations (default: random)")
     parser.add_argument("--plots", action="store_true", help="draw each accepted run's figures too (slower)")
-    parser.add_argument("--seconds", type=float, default=None,
-                        help="simulated seconds of each accepted run (default: the test's RUN_SECONDS, 0.3)")
+    parser.add_argument(
+        "--seconds",
+        type=float,
+        default=None,
+        help="simulated seconds of each accepted run (default: the test's RUN_SECONDS, 0.3)",
+    )
     parser.add_argument("--mutations", type=int, default=3, help="at most this many mutations per mutant (default 3)")
     parser.add_argument("--keep", type=Path, default=None, help="save the text of each violating mutant here")
     args = parser.parse_args()
@@ -69,8 +74,7 @@ def main() -> int:
     work = Path(tempfile.mkdtemp(prefix="fuzz-scenarios-"))
     n = 0
 
-    @settings(max_examples=args.examples, deadline=None, database=None,
-              suppress_health_check=list(HealthCheck))
+    @settings(max_examples=args.examples, deadline=None, database=None, suppress_health_check=list(HealthCheck))
     @given(case=fz.mutants(max_mutations=args.mutations))
     def explore(case: tuple[str, str, str]) -> None:
         nonlocal n
@@ -94,13 +98,19 @@ def main() -> int:
     print(f"{'mutation'.ljust(width)}  " + "  ".join(o.rjust(max(len(o), 5)) for o in outcomes) + "  total")
     for kind in sorted(counts):
         c = counts[kind]
-        print(f"{kind.ljust(width)}  " + "  ".join(str(c[o]).rjust(max(len(o), 5)) for o in outcomes)
-              + f"  {sum(c.values()):5d}")
+        print(
+            f"{kind.ljust(width)}  "
+            + "  ".join(str(c[o]).rjust(max(len(o), 5)) for o in outcomes)
+            + f"  {sum(c.values()):5d}"
+        )
     total = collections.Counter[str]()
     for c in counts.values():
         total.update(c)
-    print(f"{'all'.ljust(width)}  " + "  ".join(str(total[o]).rjust(max(len(o), 5)) for o in outcomes)
-          + f"  {sum(total.values()):5d}")
+    print(
+        f"{'all'.ljust(width)}  "
+        + "  ".join(str(total[o]).rjust(max(len(o), 5)) for o in outcomes)
+        + f"  {sum(total.values()):5d}"
+    )
     print(f"{n} mutants in {wall:.0f} s; {len(violations)} violation(s)")
     if args.keep is not None and violations:
         args.keep.mkdir(parents=True, exist_ok=True)

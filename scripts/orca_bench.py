@@ -10,6 +10,7 @@ own wall time per planner tick (``orca_mean_solve_ms`` / ``orca_max_solve_ms``: 
 shapes, the compiled LPs, the commands), the contacts, and how many agents reached their goals.
 The numba kernels run on one core.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -61,11 +62,20 @@ def main() -> None:
     a = 2 * np.pi * np.arange(n) / n
     starts = np.column_stack([args.radius * np.cos(a), args.radius * np.sin(a), np.full(n, 1.0)]) + c
     goals = (starts - c) * [-1, -1, 1] + c
-    sc = pybullet_swarm.load_scenario("hover", {
-        "arena.size": [8.0, 8.0], "agents.count": n, "agents.start": starts.tolist(), "collisions": "physical",
-        "task.time_limit_s": args.seconds, "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 500.0]}],
-        "planner": {"name": FixedTargets.name, "params": {"targets": goals.tolist()}}, "avoidance": "orca",
-        **{f"avoidance_params.{k}": yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.set)}})
+    sc = pybullet_swarm.load_scenario(
+        "hover",
+        {
+            "arena.size": [8.0, 8.0],
+            "agents.count": n,
+            "agents.start": starts.tolist(),
+            "collisions": "physical",
+            "task.time_limit_s": args.seconds,
+            "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 500.0]}],
+            "planner": {"name": FixedTargets.name, "params": {"targets": goals.tolist()}},
+            "avoidance": "orca",
+            **{f"avoidance_params.{k}": yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.set)},
+        },
+    )
     t0 = time.perf_counter()
     r = pybullet_swarm.run(sc)
     wall = time.perf_counter() - t0
@@ -73,12 +83,18 @@ def main() -> None:
     final = r.timeseries.positions[-1].astype(float)
     arrived = int(np.sum(np.linalg.norm(final - goals, axis=1) < 0.05))
     print(f"{n} agents, {m['sim_time_s']:.0f} s simulated in {wall:.1f} s wall ({m['exit_status']})")
-    print(f"layer per planner tick: mean {m['orca_mean_solve_ms']:.2f} ms, max {m['orca_max_solve_ms']:.2f} ms "
-          f"over {m['orca_ticks']} ticks")
-    print(f"commands changed {100 * m['orca_changed_fraction']:.1f} % of agent-ticks, infeasible LPs "
-          f"{m['orca_infeasible_agent_ticks']} agent-ticks")
-    print(f"contacts {m['collisions']}, closest approach {m.get('min_separation_m', float('nan')):.3f} m, "
-          f"{arrived}/{n} within 5 cm of their goals")
+    print(
+        f"layer per planner tick: mean {m['orca_mean_solve_ms']:.2f} ms, max {m['orca_max_solve_ms']:.2f} ms "
+        f"over {m['orca_ticks']} ticks"
+    )
+    print(
+        f"commands changed {100 * m['orca_changed_fraction']:.1f} % of agent-ticks, infeasible LPs "
+        f"{m['orca_infeasible_agent_ticks']} agent-ticks"
+    )
+    print(
+        f"contacts {m['collisions']}, closest approach {m.get('min_separation_m', float('nan')):.3f} m, "
+        f"{arrived}/{n} within 5 cm of their goals"
+    )
 
 
 if __name__ == "__main__":

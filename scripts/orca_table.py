@@ -10,6 +10,7 @@ The runs go through the sweep machinery (``pybullet_swarm.experiment.sweep``): a
 of ``--workers``, rows appended to ``OUT/runs.csv`` as runs finish, and running the same command
 again resumes an interrupted table instead of starting over.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,6 +38,7 @@ METRICS: tuple[tuple[str, str], ...] = (
 
 def table_row(row: dict[str, Any]) -> dict[str, Any]:
     """The numbers of the table from a sweep row (flattened metrics)."""
+
     def num(key: str) -> float | None:
         v = row.get(key)
         try:
@@ -47,9 +49,12 @@ def table_row(row: dict[str, Any]) -> dict[str, Any]:
     aa = num("collisions.agent_agent") or 0.0
     total = num("collisions.total") or 0.0
     out = {
-        "planner": row.get("planner"), "avoidance": row.get("avoidance"), "seed": int(row.get("seed", -1)),
+        "planner": row.get("planner"),
+        "avoidance": row.get("avoidance"),
+        "seed": int(row.get("seed", -1)),
         "exit_status": row.get("exit_status"),
-        "agent_agent": int(aa), "other_collisions": int(total - aa),
+        "agent_agent": int(aa),
+        "other_collisions": int(total - aa),
         "proximity_violations": num("proximity_violations"),
         "completion_time_s": num("completion_time_s"),
         "utility_of_space": num("utility_of_space"),
@@ -79,8 +84,11 @@ def table(rows: list[dict[str, Any]]) -> str:
         groups.setdefault((r["planner"], r["avoidance"]), []).append(r)
     for (planner, avoidance), rs in groups.items():
         status = Counter(r["exit_status"] for r in rs)
-        out.append(f"{planner} + {avoidance}  ({len(rs)} seeds; "
-                   + ", ".join(f"{k} {v}" for k, v in sorted(status.items())) + ")")
+        out.append(
+            f"{planner} + {avoidance}  ({len(rs)} seeds; "
+            + ", ".join(f"{k} {v}" for k, v in sorted(status.items()))
+            + ")"
+        )
         for key, label in METRICS:
             mean, half, n = mean_ci([r[key] for r in rs])
             extra = f"  [n={n}]" if n != len(rs) else ""
@@ -115,11 +123,17 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"planners not registered: {', '.join(missing)}")
     from pybullet_swarm.experiment.sweep import Sweep, run_sweep
 
-    sweep = Sweep(args.scenario, planners=tuple(wanted), avoidance=tuple(args.avoidance),
-                  seeds=tuple(range(args.seed_start, args.seed_start + args.seeds)), overrides=args.overrides)
+    sweep = Sweep(
+        args.scenario,
+        planners=tuple(wanted),
+        avoidance=tuple(args.avoidance),
+        seeds=tuple(range(args.seed_start, args.seed_start + args.seeds)),
+        overrides=args.overrides,
+    )
     result = run_sweep(sweep, args.out, workers=args.workers, quiet=False, figures=False)
-    rows = [table_row(dict(r)) for r in result.rows
-            if r.get("planner") in wanted and r.get("avoidance") in args.avoidance]
+    rows = [
+        table_row(dict(r)) for r in result.rows if r.get("planner") in wanted and r.get("avoidance") in args.avoidance
+    ]
     order = {(p, a): i for i, (p, a) in enumerate((p, a) for p in wanted for a in args.avoidance)}
     rows.sort(key=lambda r: (order[(r["planner"], r["avoidance"])], r["seed"]))
     print(table(rows))

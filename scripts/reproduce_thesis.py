@@ -12,6 +12,7 @@ onsets between airframes (``collisions.agent_agent``). Also reports the spread o
 search phase (time until the first box is found, i.e. the first grasp; the thesis saw 6-31 s).
 Writes ``OUT/thesis_table.csv`` and ``OUT/thesis_comparison.png``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -31,11 +32,13 @@ THESIS = {
     "layered_stigmergy": {"collisions": 23, "completion_time_s": 242.8, "utility_of_space": 0.78},
 }
 PLANNERS = ("shortest_path", "stigmergy", "layered_stigmergy")
-METRICS = (("proximity_violations", "collisions (thesis criterion)"),
-           ("collisions.agent_agent", "contact onsets agent-agent"),
-           ("completion_time_s", "completion time [s]"),
-           ("utility_of_space", "utility of space"),
-           ("search_phase_s", "random search phase [s]"))
+METRICS = (
+    ("proximity_violations", "collisions (thesis criterion)"),
+    ("collisions.agent_agent", "contact onsets agent-agent"),
+    ("completion_time_s", "completion time [s]"),
+    ("utility_of_space", "utility of space"),
+    ("search_phase_s", "random search phase [s]"),
+)
 
 
 def first_grasp(run_dir: Path) -> float:
@@ -89,9 +92,21 @@ def main(argv: list[str] | None = None) -> int:
             if key == "search_phase_s" and s.n:
                 extra = f"   range {np.nanmin(vals):.1f}-{np.nanmax(vals):.1f} s (thesis 6-31 s)"
             print(f"  {label:32s} {s.mean:8.3g} +- {s.std:<8.3g} [{s.ci95_low:.3g}, {s.ci95_high:.3g}]  n={s.n}{extra}")
-            table.append({"planner": planner, "metric": key, "n": s.n, "mean": s.mean, "std": s.std,
-                          "ci95_low": s.ci95_low, "ci95_high": s.ci95_high, "median": s.median,
-                          "thesis": thesis, "completed": done, "runs": len(mine)})
+            table.append(
+                {
+                    "planner": planner,
+                    "metric": key,
+                    "n": s.n,
+                    "mean": s.mean,
+                    "std": s.std,
+                    "ci95_low": s.ci95_low,
+                    "ci95_high": s.ci95_high,
+                    "median": s.median,
+                    "thesis": thesis,
+                    "completed": done,
+                    "runs": len(mine),
+                }
+            )
     out_csv = result.out / "thesis_table.csv"
     with open(out_csv, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(table[0]))

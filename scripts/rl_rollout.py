@@ -9,6 +9,7 @@ velocity actions; the random policy samples the action spaces.
     python scripts/rl_rollout.py --policy random --episodes 2 --seed 3
     python scripts/rl_rollout.py --scenario hover --set agents.count=1 --json metrics.json
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,7 +37,7 @@ def scripted_actions(env: SwarmParallelEnv, obs: dict[str, np.ndarray]) -> dict[
 def rollout(env: SwarmParallelEnv, policy: str, seed: int) -> tuple[dict[str, Any], dict[str, float]]:
     """One episode; returns the final metrics and the return of each agent."""
     obs, infos = env.reset(seed=seed)
-    for a in env.possible_agents:   # the random policy's own generator, derived from the seed
+    for a in env.possible_agents:  # the random policy's own generator, derived from the seed
         env.action_space(a).seed(seed + int(a.rsplit("_", 1)[1]))
     returns = dict.fromkeys(env.possible_agents, 0.0)
     while env.agents:
@@ -53,8 +54,14 @@ def rollout(env: SwarmParallelEnv, policy: str, seed: int) -> tuple[dict[str, An
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="hover_swarm", help="scenario name or YAML path (a waypoints task)")
-    ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                    help="scenario override, repeatable")
+    ap.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scenario override, repeatable",
+    )
     ap.add_argument("--policy", choices=("scripted", "random"), default="scripted")
     ap.add_argument("--episodes", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0, help="seed of the first episode (then seed+1, ...)")
@@ -66,8 +73,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rl_rollout: error: {exc}", file=sys.stderr)
         return 2
     if args.policy == "scripted" and not any(b == "goal" for b, _, _ in env.layout.blocks):
-        print("rl_rollout: error: the scripted policy needs a waypoints scenario (observations with a goal block)",
-              file=sys.stderr)
+        print(
+            "rl_rollout: error: the scripted policy needs a waypoints scenario (observations with a goal block)",
+            file=sys.stderr,
+        )
         return 2
     episodes = []
     try:
@@ -75,10 +84,12 @@ def main(argv: list[str] | None = None) -> int:
             metrics, returns = rollout(env, args.policy, args.seed + k)
             episodes.append({"seed": args.seed + k, "returns": returns, "metrics": metrics})
             mean_return = float(np.mean(list(returns.values())))
-            print(f"episode {k} seed {args.seed + k}: {metrics['exit_status']} after {metrics['sim_time_s']:.1f} s, "
-                  f"mean return {mean_return:.3f}, collisions {sum(metrics['collisions'].values())}, "
-                  f"tracking rmse {metrics.get('tracking_rmse_m', float('nan')):.3f} m, "
-                  f"min separation {metrics.get('min_separation_m', float('nan')):.3f} m")
+            print(
+                f"episode {k} seed {args.seed + k}: {metrics['exit_status']} after {metrics['sim_time_s']:.1f} s, "
+                f"mean return {mean_return:.3f}, collisions {sum(metrics['collisions'].values())}, "
+                f"tracking rmse {metrics.get('tracking_rmse_m', float('nan')):.3f} m, "
+                f"min separation {metrics.get('min_separation_m', float('nan')):.3f} m"
+            )
     finally:
         env.close()
     if args.json is not None:

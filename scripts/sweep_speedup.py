@@ -11,6 +11,7 @@ two are alternated and the fastest of each is kept. Prints the wall times, the s
 ``T1 / TK``, the efficiency ``speed-up / K`` and the load average before and after, and checks
 that both sweeps recorded the same numbers (runs are deterministic).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -26,8 +27,21 @@ from pathlib import Path
 
 def timed_sweep(args: argparse.Namespace, out: Path, workers: int) -> tuple[float, dict[str, str]]:
     """Wall seconds of one sweep command into an empty directory, and each run's ``energy_j`` by id."""
-    cmd = [sys.executable, "-m", "pybullet_swarm.cli.main", "sweep", args.scenario, "--seeds", str(args.seeds),
-           "--workers", str(workers), "--out", str(out), "--quiet", "--no-plots"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "pybullet_swarm.cli.main",
+        "sweep",
+        args.scenario,
+        "--seeds",
+        str(args.seeds),
+        "--workers",
+        str(workers),
+        "--out",
+        str(out),
+        "--quiet",
+        "--no-plots",
+    ]
     for o in args.overrides:
         cmd += ["--set", o]
     t0 = time.perf_counter()
@@ -63,10 +77,19 @@ def main() -> None:
         raise SystemExit("the two sweeps recorded different numbers")
     t1, tk = min(times[1]), min(times[args.workers])
     speedup = t1 / tk
-    report = {"scenario": args.scenario, "overrides": args.overrides, "runs": len(rows[1]), "workers": args.workers,
-              "wall_1_s": times[1], f"wall_{args.workers}_s": times[args.workers], "speedup": round(speedup, 3),
-              "efficiency": round(speedup / args.workers, 3), "cores": os.cpu_count(),
-              "load_before": [round(x, 2) for x in load_before], "load_after": [round(x, 2) for x in load_after]}
+    report = {
+        "scenario": args.scenario,
+        "overrides": args.overrides,
+        "runs": len(rows[1]),
+        "workers": args.workers,
+        "wall_1_s": times[1],
+        f"wall_{args.workers}_s": times[args.workers],
+        "speedup": round(speedup, 3),
+        "efficiency": round(speedup / args.workers, 3),
+        "cores": os.cpu_count(),
+        "load_before": [round(x, 2) for x in load_before],
+        "load_after": [round(x, 2) for x in load_after],
+    }
     print(json.dumps(report, indent=2))
     if args.json is not None:
         args.json.write_text(json.dumps(report, indent=2) + "\n")

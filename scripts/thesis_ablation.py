@@ -24,6 +24,7 @@ The thesis's collision count is ``thesis_collisions`` (per-agent crossings under
 line, its Figure 3.12 and section 3.6) when the runs report it, else ``proximity_violations``
 (onsets over agent pairs, about half as many); the table says which.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -75,30 +76,57 @@ def _number(v: Any) -> float:
 
 def collision_metric(rows: Sequence[Mapping[str, Any]]) -> str:
     """``thesis_collisions`` when the runs report it, else ``proximity_violations``."""
-    return "thesis_collisions" if any(math.isfinite(_number(r.get("thesis_collisions"))) for r in rows) \
+    return (
+        "thesis_collisions"
+        if any(math.isfinite(_number(r.get("thesis_collisions"))) for r in rows)
         else "proximity_violations"
+    )
 
 
-def table_rows(planner: str, configs: Sequence[tuple[str, dict[str, Any]]], rows: Sequence[Mapping[str, Any]],
-               collisions: str, ci: CIMethod) -> tuple[list[dict[str, Any]], list[tuple[str, list[dict[str, Any]]]]]:
+def table_rows(
+    planner: str,
+    configs: Sequence[tuple[str, dict[str, Any]]],
+    rows: Sequence[Mapping[str, Any]],
+    collisions: str,
+    ci: CIMethod,
+) -> tuple[list[dict[str, Any]], list[tuple[str, list[dict[str, Any]]]]]:
     """Statistics per configuration, and each configuration's runs as plain numbers (for the figure)."""
     table, runs_by = [], []
     for label, params in configs:
         cell = plain_cell(params)
         mine = [r for r in rows if r.get("planner.params") == cell and r.get("exit_status") != "error"]
         runs: list[dict[str, Any]] = [
-            {"completed": r.get("exit_status") == "completed", "sim_time_s": _number(r.get("sim_time_s")),
-             "completion_time_s": _number(r.get("completion_time_s")), "collisions": _number(r.get(collisions)),
-             "utility_of_space": _number(r.get("utility_of_space")), "boxes_placed": _number(r.get("boxes_placed")),
-             "seed": r.get("seed")} for r in mine]
+            {
+                "completed": r.get("exit_status") == "completed",
+                "sim_time_s": _number(r.get("sim_time_s")),
+                "completion_time_s": _number(r.get("completion_time_s")),
+                "collisions": _number(r.get(collisions)),
+                "utility_of_space": _number(r.get("utility_of_space")),
+                "boxes_placed": _number(r.get("boxes_placed")),
+                "seed": r.get("seed"),
+            }
+            for r in mine
+        ]
         runs_by.append((label, runs))
-        rec: dict[str, Any] = {"planner": planner, "configuration": label, "params": params, "runs": len(runs),
-                               "completed": sum(r["completed"] for r in runs)}
+        rec: dict[str, Any] = {
+            "planner": planner,
+            "configuration": label,
+            "params": params,
+            "runs": len(runs),
+            "completed": sum(r["completed"] for r in runs),
+        }
         for key in ("completion_time_s", "collisions", "utility_of_space", "boxes_placed"):
             vals = [float(r[key]) for r in runs if key != "completion_time_s" or r["completed"]]
             s = describe(vals, ci=ci)
-            rec.update({f"{key}_n": s.n, f"{key}_mean": s.mean, f"{key}_ci95_low": s.ci95_low,
-                        f"{key}_ci95_high": s.ci95_high, f"{key}_median": s.median})
+            rec.update(
+                {
+                    f"{key}_n": s.n,
+                    f"{key}_mean": s.mean,
+                    f"{key}_ci95_low": s.ci95_low,
+                    f"{key}_ci95_high": s.ci95_high,
+                    f"{key}_median": s.median,
+                }
+            )
         table.append(rec)
     return table, runs_by
 
@@ -114,37 +142,53 @@ def _cell(rec: Mapping[str, Any], key: str, digits: str) -> str:
 
 def markdown(table: Sequence[Mapping[str, Any]], collisions: str) -> str:
     """The table as Markdown (the README's)."""
-    head = ("| planner | configuration | completed | completion time [s] | "
-            f"collisions ({collisions}) | utility of space | boxes placed |")
+    head = (
+        "| planner | configuration | completed | completion time [s] | "
+        f"collisions ({collisions}) | utility of space | boxes placed |"
+    )
     lines = [head, "|---|---|---|---|---|---|---|"]
     for planner in dict.fromkeys(r["planner"] for r in table):
         thesis = THESIS.get(planner)
         if thesis:
-            lines.append(f"| {planner} | thesis (one run) | 1/1 | {thesis['completion_time_s']:g} | "
-                         f"{thesis['collisions']:g} | {thesis['utility_of_space']:g} | 9 |")
+            lines.append(
+                f"| {planner} | thesis (one run) | 1/1 | {thesis['completion_time_s']:g} | "
+                f"{thesis['collisions']:g} | {thesis['utility_of_space']:g} | 9 |"
+            )
         for r in (r for r in table if r["planner"] == planner):
-            lines.append(f"| {planner} | {r['configuration']} | {r['completed']}/{r['runs']} | "
-                         f"{_cell(r, 'completion_time_s', '.1f')} | {_cell(r, 'collisions', '.1f')} | "
-                         f"{_cell(r, 'utility_of_space', '.2f')} | {_cell(r, 'boxes_placed', '.1f')} |")
+            lines.append(
+                f"| {planner} | {r['configuration']} | {r['completed']}/{r['runs']} | "
+                f"{_cell(r, 'completion_time_s', '.1f')} | {_cell(r, 'collisions', '.1f')} | "
+                f"{_cell(r, 'utility_of_space', '.2f')} | {_cell(r, 'boxes_placed', '.1f')} |"
+            )
     return "\n".join(lines)
 
 
-def _figures(out: Path, planners: Sequence[str], runs: Mapping[str, list[tuple[str, list[dict[str, Any]]]]],
-             collisions: str) -> list[Path]:
+def _figures(
+    out: Path, planners: Sequence[str], runs: Mapping[str, list[tuple[str, list[dict[str, Any]]]]], collisions: str
+) -> list[Path]:
     from pybullet_swarm.plotting.thesis_plots import ablation_distributions_figure
 
-    metrics = (("completion_time_s", "completion time [s]"), ("collisions", f"collisions ({collisions})"),
-               ("utility_of_space", "utility of space"))
+    metrics = (
+        ("completion_time_s", "completion time [s]"),
+        ("collisions", f"collisions ({collisions})"),
+        ("utility_of_space", "utility of space"),
+    )
 
     def column(p: str, keep: Sequence[str] | None) -> dict[str, Any]:
         configs = [(label, r) for label, r in runs[p] if keep is None or label in keep]
         return {"planner": p, "configs": configs, "thesis": THESIS.get(p, {})}
 
-    every = ablation_distributions_figure([column(p, None) for p in planners], metrics, out / "ablation.png",
-                                          rotate=True)
+    every = ablation_distributions_figure(
+        [column(p, None) for p in planners], metrics, out / "ablation.png", rotate=True
+    )
     side = ablation_distributions_figure(
-        [column(p, [label for label, _ in runs[p] if label in (PRESET, DEFAULTS) or label.startswith("preset + ")])
-         for p in planners], metrics, out / "thesis_preset_defaults.png")
+        [
+            column(p, [label for label, _ in runs[p] if label in (PRESET, DEFAULTS) or label.startswith("preset + ")])
+            for p in planners
+        ],
+        metrics,
+        out / "thesis_preset_defaults.png",
+    )
     return [every, side]
 
 
@@ -168,8 +212,13 @@ def main(argv: list[str] | None = None) -> int:
     all_rows: dict[str, list[Mapping[str, Any]]] = {}
     configs = {p: configurations(p, base) for p in planners}
     for p in planners:
-        sweep = Sweep("construction", planners=(p,), seeds=args.seeds, overrides=args.overrides,
-                      grid={"planner.params": [params for _, params in configs[p]]})
+        sweep = Sweep(
+            "construction",
+            planners=(p,),
+            seeds=args.seeds,
+            overrides=args.overrides,
+            grid={"planner.params": [params for _, params in configs[p]]},
+        )
         result = run_sweep(sweep, args.out / p, workers=args.workers, quiet=args.quiet, figures=False)
         all_rows[p] = [dict(r) for r in result.rows]
     collisions = collision_metric([r for rows in all_rows.values() for r in rows])
@@ -184,9 +233,16 @@ def main(argv: list[str] | None = None) -> int:
         w = csv.DictWriter(fh, fieldnames=[*fields, "params"])
         w.writeheader()
         w.writerows({**{k: r[k] for k in fields}, "params": json.dumps(r["params"], sort_keys=True)} for r in table)
-    meta = {"seeds": args.seeds, "overrides": args.overrides, "base": list(base), "collision_metric": collisions,
-            "ci": ci.value, "thesis": THESIS, "table": table,
-            "runs": {p: {label: r for label, r in runs[p]} for p in planners}}
+    meta = {
+        "seeds": args.seeds,
+        "overrides": args.overrides,
+        "base": list(base),
+        "collision_metric": collisions,
+        "ci": ci.value,
+        "thesis": THESIS,
+        "table": table,
+        "runs": {p: {label: r for label, r in runs[p]} for p in planners},
+    }
     (args.out / "ablation.json").write_text(json.dumps(meta, indent=1, default=str), encoding="utf-8")
     figures = _figures(args.out, planners, runs, collisions)
     print(markdown(table, collisions))

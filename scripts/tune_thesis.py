@@ -22,6 +22,7 @@ trials.csv, best.yaml, plots/history.png, plots/importance.png), ``<planner>-par
 pareto/trial-<n>.yaml, plots/pareto.png), ``eval/`` (held-out sweeps), ``comparison.csv``,
 ``comparison.md`` and ``tuned_vs_default.png``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,14 +39,14 @@ from pybullet_swarm.tuning.objective import DEFAULT_OBJECTIVE, DEFAULT_PENALTY, 
 from pybullet_swarm.tuning.outputs import best_overrides
 
 SCENARIO = "construction"
-AGENT_RADIUS = 0.15 / 2 ** 0.5   # m, quad150: half the diagonal of its 15 cm x 15 cm frame
+AGENT_RADIUS = 0.15 / 2**0.5  # m, quad150: half the diagonal of its 15 cm x 15 cm frame
 
 # The thesis's parameters (Tables 5.1, 5.2 and 6.1), their defaults and the ranges searched.
 COMMON = {
-    "planner.params.trail_pheromone": ("0.0:0.8", 0.2),     # constant (trail) pheromone; boxes are +1
-    "planner.params.fatigue": ("0.0:0.03", 0.0),            # /s, task-layer fading (+1 lasts >= 33 s)
-    "task.view_radius": ("0.1:0.4", 2 * AGENT_RADIUS),      # m, the thesis's 2 agent radii
-    "planner.params.local_radius": ("0.05:0.6", 0.2),       # m, local search square half-width
+    "planner.params.trail_pheromone": ("0.0:0.8", 0.2),  # constant (trail) pheromone; boxes are +1
+    "planner.params.fatigue": ("0.0:0.03", 0.0),  # /s, task-layer fading (+1 lasts >= 33 s)
+    "task.view_radius": ("0.1:0.4", 2 * AGENT_RADIUS),  # m, the thesis's 2 agent radii
+    "planner.params.local_radius": ("0.05:0.6", 0.2),  # m, local search square half-width
 }
 LAYERED = {
     "planner.params.presence_pheromone": ("0.5:6.0", 2.0),  # second-layer strength (fades at 2/s)
@@ -60,10 +61,18 @@ def space(planner: str) -> dict[str, tuple[str, float]]:
 def tune(planner: str, args: argparse.Namespace) -> Any:
     """Run (or resume) one planner's study."""
     keys = space(planner)
-    spec = TuneSpec(SCENARIO, params=[f"{k}={r}" for k, (r, _) in keys.items()], planner=planner,
-                    objectives=[args.objective], trials=args.trials, seeds_per_trial=args.seeds_per_trial,
-                    sampler=args.sampler, sampler_seed=args.sampler_seed, penalty=args.penalty,
-                    baseline={k: d for k, (_, d) in keys.items()})
+    spec = TuneSpec(
+        SCENARIO,
+        params=[f"{k}={r}" for k, (r, _) in keys.items()],
+        planner=planner,
+        objectives=[args.objective],
+        trials=args.trials,
+        seeds_per_trial=args.seeds_per_trial,
+        sampler=args.sampler,
+        sampler_seed=args.sampler_seed,
+        penalty=args.penalty,
+        baseline={k: d for k, (_, d) in keys.items()},
+    )
     return run_tuning(spec, args.out / planner, workers=args.workers, executor=args.executor, quiet=args.quiet)
 
 
@@ -76,15 +85,30 @@ def pareto(planner: str, single: Any, args: argparse.Namespace) -> Any:
     """
     keys = space(planner)
     seen = [{k: t[k] for k in keys} for t in single.trials if t["state"] == "complete" and not t["baseline"]]
-    spec = TuneSpec(SCENARIO, params=[f"{k}={r}" for k, (r, _) in keys.items()], planner=planner,
-                    objectives=["completion_time_s", "collisions.agent_agent"],
-                    trials=1 + len(seen) + args.pareto_trials, seeds_per_trial=args.seeds_per_trial,
-                    sampler="nsga2", sampler_seed=args.sampler_seed, penalty=args.penalty,
-                    study_name=f"construction-{planner}-pareto", baseline={k: d for k, (_, d) in keys.items()},
-                    enqueue=seen)
+    spec = TuneSpec(
+        SCENARIO,
+        params=[f"{k}={r}" for k, (r, _) in keys.items()],
+        planner=planner,
+        objectives=["completion_time_s", "collisions.agent_agent"],
+        trials=1 + len(seen) + args.pareto_trials,
+        seeds_per_trial=args.seeds_per_trial,
+        sampler="nsga2",
+        sampler_seed=args.sampler_seed,
+        penalty=args.penalty,
+        study_name=f"construction-{planner}-pareto",
+        baseline={k: d for k, (_, d) in keys.items()},
+        enqueue=seen,
+    )
     out = args.out / f"{planner}-pareto"
-    return run_tuning(spec, args.out / planner, workers=args.workers, executor=args.executor, quiet=args.quiet,
-                      figures=True, outputs=out)
+    return run_tuning(
+        spec,
+        args.out / planner,
+        workers=args.workers,
+        executor=args.executor,
+        quiet=args.quiet,
+        figures=True,
+        outputs=out,
+    )
 
 
 def evaluate(planner: str, result: Any, args: argparse.Namespace) -> list[dict[str, Any]]:
@@ -92,27 +116,60 @@ def evaluate(planner: str, result: Any, args: argparse.Namespace) -> list[dict[s
     objective = parse_objectives([args.objective])
     seeds = range(args.eval_seed_start, args.eval_seed_start + args.eval_seeds)
     best = result.best[0]
-    tuned = {k: v for k, v in best_overrides(best, result.spec, planner=planner, avoidance=result.avoidance).items()
-             if k not in ("planner.name", "avoidance")}
+    tuned = {
+        k: v
+        for k, v in best_overrides(best, result.spec, planner=planner, avoidance=result.avoidance).items()
+        if k not in ("planner.name", "avoidance")
+    }
     values: dict[str, dict[int, float]] = {}
     for config, overrides in (("default", {}), ("tuned", tuned)):
         sweep = Sweep(SCENARIO, planners=(planner,), seeds=seeds, overrides=overrides)
         name = f"{planner}-default" if config == "default" else f"{planner}-tuned-trial{best['trial']}"
-        res = run_sweep(sweep, args.out / "eval" / name, workers=args.workers,
-                        executor=args.executor, figures=False, quiet=args.quiet)
-        values[config] = {int(r["seed"]): score_run(objective, r, args.penalty)[0] for r in res.rows
-                          if r.get("exit_status") != "error"}
+        res = run_sweep(
+            sweep,
+            args.out / "eval" / name,
+            workers=args.workers,
+            executor=args.executor,
+            figures=False,
+            quiet=args.quiet,
+        )
+        values[config] = {
+            int(r["seed"]): score_run(objective, r, args.penalty)[0]
+            for r in res.rows
+            if r.get("exit_status") != "error"
+        }
     common = sorted(set(values["default"]) & set(values["tuned"]))
     out = []
     for config in ("default", "tuned"):
         v = [values[config][s] for s in common]
         st = describe(v)
-        out.append({"planner": planner, "config": config, "n": st.n, "mean": st.mean, "ci95_low": st.ci95_low,
-                    "ci95_high": st.ci95_high, "values": v, "trial": best["trial"] if config == "tuned" else None,
-                    "overrides": tuned if config == "tuned" else {}})
+        out.append(
+            {
+                "planner": planner,
+                "config": config,
+                "n": st.n,
+                "mean": st.mean,
+                "ci95_low": st.ci95_low,
+                "ci95_high": st.ci95_high,
+                "values": v,
+                "trial": best["trial"] if config == "tuned" else None,
+                "overrides": tuned if config == "tuned" else {},
+            }
+        )
     diff = describe([values["tuned"][s] - values["default"][s] for s in common])
-    out.append({"planner": planner, "config": "tuned - default (paired)", "n": diff.n, "mean": diff.mean,
-                "ci95_low": diff.ci95_low, "ci95_high": diff.ci95_high, "values": [], "trial": None, "overrides": {}})
+    out.append(
+        {
+            "planner": planner,
+            "config": "tuned - default (paired)",
+            "n": diff.n,
+            "mean": diff.mean,
+            "ci95_low": diff.ci95_low,
+            "ci95_high": diff.ci95_high,
+            "values": [],
+            "trial": None,
+            "overrides": {},
+        }
+    )
     return out
 
 
@@ -123,22 +180,32 @@ def write_tables(rows: list[dict[str, Any]], args: argparse.Namespace) -> list[P
     cols = ["planner", "config", "n", "mean", "ci95_low", "ci95_high", "trial", "overrides"]
     lines = [",".join(cols)]
     for r in rows:
-        cells = [json.dumps(r[c], sort_keys=True) if c == "overrides" else ("" if r[c] is None else str(r[c]))
-                 for c in cols]
+        cells = [
+            json.dumps(r[c], sort_keys=True) if c == "overrides" else ("" if r[c] is None else str(r[c])) for c in cols
+        ]
         lines.append(",".join(f'"{c}"' if "," in c or '"' in c else c for c in (x.replace('"', '""') for x in cells)))
     csv_path = args.out / "comparison.csv"
     atomic_write(csv_path, lambda fh: fh.write("\n".join(lines) + "\n"))
-    md = [f"Objective `{args.objective}` (incomplete runs: completion time = time reached + {args.penalty:g}), "
-          f"held-out seeds {args.eval_seed_start}..{args.eval_seed_start + args.eval_seeds - 1}; budget "
-          f"{args.trials} trials x {args.seeds_per_trial} seeds per planner ({args.sampler}).", "",
-          "| planner | configuration | n | mean | 95 % CI |", "|---|---|---:|---:|---|"]
-    md += [f"| {r['planner']} | {r['config']} | {r['n']} | {r['mean']:.1f} | "
-           f"[{r['ci95_low']:.1f}, {r['ci95_high']:.1f}] |" for r in rows]
+    md = [
+        f"Objective `{args.objective}` (incomplete runs: completion time = time reached + {args.penalty:g}), "
+        f"held-out seeds {args.eval_seed_start}..{args.eval_seed_start + args.eval_seeds - 1}; budget "
+        f"{args.trials} trials x {args.seeds_per_trial} seeds per planner ({args.sampler}).",
+        "",
+        "| planner | configuration | n | mean | 95 % CI |",
+        "|---|---|---:|---:|---|",
+    ]
+    md += [
+        f"| {r['planner']} | {r['config']} | {r['n']} | {r['mean']:.1f} | [{r['ci95_low']:.1f}, {r['ci95_high']:.1f}] |"
+        for r in rows
+    ]
     md_path = args.out / "comparison.md"
     atomic_write(md_path, lambda fh: fh.write("\n".join(md) + "\n"))
-    fig = plot_tuned_vs_default([r for r in rows if r["config"] in ("default", "tuned")],
-                                args.out / "tuned_vs_default.png", ylabel=args.objective,
-                                title=f"construction, {args.eval_seeds} held-out seeds")
+    fig = plot_tuned_vs_default(
+        [r for r in rows if r["config"] in ("default", "tuned")],
+        args.out / "tuned_vs_default.png",
+        ylabel=args.objective,
+        title=f"construction, {args.eval_seeds} held-out seeds",
+    )
     return [csv_path, md_path, fig]
 
 
@@ -148,8 +215,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds-per-trial", type=int, default=2, help="seeds per trial (default 2)")
     p.add_argument("--eval-seeds", type=int, default=10, help="held-out seeds of the comparison (default 10)")
     p.add_argument("--eval-seed-start", type=int, default=1000, help="first held-out seed (default 1000)")
-    p.add_argument("--pareto-trials", type=int, default=4,
-                   help="NSGA-II trials after the re-scored trials of each multi-objective study (default 4)")
+    p.add_argument(
+        "--pareto-trials",
+        type=int,
+        default=4,
+        help="NSGA-II trials after the re-scored trials of each multi-objective study (default 4)",
+    )
     p.add_argument("--planners", default="stigmergy,layered_stigmergy")
     p.add_argument("--objective", default=DEFAULT_OBJECTIVE)
     p.add_argument("--penalty", type=float, default=DEFAULT_PENALTY)
@@ -166,8 +237,11 @@ def main(argv: list[str] | None = None) -> int:
     results = {planner: tune(planner, args) for planner in planners}
     rows: list[dict[str, Any]] = []
     for planner, result in results.items():
-        print(f"{planner}: best trial {result.best[0]['trial']}, objective {result.best[0]['value']:.1f} "
-              f"on the tuning seeds; {args.out / planner / 'best.yaml'}", flush=True)
+        print(
+            f"{planner}: best trial {result.best[0]['trial']}, objective {result.best[0]['value']:.1f} "
+            f"on the tuning seeds; {args.out / planner / 'best.yaml'}",
+            flush=True,
+        )
         rows += evaluate(planner, result, args)
     files = write_tables(rows, args)
     for planner, result in results.items():
@@ -178,5 +252,5 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-if __name__ == "__main__":      # workers are fresh processes that import the script
+if __name__ == "__main__":  # workers are fresh processes that import the script
     sys.exit(main())

@@ -1,4 +1,5 @@
 """Shared fixtures: small scenarios for physics tests."""
+
 from __future__ import annotations
 
 from typing import Any

@@ -1,4 +1,5 @@
 """The ``pybullet-swarm`` command."""
+
 from __future__ import annotations
 
 

@@ -5,6 +5,7 @@ Exit codes: 0 when the command did its work (a simulation's outcome is in ``exit
 2 for bad input (one line on stderr naming the file, the field and the expectation), 1 for an
 internal error.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,19 +39,44 @@ def _add_run(sub: Any) -> None:
     p.add_argument("--planner", default=None, help="planner name (default: the scenario's)")
     p.add_argument("--avoidance", default=None, help="local avoidance layer (default: the scenario's)")
     p.add_argument("--seed", type=int, default=None, help="seed of the run (default: the scenario's)")
-    p.add_argument("--out", type=Path, default=None, help="run directory (default: runs/<name>-<planner>-s<seed>-<time>)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
-                   help="override a scenario field (repeatable), e.g. --set agents.count=20")
-    p.add_argument("-c", "--config", type=Path, default=None, metavar="FILE",
-                   help="override file of key.path: value lines (e.g. best.yaml of `tune`), applied before --set")
-    p.add_argument("--gui", action="store_true",
-                   help="watch in the Bullet GUI: the arena framed, paced to real time (see --speed), overlays")
-    p.add_argument("--video", action="store_true",
-                   help="after the run, render RUN_DIR/video.mp4 (GIF without an MP4 encoder): the replay of "
-                        "`replay RUN_DIR`, 3d view, 4x faster than real time (see --speed)")
-    p.add_argument("--speed", type=_speed, default=None, metavar="X",
-                   help="--gui: simulated seconds per wall-clock second (default 1, real time); "
-                        "--video: simulated seconds per second of video (default 4)")
+    p.add_argument(
+        "--out", type=Path, default=None, help="run directory (default: runs/<name>-<planner>-s<seed>-<time>)"
+    )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=VALUE",
+        help="override a scenario field (repeatable), e.g. --set agents.count=20",
+    )
+    p.add_argument(
+        "-c",
+        "--config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="override file of key.path: value lines (e.g. best.yaml of `tune`), applied before --set",
+    )
+    p.add_argument(
+        "--gui",
+        action="store_true",
+        help="watch in the Bullet GUI: the arena framed, paced to real time (see --speed), overlays",
+    )
+    p.add_argument(
+        "--video",
+        action="store_true",
+        help="after the run, render RUN_DIR/video.mp4 (GIF without an MP4 encoder): the replay of "
+        "`replay RUN_DIR`, 3d view, 4x faster than real time (see --speed)",
+    )
+    p.add_argument(
+        "--speed",
+        type=_speed,
+        default=None,
+        metavar="X",
+        help="--gui: simulated seconds per wall-clock second (default 1, real time); "
+        "--video: simulated seconds per second of video (default 4)",
+    )
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
     p.set_defaults(func=_cmd_run)
@@ -66,7 +92,7 @@ def _format_metrics(m: dict[str, Any]) -> str:
                 return
             for k2, v2 in value.items():
                 add(f"{prefix}.{k2}", v2)
-        elif not isinstance(value, list):   # per-agent lists are in metrics.json
+        elif not isinstance(value, list):  # per-agent lists are in metrics.json
             rows.append((prefix, _fmt(value)))
 
     for key, value in m.items():
@@ -80,8 +106,9 @@ def _check_display() -> None:
     import os
 
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise ConfigError("needs a display (DISPLAY is not set); run without --gui, or record one with --video",
-                          source="--gui")
+        raise ConfigError(
+            "needs a display (DISPLAY is not set); run without --gui, or record one with --video", source="--gui"
+        )
 
 
 def _fmt(v: Any) -> str:
@@ -113,13 +140,26 @@ def _cmd_run(args: argparse.Namespace) -> int:
         _check_display()
     from pybullet_swarm.experiment.rundir import check_run_dir
 
-    out = check_run_dir(args.out, source="--out") if args.out is not None else \
-        default_run_dir(scenario.name, str(scenario.planner.name), scenario.seed)
-    result = run(scenario, out=out, gui=args.gui, plots=not args.no_plots, video=args.video, speed=args.speed,
-                 report=True, quiet=args.quiet)
+    out = (
+        check_run_dir(args.out, source="--out")
+        if args.out is not None
+        else default_run_dir(scenario.name, str(scenario.planner.name), scenario.seed)
+    )
+    result = run(
+        scenario,
+        out=out,
+        gui=args.gui,
+        plots=not args.no_plots,
+        video=args.video,
+        speed=args.speed,
+        report=True,
+        quiet=args.quiet,
+    )
     if not args.quiet:
-        print(f"{scenario.name}: {result.exit_status.value} after {result.metrics['sim_time_s']:.2f} s simulated "
-              f"({result.metrics['real_time_factor'] or 0:.1f}x real time)")
+        print(
+            f"{scenario.name}: {result.exit_status.value} after {result.metrics['sim_time_s']:.2f} s simulated "
+            f"({result.metrics['real_time_factor'] or 0:.1f}x real time)"
+        )
         print(_format_metrics(result.metrics))
         print(f"run directory: {result.run_dir}")
         if "video" in result.metrics:
@@ -148,8 +188,9 @@ def _size(text: str) -> tuple[int, int]:
     m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
     size = (int(m.group(1)), int(m.group(2))) if m else (0, 1)
     if min(size) < 64 or size[0] % 2 or size[1] % 2:
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in px, both even and >= 64 (e.g. 1280x720), "
-                                         f"got {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"expected WIDTHxHEIGHT in px, both even and >= 64 (e.g. 1280x720), got {text!r}"
+        )
     return size
 
 
@@ -161,16 +202,31 @@ REPLAY_VIEWS = ("top", "chase", "orbit", "3d")
 def _add_replay(sub: Any) -> None:
     p = sub.add_parser("replay", help="render a video of a finished run from its saved results (no re-simulation)")
     p.add_argument("run_dir", type=Path, metavar="RUN_DIR")
-    p.add_argument("--out", type=Path, default=None, metavar="FILE",
-                   help="video file (default RUN_DIR/video.mp4; .gif when no MP4 encoder is installed)")
-    p.add_argument("--view", choices=REPLAY_VIEWS, default="3d",
-                   help="top (orthographic, from above), chase (behind the swarm), orbit (circling the arena) "
-                        "or 3d (fixed, framing the arena; default)")
-    p.add_argument("--speed", type=_speed, default=4.0, metavar="X",
-                   help="simulated seconds per second of video (default 4)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="video file (default RUN_DIR/video.mp4; .gif when no MP4 encoder is installed)",
+    )
+    p.add_argument(
+        "--view",
+        choices=REPLAY_VIEWS,
+        default="3d",
+        help="top (orthographic, from above), chase (behind the swarm), orbit (circling the arena) "
+        "or 3d (fixed, framing the arena; default)",
+    )
+    p.add_argument(
+        "--speed", type=_speed, default=4.0, metavar="X", help="simulated seconds per second of video (default 4)"
+    )
     p.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH", help="frame size in px (default 1280x720)")
-    p.add_argument("--frame", type=float, default=None, metavar="T",
-                   help="write only the frame at simulated time T s, as a PNG (default --out: RUN_DIR/frame.png)")
+    p.add_argument(
+        "--frame",
+        type=float,
+        default=None,
+        metavar="T",
+        help="write only the frame at simulated time T s, as a PNG (default --out: RUN_DIR/frame.png)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar, print nothing on success")
     p.set_defaults(func=_cmd_replay)
 
@@ -184,15 +240,15 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     if not (args.run_dir / "timeseries.npz").is_file():
         raise ConfigError("not a run directory (no timeseries.npz)", source=str(args.run_dir))
     if args.out is not None and args.out.is_dir():
-        raise ConfigError("is a directory; give a file name (.mp4, .gif or, with --frame, .png)",
-                          source=f"--out {args.out}")
+        raise ConfigError(
+            "is a directory; give a file name (.mp4, .gif or, with --frame, .png)", source=f"--out {args.out}"
+        )
     check_output_dir(args.out.parent if args.out is not None else args.run_dir, source="--out" if args.out else None)
-    check_saved_run(args.run_dir)   # every saved file is read and checked before the first frame
+    check_saved_run(args.run_dir)  # every saved file is read and checked before the first frame
     if args.frame is not None:
         path = render_still(args.run_dir, args.frame, args.out, view=args.view, size=args.size)
     else:
-        path = render_replay(args.run_dir, args.out, view=args.view, speed=args.speed, size=args.size,
-                             quiet=args.quiet)
+        path = render_replay(args.run_dir, args.out, view=args.view, speed=args.speed, size=args.size, quiet=args.quiet)
     if not args.quiet:
         print(path)
     return 0
@@ -218,7 +274,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
         from pybullet_swarm.experiment.sweep_report import write_sweep_report
 
         check_output_dir(args.directory)
-        load_sweep(args.directory)   # runs.csv, sweep.json and summary.csv checked before the page is made
+        load_sweep(args.directory)  # runs.csv, sweep.json and summary.csv checked before the page is made
         if (args.directory / "summary.csv").is_file():
             from pybullet_swarm.experiment.results import read_summary_csv
 
@@ -234,8 +290,9 @@ def _cmd_report(args: argparse.Namespace) -> int:
             read_metrics(args.directory)
         path = write_run_report(args.directory)
     else:
-        raise ConfigError("not a run directory (no timeseries.npz) nor a sweep directory (no runs.csv)",
-                          source=str(args.directory))
+        raise ConfigError(
+            "not a run directory (no timeseries.npz) nor a sweep directory (no runs.csv)", source=str(args.directory)
+        )
     if not args.quiet:
         print(path)
     return 0
@@ -258,7 +315,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario, args.overrides)
     from pybullet_swarm.experiment.runner import build_run
 
-    build_run(scenario)   # what a run refuses when it starts, check refuses too
+    build_run(scenario)  # what a run refuses when it starts, check refuses too
     if not args.quiet:
         print(yaml.safe_dump(dict(scenario.data), sort_keys=False), end="")
     return 0
@@ -266,11 +323,15 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------- design
 def _add_design(sub: Any) -> None:
-    p = sub.add_parser("design", help="design the controller of a vehicle and report poles, margins, bandwidths "
-                                      "and rotor saturation")
-    p.add_argument("--scenario", default=None,
-                   help="take vehicle, rates and gravity from this scenario and check its reference step "
-                        "(its limits) for rotor saturation")
+    p = sub.add_parser(
+        "design", help="design the controller of a vehicle and report poles, margins, bandwidths and rotor saturation"
+    )
+    p.add_argument(
+        "--scenario",
+        default=None,
+        help="take vehicle, rates and gravity from this scenario and check its reference step "
+        "(its limits) for rotor saturation",
+    )
     p.add_argument("--vehicle", default=None, help="bundled vehicle name or vehicle YAML file (default quad150)")
     p.add_argument("--physics-hz", type=float, default=None, help="attitude-loop rate, Hz (default 240)")
     p.add_argument("--control-hz", type=float, default=None, help="position-loop rate, Hz (default 48)")
@@ -297,8 +358,12 @@ def _cmd_design(args: argparse.Namespace) -> int:
         from pybullet_swarm.experiment.scenario import load_scenario
 
         sc = load_scenario(args.scenario)
-        vehicle, physics_hz, control_hz, gravity = (sc.agents.vehicle, float(sc.sim.physics_hz),
-                                                    float(sc.sim.control_hz), float(sc.sim.gravity))
+        vehicle, physics_hz, control_hz, gravity = (
+            sc.agents.vehicle,
+            float(sc.sim.physics_hz),
+            float(sc.sim.control_hz),
+            float(sc.sim.gravity),
+        )
         step = ReferenceStep.from_limits(sc.velocity_limits(), sc.acceleration_limits())
     vehicle = args.vehicle if args.vehicle is not None else vehicle
     physics_hz = args.physics_hz if args.physics_hz is not None else physics_hz
@@ -306,15 +371,16 @@ def _cmd_design(args: argparse.Namespace) -> int:
     try:
         params = load_vehicle(vehicle)
     except OSError as exc:  # e.g. a name too long for the file system
-        raise ConfigError(f"must be a bundled vehicle name or a vehicle .yaml file ({exc.strerror})",
-                          source="--vehicle") from None
+        raise ConfigError(
+            f"must be a bundled vehicle name or a vehicle .yaml file ({exc.strerror})", source="--vehicle"
+        ) from None
     try:
         check_rates(physics_hz, control_hz)
     except ValueError as exc:
         raise ConfigError(str(exc), source="--control-hz") from None
     # no gains for a loop, or a saturating step: a ConfigError naming the vehicle file and the loop
     design = design_controller(params, physics_hz=physics_hz, position_hz=control_hz, gravity=gravity)
-    checked = design.check_step(step) if step is not None else None    # the scenario's step, the runtime's gains
+    checked = design.check_step(step) if step is not None else None  # the scenario's step, the runtime's gains
     if args.json:
         data = design.to_json_dict()
         if checked is not None:
@@ -324,8 +390,10 @@ def _cmd_design(args: argparse.Namespace) -> int:
         print(format_table(design))
         if checked is not None:
             st = checked.step
-            print(f"scenario {args.scenario}: step a = {st.acceleration} m/s^2, p = {st.position} m, yaw = {st.yaw:g} "
-                  f"rad: rotor speed {100 * checked.min_fraction:.1f} .. {100 * checked.peak_fraction:.1f} % of max")
+            print(
+                f"scenario {args.scenario}: step a = {st.acceleration} m/s^2, p = {st.position} m, yaw = {st.yaw:g} "
+                f"rad: rotor speed {100 * checked.min_fraction:.1f} .. {100 * checked.peak_fraction:.1f} % of max"
+            )
     if args.plot is not None:
         from pybullet_swarm.plotting.design_plots import plot_design
 
@@ -339,12 +407,22 @@ def _cmd_design(args: argparse.Namespace) -> int:
 def _add_plot(sub: Any) -> None:
     p = sub.add_parser("plot", help="redraw the figures of a finished run, or the comparison figures of a sweep")
     p.add_argument("run_dir", type=Path, metavar="RUN_DIR|SWEEP_DIR")
-    p.add_argument("--out", type=Path, default=None,
-                   help="figure directory (default: RUN_DIR/plots or SWEEP_DIR/plots)")
-    p.add_argument("--ci", choices=("t", "bootstrap"), default="t",
-                   help="95%% interval of the mean in the sweep table: t-interval or BCa bootstrap (default t)")
-    p.add_argument("--metrics", type=_names, default=None, metavar="A,B,...",
-                   help="sweep: metrics of the table and box plots (default: headline metrics, every box plot)")
+    p.add_argument(
+        "--out", type=Path, default=None, help="figure directory (default: RUN_DIR/plots or SWEEP_DIR/plots)"
+    )
+    p.add_argument(
+        "--ci",
+        choices=("t", "bootstrap"),
+        default="t",
+        help="95%% interval of the mean in the sweep table: t-interval or BCa bootstrap (default t)",
+    )
+    p.add_argument(
+        "--metrics",
+        type=_names,
+        default=None,
+        metavar="A,B,...",
+        help="sweep: metrics of the table and box plots (default: headline metrics, every box plot)",
+    )
     p.set_defaults(func=_cmd_plot)
 
 
@@ -358,10 +436,11 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     from pybullet_swarm.plotting.run_plots import plot_run, plot_saved_artifacts
 
     if not (args.run_dir / "timeseries.npz").is_file():
-        raise ConfigError("not a run directory (no timeseries.npz) nor a sweep directory (no runs.csv)",
-                          source=str(args.run_dir))
+        raise ConfigError(
+            "not a run directory (no timeseries.npz) nor a sweep directory (no runs.csv)", source=str(args.run_dir)
+        )
     out = check_output_dir(args.out or args.run_dir / "plots", source="--out" if args.out else None)
-    saved = check_saved_run(args.run_dir)   # every saved file is read and checked before the first figure
+    saved = check_saved_run(args.run_dir)  # every saved file is read and checked before the first figure
     files = plot_run(saved["timeseries"], out, saved["metrics"], scenario=saved["scenario"], events=saved["events"])
     files += plot_saved_artifacts(args.run_dir, out)
     for f in files:
@@ -393,14 +472,17 @@ def _check_metric_names(names: Sequence[str] | None, summary: Sequence[Any]) -> 
         return
     present = list(dict.fromkeys(s.metric for s in summary))
     if not present:
-        return   # no run finished without an error: the table says so
+        return  # no run finished without an error: the table says so
     unknown = [n for n in names if n not in present]
     if unknown:
         import difflib
 
         close = difflib.get_close_matches(unknown[0], present, n=3, cutoff=0.6)
-        hint = f"did you mean {', '.join(close)}?" if close else \
-            f"metrics of these runs: {', '.join(present[:30])}{' ...' if len(present) > 30 else ''}"
+        hint = (
+            f"did you mean {', '.join(close)}?"
+            if close
+            else f"metrics of these runs: {', '.join(present[:30])}{' ...' if len(present) > 30 else ''}"
+        )
         raise ConfigError(f"unknown metric {unknown[0]!r}; {hint}", source="--metrics")
 
 
@@ -432,30 +514,75 @@ def _grid(text: str) -> tuple[str, list[Any]]:
 def _add_sweep(sub: Any) -> None:
     p = sub.add_parser("sweep", help="run planners x avoidance x grid values x seeds in parallel, resumable")
     p.add_argument("scenario", help="scenario YAML file or bundled name (see `list`)")
-    p.add_argument("--planners", type=_names, default=(None,), metavar="A,B,...",
-                   help="planners to compare (default: the scenario's)")
-    p.add_argument("--avoidance", type=_names, default=(None,), metavar="A,B,...",
-                   help="avoidance layers to compare, e.g. none,orca (default: the scenario's)")
+    p.add_argument(
+        "--planners",
+        type=_names,
+        default=(None,),
+        metavar="A,B,...",
+        help="planners to compare (default: the scenario's)",
+    )
+    p.add_argument(
+        "--avoidance",
+        type=_names,
+        default=(None,),
+        metavar="A,B,...",
+        help="avoidance layers to compare, e.g. none,orca (default: the scenario's)",
+    )
     p.add_argument("--seeds", type=int, required=True, metavar="N", help="runs per configuration: N seeds")
     p.add_argument("--seed-start", type=int, default=0, metavar="S", help="first seed (default 0): seeds S .. S+N-1")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
-                   help="override a scenario field in every run (repeatable)")
-    p.add_argument("--grid", action="append", default=[], metavar="KEY.PATH=V1,V2,...",
-                   help="sweep a scenario field over values (repeatable: every combination runs)")
-    p.add_argument("--executor", choices=("local", "ray"), default="local",
-                   help="local: a process pool on this machine (default); ray: Ray tasks")
-    p.add_argument("--workers", type=int, default=None, metavar="K",
-                   help="parallel runs (default: the number of cores; with --address: the cluster's CPUs)")
-    p.add_argument("--address", default=None, metavar="ADDR",
-                   help="Ray cluster to use (auto or host:port); without it --executor ray starts a local Ray")
-    p.add_argument("--out", type=Path, default=None,
-                   help="sweep directory (default: runs/sweep-<scenario>-<hash of scenario and --set>)")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=VALUE",
+        help="override a scenario field in every run (repeatable)",
+    )
+    p.add_argument(
+        "--grid",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=V1,V2,...",
+        help="sweep a scenario field over values (repeatable: every combination runs)",
+    )
+    p.add_argument(
+        "--executor",
+        choices=("local", "ray"),
+        default="local",
+        help="local: a process pool on this machine (default); ray: Ray tasks",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="K",
+        help="parallel runs (default: the number of cores; with --address: the cluster's CPUs)",
+    )
+    p.add_argument(
+        "--address",
+        default=None,
+        metavar="ADDR",
+        help="Ray cluster to use (auto or host:port); without it --executor ray starts a local Ray",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="sweep directory (default: runs/sweep-<scenario>-<hash of scenario and --set>)",
+    )
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as errors")
-    p.add_argument("--run-plots", action="store_true",
-                   help="draw each run's own figures and report.html too (later: pybullet-swarm plot/report RUN_DIR)")
+    p.add_argument(
+        "--run-plots",
+        action="store_true",
+        help="draw each run's own figures and report.html too (later: pybullet-swarm plot/report RUN_DIR)",
+    )
     p.add_argument("--no-plots", action="store_true", help="skip the comparison figures")
-    p.add_argument("--ci", choices=("t", "bootstrap"), default="t",
-                   help="95%% interval of the mean in summary.csv: t-interval or BCa bootstrap (default t)")
+    p.add_argument(
+        "--ci",
+        choices=("t", "bootstrap"),
+        default="t",
+        help="95%% interval of the mean in summary.csv: t-interval or BCa bootstrap (default t)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar, no table (for scripts)")
     p.set_defaults(func=_cmd_sweep)
 
@@ -476,25 +603,46 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         from pybullet_swarm.experiment.rundir import check_output_dir
 
         check_output_dir(args.out, source="--out")
-    sweep = Sweep(args.scenario, planners=args.planners, avoidance=args.avoidance, grid=grid,
-                  seeds=range(args.seed_start, args.seed_start + args.seeds), overrides=args.overrides)
-    result = run_sweep(sweep, args.out, executor=args.executor, workers=args.workers, address=args.address,
-                       plots=args.run_plots, figures=not args.no_plots, retry_failed=args.retry_failed,
-                       ci=args.ci, quiet=args.quiet)
+    sweep = Sweep(
+        args.scenario,
+        planners=args.planners,
+        avoidance=args.avoidance,
+        grid=grid,
+        seeds=range(args.seed_start, args.seed_start + args.seeds),
+        overrides=args.overrides,
+    )
+    result = run_sweep(
+        sweep,
+        args.out,
+        executor=args.executor,
+        workers=args.workers,
+        address=args.address,
+        plots=args.run_plots,
+        figures=not args.no_plots,
+        retry_failed=args.retry_failed,
+        ci=args.ci,
+        quiet=args.quiet,
+    )
     if result.interrupted:
-        return _fail(f"interrupted; {len(result.rows)} runs recorded in {result.out}; "
-                     "run the same command again to resume", 130)
+        return _fail(
+            f"interrupted; {len(result.rows)} runs recorded in {result.out}; run the same command again to resume", 130
+        )
     from pybullet_swarm.experiment.sweep_report import write_sweep_report
 
     page = write_sweep_report(result.out)
     if not args.quiet:
         print(result.table())
-        print(f"sweep directory: {result.out} ({result.n_planned} runs: {result.n_run} run now, "
-              f"{result.n_skipped} skipped, {result.n_failed} failed; {result.wall_time_s:.1f} s)")
+        print(
+            f"sweep directory: {result.out} ({result.n_planned} runs: {result.n_run} run now, "
+            f"{result.n_skipped} skipped, {result.n_failed} failed; {result.wall_time_s:.1f} s)"
+        )
         print(f"report: {page}")
     if result.n_failed:
-        return _fail(f"{result.n_failed} of {result.n_planned} runs failed (exit_status=error in "
-                     f"{result.out / 'runs.csv'}; --retry-failed runs them again)", 1)
+        return _fail(
+            f"{result.n_failed} of {result.n_planned} runs failed (exit_status=error in "
+            f"{result.out / 'runs.csv'}; --retry-failed runs them again)",
+            1,
+        )
     return 0
 
 
@@ -503,10 +651,19 @@ def _add_compare(sub: Any) -> None:
     p = sub.add_parser("compare", help="compare finished runs (or sweeps): table and comparison figures")
     p.add_argument("dirs", type=Path, nargs="+", metavar="RUN_DIR", help="run directories or sweep directories")
     p.add_argument("--out", type=Path, default=None, help="figure directory (default: runs/compare-<time>)")
-    p.add_argument("--ci", choices=("t", "bootstrap"), default="t",
-                   help="95%% interval of the mean: t-interval or BCa bootstrap (default t)")
-    p.add_argument("--metrics", type=_names, default=None, metavar="A,B,...",
-                   help="metrics of the table and box plots (default: headline metrics, every box plot)")
+    p.add_argument(
+        "--ci",
+        choices=("t", "bootstrap"),
+        default="t",
+        help="95%% interval of the mean: t-interval or BCa bootstrap (default t)",
+    )
+    p.add_argument(
+        "--metrics",
+        type=_names,
+        default=None,
+        metavar="A,B,...",
+        help="metrics of the table and box plots (default: headline metrics, every box plot)",
+    )
     p.set_defaults(func=_cmd_compare)
 
 
@@ -531,8 +688,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         elif is_run_dir(d):
             rows.append(run_dir_row(d))
         else:
-            raise ConfigError("not a finished run directory (no metrics.json) nor a sweep directory (no runs.csv)",
-                              source=str(d))
+            raise ConfigError(
+                "not a finished run directory (no metrics.json) nor a sweep directory (no runs.csv)", source=str(d)
+            )
     if not rows:
         raise ConfigError("no finished run to compare", source="compare")
     by = [c for c in ("sweep", "scenario", "planner", "avoidance", "config", *grid) if any(c in r for r in rows)]
@@ -559,8 +717,10 @@ def _cmd_list(args: argparse.Namespace) -> int:
     print("vehicles:")
     for name in bundled_vehicles():
         v = load_vehicle(name)
-        print(f"  {name:10s} {v.mass * 1000:.0f} g, arm {v.arm_length * 100:.1f} cm, "
-              f"thrust/weight {v.thrust_to_weight():.2f}, motor tau {v.motor_time_constant * 1000:.0f} ms")
+        print(
+            f"  {name:10s} {v.mass * 1000:.0f} g, arm {v.arm_length * 100:.1f} cm, "
+            f"thrust/weight {v.thrust_to_weight():.2f}, motor tau {v.motor_time_constant * 1000:.0f} ms"
+        )
     print("scenarios:")
     from pybullet_swarm.experiment.scenario import resolve_scenario_path
     from pybullet_swarm.validation import read_yaml
@@ -588,8 +748,10 @@ def _print_params(model: Any) -> None:
     """One line per parameter of a plug-in's model: name, type, default, range, description."""
     from pybullet_swarm.planning.params import describe
 
-    rows = [(p.name, p.type, "null" if p.default is None else json.dumps(p.default), p.range_text(), p.description)
-            for p in describe(model)]
+    rows = [
+        (p.name, p.type, "null" if p.default is None else json.dumps(p.default), p.range_text(), p.description)
+        for p in describe(model)
+    ]
     if not rows:
         print("      (no parameters)")
         return
@@ -603,8 +765,17 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``pybullet-swarm``."""
     parser = _Parser(prog=PROG, description="A testbed for quadrotor swarms in PyBullet.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
-    for add in (_add_run, _add_check, _add_design, _add_plot, _add_sweep, _add_compare, _add_replay, _add_report,
-                _add_list):
+    for add in (
+        _add_run,
+        _add_check,
+        _add_design,
+        _add_plot,
+        _add_sweep,
+        _add_compare,
+        _add_replay,
+        _add_report,
+        _add_list,
+    ):
         add(sub)
     try:
         from pybullet_swarm.cli import tsp

@@ -1,4 +1,5 @@
 """The ``tsp`` subcommand: independent seeded ant-colony runs on a TSPLIB instance."""
+
 from __future__ import annotations
 
 import argparse
@@ -18,15 +19,20 @@ from pybullet_swarm.planning.tsplib import TSPInstance, load_tsplib
 from pybullet_swarm.validation import from_pydantic
 
 _PROG = "pybullet-swarm"
-MAX_RUNS = 1_000_000          # independent runs of one command
-MAX_SEED = 2**63 - 1 - MAX_RUNS   # seeds seed .. seed + runs - 1 must all be valid numpy seeds
+MAX_RUNS = 1_000_000  # independent runs of one command
+MAX_SEED = 2**63 - 1 - MAX_RUNS  # seeds seed .. seed + runs - 1 must all be valid numpy seeds
 _SCHEDULES = {
     "constant": Schedule.CONSTANT,
     "linear": Schedule.LINEAR,
     "linear-no-factor": Schedule.LINEAR_NO_FACTOR,
 }
-_NUMERIC_OPTIONS = (("alpha", "alpha"), ("beta", "beta"), ("evaporation", "rho"), ("ants", "ants"),
-                    ("iterations", "iterations"))
+_NUMERIC_OPTIONS = (
+    ("alpha", "alpha"),
+    ("beta", "beta"),
+    ("evaporation", "rho"),
+    ("ants", "ants"),
+    ("iterations", "iterations"),
+)
 _LOCAL_SEARCHES = {
     "2opt": LocalSearch.TWO_OPT,
     "none": LocalSearch.NONE,
@@ -99,24 +105,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "tsp",
         help="solve a TSPLIB instance with an ant colony",
         description="Run independent seeded ant-colony searches on a TSPLIB instance and report "
-                    "the mean, std and best tour length against the known optimum.",
+        "the mean, std and best tour length against the known optimum.",
     )
-    parser.add_argument("file", metavar="FILE",
-                        help="a TSPLIB .tsp file, or the name of a bundled instance (e.g. eil51)")
+    parser.add_argument(
+        "file", metavar="FILE", help="a TSPLIB .tsp file, or the name of a bundled instance (e.g. eil51)"
+    )
     parser.add_argument("--runs", type=int, default=10, help="independent runs (default 10)")
-    parser.add_argument("--seed", type=int, default=0,
-                        help="seed of the first run; run i uses seed + i (default 0)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the first run; run i uses seed + i (default 0)")
     parser.add_argument("--alpha", type=float, help="pheromone exponent")
     parser.add_argument("--beta", type=float, help="heuristic exponent")
     parser.add_argument("--evaporation", type=float, metavar="R", help="evaporation rate rho")
     parser.add_argument("--ants", type=int, help="ants per iteration")
     parser.add_argument("--iterations", type=int, help="iterations per run")
-    parser.add_argument("--schedule", choices=list(_SCHEDULES),
-                        help="alpha/beta schedule (linear: 2(k/n)A and 2((n-k)/n)B)")
-    parser.add_argument("--local-search", choices=list(_LOCAL_SEARCHES),
-                        help="local search on every ant's tour")
-    parser.add_argument("--json", action="store_true",
-                        help="print one JSON object instead of the table")
+    parser.add_argument(
+        "--schedule", choices=list(_SCHEDULES), help="alpha/beta schedule (linear: 2(k/n)A and 2((n-k)/n)B)"
+    )
+    parser.add_argument("--local-search", choices=list(_LOCAL_SEARCHES), help="local search on every ant's tour")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     parser.set_defaults(func=run)
 
 
@@ -129,15 +134,18 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--seed: expected an integer in [0, 2^63 - 1 - runs], got {args.seed}")
         instance = load_tsplib(args.file)
         params = params_from_args(args)
-        check_budget(colony_bytes(instance.dimension, ants=params.ants, iterations=params.iterations,
-                                  candidates=params.candidates),
-                     f"an ant colony on {instance.dimension} nodes ({params.ants} ants, {params.iterations} iterations)",
-                     source=instance.name, field="DIMENSION")
+        check_budget(
+            colony_bytes(
+                instance.dimension, ants=params.ants, iterations=params.iterations, candidates=params.candidates
+            ),
+            f"an ant colony on {instance.dimension} nodes ({params.ants} ants, {params.iterations} iterations)",
+            source=instance.name,
+            field="DIMENSION",
+        )
     except ValueError as exc:  # ConfigError is a ValueError
         print(f"{_PROG}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
-    summary = solve_runs(instance, params, runs=args.runs, seed=args.seed,
-                         progress=not args.json)
+    summary = solve_runs(instance, params, runs=args.runs, seed=args.seed, progress=not args.json)
     if args.json:
         print(json.dumps(summary.to_json(args.seed, params)))
     else:
@@ -164,16 +172,14 @@ def params_from_args(args: argparse.Namespace) -> ACOParams:
         raise ConfigError(err.detail, source=f"--{option}") from None
 
 
-def solve_runs(instance: TSPInstance, params: ACOParams, *, runs: int, seed: int,
-               progress: bool = False) -> RunSummary:
+def solve_runs(instance: TSPInstance, params: ACOParams, *, runs: int, seed: int, progress: bool = False) -> RunSummary:
     """Run ``runs`` independent colonies, run i seeded with ``seed + i``."""
     dist = instance.distance_matrix()
     solve_tsp(dist, params.model_copy(update={"iterations": 1}), seed=seed)  # JIT load, untimed
     lengths: list[float] = []
     times: list[float] = []
     best_tour: tuple[int, ...] = ()
-    for i in tqdm(range(runs), desc=instance.name, unit="run", file=sys.stderr,
-                  disable=not progress):
+    for i in tqdm(range(runs), desc=instance.name, unit="run", file=sys.stderr, disable=not progress):
         start = time.perf_counter()
         result = solve_tsp(dist, params, seed=seed + i)
         times.append(time.perf_counter() - start)
@@ -200,6 +206,8 @@ def _print_table(summary: RunSummary, seed: int) -> None:
         print(f"{i:>4} {seed + i:>6} {length:>12.1f} {secs:>8.2f}")
     optimum = "unknown" if summary.optimum is None else f"{summary.optimum:g}"
     gap = "n/a" if summary.gap_percent is None else f"{summary.gap_percent:.2f} %"
-    print(f"{summary.instance}: mean {summary.mean:.2f}, std {summary.std:.2f}, "
-          f"best {summary.best:g}, optimum {optimum}, gap of the mean {gap}, "
-          f"mean time {np.mean(summary.times_s):.2f} s/run")
+    print(
+        f"{summary.instance}: mean {summary.mean:.2f}, std {summary.std:.2f}, "
+        f"best {summary.best:g}, optimum {optimum}, gap of the mean {gap}, "
+        f"mean time {np.mean(summary.times_s):.2f} s/run"
+    )

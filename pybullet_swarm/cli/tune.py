@@ -1,4 +1,5 @@
 """The ``tune`` subcommand: an Optuna study over scenario fields, scored on the testbed's metrics."""
+
 from __future__ import annotations
 
 import argparse
@@ -16,48 +17,102 @@ def register(subparsers: Any) -> None:
     from pybullet_swarm.tuning.objective import DEFAULT_OBJECTIVE, DEFAULT_PENALTY
 
     p = subparsers.add_parser(
-        "tune", help="optimise planner parameters on run metrics (Optuna: TPE, NSGA-II, CMA-ES), resumable",
+        "tune",
+        help="optimise planner parameters on run metrics (Optuna: TPE, NSGA-II, CMA-ES), resumable",
         description="Sample --param ranges with an Optuna sampler, run every sampled configuration over the "
-                    "same K seeds, score each with objective expressions over its metrics and write trials.csv, "
-                    "best.yaml (apply with `run -c best.yaml`) and figures. Running the same command again "
-                    "resumes the study; a larger --trials adds trials to it.")
+        "same K seeds, score each with objective expressions over its metrics and write trials.csv, "
+        "best.yaml (apply with `run -c best.yaml`) and figures. Running the same command again "
+        "resumes the study; a larger --trials adds trials to it.",
+    )
     p.add_argument("scenario", help="scenario YAML file or bundled name (see `list`)")
     p.add_argument("--planner", required=True, help="planner whose parameters are tuned")
     p.add_argument("--avoidance", default=None, help="local avoidance layer (default: the scenario's)")
-    p.add_argument("--param", dest="params", action="append", default=[], metavar="KEY.PATH=LOW:HIGH[:log][:int]",
-                   help="a tuned scenario field and its range (repeatable), e.g. "
-                        "planner.params.trail_pheromone=0:1 or planner.params.fatigue=0.001:0.1:log")
+    p.add_argument(
+        "--param",
+        dest="params",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=LOW:HIGH[:log][:int]",
+        help="a tuned scenario field and its range (repeatable), e.g. "
+        "planner.params.trail_pheromone=0:1 or planner.params.fatigue=0.001:0.1:log",
+    )
     obj = p.add_mutually_exclusive_group()
-    obj.add_argument("--objective", default=None, metavar="EXPR",
-                     help=f"objective over a run's metrics (default: {DEFAULT_OBJECTIVE})")
-    obj.add_argument("--objectives", default=None, metavar="EXPR1,EXPR2",
-                     help="several objectives: multi-objective study, Pareto front "
-                          "(e.g. completion_time_s,collisions.agent_agent)")
-    p.add_argument("--directions", default=None, metavar="minimize,maximize",
-                   help="direction of each objective (default: minimize all)")
-    p.add_argument("--penalty", type=float, default=DEFAULT_PENALTY,
-                   help="added to each objective of a run that does not complete, after its completion_time_s "
-                        f"is taken as its simulated time (default {DEFAULT_PENALTY:g})")
+    obj.add_argument(
+        "--objective",
+        default=None,
+        metavar="EXPR",
+        help=f"objective over a run's metrics (default: {DEFAULT_OBJECTIVE})",
+    )
+    obj.add_argument(
+        "--objectives",
+        default=None,
+        metavar="EXPR1,EXPR2",
+        help="several objectives: multi-objective study, Pareto front (e.g. completion_time_s,collisions.agent_agent)",
+    )
+    p.add_argument(
+        "--directions",
+        default=None,
+        metavar="minimize,maximize",
+        help="direction of each objective (default: minimize all)",
+    )
+    p.add_argument(
+        "--penalty",
+        type=float,
+        default=DEFAULT_PENALTY,
+        help="added to each objective of a run that does not complete, after its completion_time_s "
+        f"is taken as its simulated time (default {DEFAULT_PENALTY:g})",
+    )
     p.add_argument("--trials", type=int, default=50, metavar="N", help="finished trials the study holds (default 50)")
-    p.add_argument("--seeds-per-trial", type=int, default=3, metavar="K",
-                   help="runs per trial, seeds S .. S+K-1 shared by every trial (default 3)")
+    p.add_argument(
+        "--seeds-per-trial",
+        type=int,
+        default=3,
+        metavar="K",
+        help="runs per trial, seeds S .. S+K-1 shared by every trial (default 3)",
+    )
     p.add_argument("--seed-start", type=int, default=0, metavar="S", help="first seed of every trial (default 0)")
-    p.add_argument("--sampler", choices=("tpe", "nsga2", "cmaes", "random"), default=None,
-                   help="Optuna sampler (default: tpe; nsga2 with --objectives)")
+    p.add_argument(
+        "--sampler",
+        choices=("tpe", "nsga2", "cmaes", "random"),
+        default=None,
+        help="Optuna sampler (default: tpe; nsga2 with --objectives)",
+    )
     p.add_argument("--sampler-seed", type=int, default=0, help="seed of the sampler (default 0)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE",
-                   help="override a scenario field in every run (repeatable)")
-    p.add_argument("--executor", choices=("local", "ray"), default="local",
-                   help="local: a process pool on this machine (default); ray: Ray tasks")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=VALUE",
+        help="override a scenario field in every run (repeatable)",
+    )
+    p.add_argument(
+        "--executor",
+        choices=("local", "ray"),
+        default="local",
+        help="local: a process pool on this machine (default); ray: Ray tasks",
+    )
     p.add_argument("--workers", type=int, default=None, metavar="W", help="parallel runs (default: the cores)")
     p.add_argument("--address", default=None, metavar="ADDR", help="Ray cluster address (with --executor ray)")
-    p.add_argument("--study", default=None, metavar="NAME",
-                   help="study name in the storage (default: <scenario>-<planner>-<avoidance>)")
-    p.add_argument("--storage", default=None, metavar="URL",
-                   help="SQLAlchemy URL of the Optuna storage, e.g. postgresql://user@host/db "
-                        "(default: sqlite:///DIR/study.db)")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR",
-                   help="output directory (default: runs/tune-<scenario>-<planner>)")
+    p.add_argument(
+        "--study",
+        default=None,
+        metavar="NAME",
+        help="study name in the storage (default: <scenario>-<planner>-<avoidance>)",
+    )
+    p.add_argument(
+        "--storage",
+        default=None,
+        metavar="URL",
+        help="SQLAlchemy URL of the Optuna storage, e.g. postgresql://user@host/db (default: sqlite:///DIR/study.db)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="output directory (default: runs/tune-<scenario>-<planner>)",
+    )
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no table")
     p.set_defaults(func=run)
@@ -79,20 +134,42 @@ def run(args: argparse.Namespace) -> int:
     objectives = args.objectives or args.objective or DEFAULT_OBJECTIVE
     multi = args.objectives is not None
     sampler = args.sampler or ("nsga2" if multi else "tpe")
-    spec = TuneSpec(args.scenario, params=args.params, planner=args.planner, avoidance=args.avoidance,
-                    objectives=objectives if multi else [objectives], directions=args.directions,
-                    trials=args.trials, seeds_per_trial=args.seeds_per_trial, seed_start=args.seed_start,
-                    sampler=sampler, sampler_seed=args.sampler_seed, penalty=args.penalty,
-                    overrides=args.overrides, study_name=args.study)
+    spec = TuneSpec(
+        args.scenario,
+        params=args.params,
+        planner=args.planner,
+        avoidance=args.avoidance,
+        objectives=objectives if multi else [objectives],
+        directions=args.directions,
+        trials=args.trials,
+        seeds_per_trial=args.seeds_per_trial,
+        seed_start=args.seed_start,
+        sampler=sampler,
+        sampler_seed=args.sampler_seed,
+        penalty=args.penalty,
+        overrides=args.overrides,
+        study_name=args.study,
+    )
     from pybullet_swarm.experiment.rundir import check_output_dir, safe_name
 
     out = args.out or Path("runs") / f"tune-{safe_name(Path(str(args.scenario)).stem)}-{safe_name(args.planner)}"
     check_output_dir(out, source="--out" if args.out else None)
-    result = run_tuning(spec, out, storage=args.storage, executor=args.executor, workers=args.workers,
-                        address=args.address, quiet=args.quiet, figures=not args.no_plots)
+    result = run_tuning(
+        spec,
+        out,
+        storage=args.storage,
+        executor=args.executor,
+        workers=args.workers,
+        address=args.address,
+        quiet=args.quiet,
+        figures=not args.no_plots,
+    )
     if result.interrupted:
-        print(f"{_PROG}: error: interrupted; finished trials are stored in {result.storage}; run the same command "
-              "again to resume", file=sys.stderr)
+        print(
+            f"{_PROG}: error: interrupted; finished trials are stored in {result.storage}; run the same command "
+            "again to resume",
+            file=sys.stderr,
+        )
         return 130
     if not args.quiet:
         print(format_best(result))
@@ -108,8 +185,10 @@ def format_best(result: Any) -> str:
     spec = result.spec
     cols = value_columns(spec)
     n_done = sum(1 for t in result.trials if t["state"] == "complete")
-    lines = [f"study {result.study_name!r}: {n_done} completed trials ({result.n_run} run now, "
-             f"{result.wall_time_s:.0f} s); storage {result.storage}"]
+    lines = [
+        f"study {result.study_name!r}: {n_done} completed trials ({result.n_run} run now, "
+        f"{result.wall_time_s:.0f} s); storage {result.storage}"
+    ]
     if not result.best:
         lines.append("no completed trial")
         return "\n".join(lines)
@@ -117,8 +196,15 @@ def format_best(result: Any) -> str:
     lines.append(f"{head} ({', '.join(o.direction.value + ' ' + o.text for o in spec.objective_list)}):")
     keys = [p.key for p in spec.params]
     header = ["trial", *cols, "completed", *[k.removeprefix("planner.params.") for k in keys]]
-    rows = [[str(r["trial"]), *[f"{r[c]:.4g}" for c in cols], f"{100 * (r.get('completed') or 0):.0f}%",
-             *[f"{r[k]:.4g}" for k in keys]] for r in result.best]
+    rows = [
+        [
+            str(r["trial"]),
+            *[f"{r[c]:.4g}" for c in cols],
+            f"{100 * (r.get('completed') or 0):.0f}%",
+            *[f"{r[k]:.4g}" for k in keys],
+        ]
+        for r in result.best
+    ]
     widths = [max(len(h), *(len(row[i]) for row in rows)) for i, h in enumerate(header)]
     lines.append("  " + "  ".join(h.rjust(w) for h, w in zip(header, widths)))
     lines += ["  " + "  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in rows]

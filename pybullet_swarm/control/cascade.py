@@ -5,6 +5,7 @@ position loop (control rate) -> desired acceleration -> collective thrust and de
 Gains come from ``pybullet_swarm.control.design`` (never typed in by hand); they are in
 acceleration units, multiplied here by the vehicle's mass and inertia.
 """
+
 from __future__ import annotations
 
 import math
@@ -70,8 +71,9 @@ class CascadeController:
         reference_step: ReferenceStep | None = None,
     ) -> None:
         self.params = params
-        self.design = design or design_controller(params, physics_hz=physics_hz, position_hz=control_hz,
-                                                  gravity=gravity)
+        self.design = design or design_controller(
+            params, physics_hz=physics_hz, position_hz=control_hz, gravity=gravity
+        )
         if reference_step is not None:
             self.design.check_step(reference_step)
         self.physics_dt = 1.0 / physics_hz
@@ -96,28 +98,28 @@ class CascadeController:
         self.n = n
         # One per-agent array shared by the compiled kernels; the attributes below are views of it.
         self.ctrl = np.zeros((n, K.CTRL_COLS))
-        self.R_des = self.ctrl[:, K.C_RDES:K.C_RDES + 9].reshape(n, 3, 3)  # desired attitude
+        self.R_des = self.ctrl[:, K.C_RDES : K.C_RDES + 9].reshape(n, 3, 3)  # desired attitude
         self.R_des[:] = np.eye(3)
-        self.thrust_acc = self.ctrl[:, K.C_THRUST]                # m/s^2, specific thrust command
-        self.yaw_rate = self.ctrl[:, K.C_YAWRATE]                 # rad/s, yaw-rate reference
-        self.att_integral = self.ctrl[:, K.C_INTEG:K.C_INTEG + 3]  # rad s
-        self.rotor_speeds = self.ctrl[:, K.C_W:K.C_W + 4]         # rad/s, motor state
-        self.rotor_commands = self.ctrl[:, K.C_WCMD:K.C_WCMD + 4]  # rad/s
-        self.body_rates = self.ctrl[:, K.C_RATES:K.C_RATES + 3]   # rad/s
-        self.mass = self.ctrl[:, K.C_MASS]                       # kg, airframe + known payload
+        self.thrust_acc = self.ctrl[:, K.C_THRUST]  # m/s^2, specific thrust command
+        self.yaw_rate = self.ctrl[:, K.C_YAWRATE]  # rad/s, yaw-rate reference
+        self.att_integral = self.ctrl[:, K.C_INTEG : K.C_INTEG + 3]  # rad s
+        self.rotor_speeds = self.ctrl[:, K.C_W : K.C_W + 4]  # rad/s, motor state
+        self.rotor_commands = self.ctrl[:, K.C_WCMD : K.C_WCMD + 4]  # rad/s
+        self.body_rates = self.ctrl[:, K.C_RATES : K.C_RATES + 3]  # rad/s
+        self.mass = self.ctrl[:, K.C_MASS]  # kg, airframe + known payload
         self.mass[:] = self.params.mass
         self.rotor_speeds[:] = rotor_speed
         self.rotor_commands[:] = rotor_speed
-        self.pos_integral = np.zeros((n, 3))    # m s
-        self.forces = np.zeros((n, 3))          # N, world frame
-        self.torques = np.zeros((n, 3))         # N m, world frame
+        self.pos_integral = np.zeros((n, 3))  # m s
+        self.forces = np.zeros((n, 3))  # N, world frame
+        self.torques = np.zeros((n, 3))  # N m, world frame
         self.status = np.zeros(n, dtype=np.int64)
         c = np.zeros(K.CONST_LEN)
-        c[K.K_GAINS:K.K_GAINS + 9] = self.att_gains.ravel()
-        c[K.K_INTMAX:K.K_INTMAX + 3] = self.ATTITUDE_INTEGRAL_LIMIT
-        c[K.K_INERTIA:K.K_INERTIA + 3] = self.inertia
-        c[K.K_MIXER:K.K_MIXER + 16] = self.mixer.ravel()
-        c[K.K_MIXINV:K.K_MIXINV + 16] = self.mixer_inv.ravel()
+        c[K.K_GAINS : K.K_GAINS + 9] = self.att_gains.ravel()
+        c[K.K_INTMAX : K.K_INTMAX + 3] = self.ATTITUDE_INTEGRAL_LIMIT
+        c[K.K_INERTIA : K.K_INERTIA + 3] = self.inertia
+        c[K.K_MIXER : K.K_MIXER + 16] = self.mixer.ravel()
+        c[K.K_MIXINV : K.K_MIXINV + 16] = self.mixer_inv.ravel()
         c[K.K_WMAX] = self.params.max_rotor_speed
         c[K.K_ALPHA] = self.motor_alpha
         c[K.K_DT] = self.physics_dt
@@ -144,18 +146,28 @@ class CascadeController:
         """Run the attitude loop (True) or hold ``rotor_commands`` as set from outside (False)."""
         self.const[kernels.K_CLOSED] = 1.0 if closed else 0.0
         if closed and self.prefilter is not None:
-            self.prefilter.primed = False     # start again from the references of the next update
+            self.prefilter.primed = False  # start again from the references of the next update
 
     def position_update(self, state: NDArray[np.float64], ref: Reference) -> None:
         """Run the position loop once: state (n, 13) and references -> desired attitude and thrust."""
         key = (id(state), id(ref))
         pf = self.prefilter
-        if key != self._pos_key:   # bind the argument tuple once per (state, reference) pair
+        if key != self._pos_key:  # bind the argument tuple once per (state, reference) pair
             self._pos_key = key
             p_ref, v_ref = (ref.positions, ref.velocities) if pf is None else (pf.p, pf.v)
-            self._pos_args = (state, p_ref, v_ref, ref.accelerations, ref.yaw, ref.yaw_rate,
-                              self.pos_gains, self.pos_integral, self.POSITION_INTEGRAL_LIMIT, self.pos_scal,
-                              self.ctrl)
+            self._pos_args = (
+                state,
+                p_ref,
+                v_ref,
+                ref.accelerations,
+                ref.yaw,
+                ref.yaw_rate,
+                self.pos_gains,
+                self.pos_integral,
+                self.POSITION_INTEGRAL_LIMIT,
+                self.pos_scal,
+                self.ctrl,
+            )
         if pf is not None:
             pf.update(ref.positions, ref.velocities)
         kernels.position_tick(*self._pos_args)
@@ -181,8 +193,9 @@ class CascadeController:
         from pybullet_swarm.control.rotations import quat_to_matrix
 
         omega_world = np.einsum("nij,nj->ni", quat_to_matrix(state.quaternions), state.body_rates)
-        packed = np.ascontiguousarray(np.concatenate(
-            [state.positions, state.quaternions, state.velocities, omega_world], axis=1))
+        packed = np.ascontiguousarray(
+            np.concatenate([state.positions, state.quaternions, state.velocities, omega_world], axis=1)
+        )
         self.position_update(packed, ref)
         self.physics_update(packed)
         return self.rotor_commands.copy()
@@ -209,7 +222,7 @@ class _ReferencePrefilter:
         for sys in systems:
             if not math.isclose(float(sys.dt), dt, rel_tol=1e-9):
                 raise ValueError(f"prefilter: the design's position period {sys.dt} s is not the control period {dt} s")
-        m = max(sys.nstates for sys in systems)        # axes with fewer states are padded with zeros
+        m = max(sys.nstates for sys in systems)  # axes with fewer states are padded with zeros
         self.At, self.B = np.zeros((3, m, m)), np.zeros((3, m))
         self.C, self.D, self.x_unit = np.zeros((3, m)), np.zeros(3), np.zeros((3, m))
         for k, sys in enumerate(systems):
@@ -219,17 +232,17 @@ class _ReferencePrefilter:
             self.B[k, :r] = B
             self.C[k, :r] = np.asarray(sys.C, dtype=float)[0]
             self.D[k] = float(np.asarray(sys.D)[0, 0])
-            self.x_unit[k, :r] = np.linalg.solve(np.eye(r) - A, B)   # steady state for a unit input
+            self.x_unit[k, :r] = np.linalg.solve(np.eye(r) - A, B)  # steady state for a unit input
         self.primed = False
 
     def reset(self, n: int) -> None:
         """Size for ``n`` agents; the next update primes the filter."""
         self.n = n
-        self.p = np.zeros((n, 3))    # m, filtered position references
-        self.v = np.zeros((n, 3))    # m/s, filtered velocity references
-        self.x = np.zeros((2, n, 3, self.B.shape[1]))   # filter states: positions, velocities
-        self.p_start = np.zeros((n, 3))   # m, position references at the start of the period
-        self.v_start = np.zeros((n, 3))   # m/s, velocity references at the start of the period
+        self.p = np.zeros((n, 3))  # m, filtered position references
+        self.v = np.zeros((n, 3))  # m/s, filtered velocity references
+        self.x = np.zeros((2, n, 3, self.B.shape[1]))  # filter states: positions, velocities
+        self.p_start = np.zeros((n, 3))  # m, position references at the start of the period
+        self.v_start = np.zeros((n, 3))  # m/s, velocity references at the start of the period
         self.primed = False
 
     def update(self, p_ref: NDArray[np.float64], v_ref: NDArray[np.float64]) -> None:
@@ -238,8 +251,19 @@ class _ReferencePrefilter:
         if not self.primed:
             self.p_start[:] = p_ref
             self.v_start[:] = v_ref
-        kernels.prefilter_references(self.p_start, self.v_start, self.At, self.B, self.C, self.D, self.x_unit,
-                                     self.x, self.primed, self.p, self.v)
+        kernels.prefilter_references(
+            self.p_start,
+            self.v_start,
+            self.At,
+            self.B,
+            self.C,
+            self.D,
+            self.x_unit,
+            self.x,
+            self.primed,
+            self.p,
+            self.v,
+        )
         self.p_start[:] = p_ref
         self.v_start[:] = v_ref
         self.primed = True

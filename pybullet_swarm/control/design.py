@@ -53,6 +53,7 @@ references with the scenarios' 1 m/s^2 acceleration limit, raw 0.1 m position st
 ``pybullet-swarm design`` shows the runtime's gains. A scenario's own step is checked against
 them (``ControllerDesign.check_step``) and refused when a rotor would saturate.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -166,8 +167,11 @@ class DesignSpec:
     def placed_poles(self, wn: float) -> tuple[complex, complex, complex]:
         """The three placed poles (s-plane, rad/s) for natural frequency ``wn``: pair, then integral pole."""
         im = math.sqrt(1.0 - self.damping**2)
-        return (wn * complex(-self.damping, im), wn * complex(-self.damping, -im),
-                complex(-self.integral_pole_ratio * wn, 0.0))
+        return (
+            wn * complex(-self.damping, im),
+            wn * complex(-self.damping, -im),
+            complex(-self.integral_pole_ratio * wn, 0.0),
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -201,9 +205,13 @@ class ReferenceStep:
                 raise ValueError(f"ReferenceStep.{name}: must be finite and >= 0, got {values}")
 
     @classmethod
-    def from_limits(cls, velocity: Sequence[float] | NDArray[np.float64] | None,
-                    acceleration: Sequence[float] | NDArray[np.float64] | float, *,
-                    yaw: float = DEFAULT_YAW_STEP) -> ReferenceStep:
+    def from_limits(
+        cls,
+        velocity: Sequence[float] | NDArray[np.float64] | None,
+        acceleration: Sequence[float] | NDArray[np.float64] | float,
+        *,
+        yaw: float = DEFAULT_YAW_STEP,
+    ) -> ReferenceStep:
         """The step a scenario's reference limits allow.
 
         Args:
@@ -218,8 +226,7 @@ class ReferenceStep:
 
     def to_json_dict(self) -> dict[str, object]:
         """The step as plain Python values."""
-        return {"acceleration_m_s2": list(self.acceleration), "position_m": list(self.position),
-                "yaw_rad": self.yaw}
+        return {"acceleration_m_s2": list(self.acceleration), "position_m": list(self.position), "yaw_rad": self.yaw}
 
 
 def _pole_list(poles: Sequence[complex]) -> list[list[float]]:
@@ -301,12 +308,17 @@ class SaturationReport:
 
     def to_json_dict(self) -> dict[str, object]:
         """The report as plain Python values."""
-        return {"step": self.step.to_json_dict(), "hover_fraction": float(self.hover_fraction),
-                "peak_fraction": float(self.peak_fraction), "min_fraction": float(self.min_fraction),
-                "peak_channel": self.peak_channel,
-                "peak_shares": {k: float(v) for k, v in self.peak_shares.items()},
-                "alone": {k: float(v) for k, v in self.alone.items()},
-                "limit": float(self.limit), "ok": self.ok}
+        return {
+            "step": self.step.to_json_dict(),
+            "hover_fraction": float(self.hover_fraction),
+            "peak_fraction": float(self.peak_fraction),
+            "min_fraction": float(self.min_fraction),
+            "peak_channel": self.peak_channel,
+            "peak_shares": {k: float(v) for k, v in self.peak_shares.items()},
+            "alone": {k: float(v) for k, v in self.alone.items()},
+            "limit": float(self.limit),
+            "ok": self.ok,
+        }
 
 
 # ---------------------------------------------------------------------------------------------
@@ -381,8 +393,14 @@ class SampledPlant:
         return _frequency_response(a_cl, b_r, np.append(self.cp, 0.0), 0.0, omega, self.dt)
 
 
-def _frequency_response(a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64], d: float,
-                        omega: NDArray[np.float64], dt: float) -> NDArray[np.complex128]:
+def _frequency_response(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    c: NDArray[np.float64],
+    d: float,
+    omega: NDArray[np.float64],
+    dt: float,
+) -> NDArray[np.complex128]:
     """c (zI - a)^-1 b + d at z = exp(j omega dt), for a SISO discrete system; (len(omega),)."""
     z = np.exp(1j * np.asarray(omega, dtype=float) * dt)
     n = a.shape[0]
@@ -426,20 +444,21 @@ def vertical_plant(h: float, n: int, tau: float) -> SampledPlant:
     return SampledPlant(phi, gamma, fine.cp, fine.cd, n * h)
 
 
-def _horizontal_fine(h: float, tau: float, tilt_gains: NDArray[np.float64]) -> tuple[NDArray[np.float64],
-                                                                                      NDArray[np.float64]]:
+def _horizontal_fine(
+    h: float, tau: float, tilt_gains: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """One horizontal axis at the physics period with its tilt loop closed: (a (6, 6), b (6,)).
 
     State [x m, v m/s, phi, phi rate, applied phi acceleration, tilt integral], where
     phi = g * tilt is the horizontal acceleration the tilt makes (so g drops out); input the
     commanded horizontal acceleration a_cmd = phi_ref.
     """
-    att_a, att_b = attitude_plant(h, tau).closed(tilt_gains)      # state [phi, w, m, I], input phi_ref
+    att_a, att_b = attitude_plant(h, tau).closed(tilt_gains)  # state [phi, w, m, I], input phi_ref
     a = np.zeros((6, 6))
     b = np.zeros(6)
     a[2:, 2:], b[2:] = att_a, att_b
-    a[1, 1], a[1, 2] = 1.0, h                       # v' = v + h phi (tilt read at the start of the step)
-    a[0, :] = h * a[1, :]                           # x' = x + h v'
+    a[1, 1], a[1, 2] = 1.0, h  # v' = v + h phi (tilt read at the start of the step)
+    a[0, :] = h * a[1, :]  # x' = x + h v'
     a[0, 0] += 1.0
     b[0] = h * b[1]
     return a, b
@@ -453,8 +472,13 @@ def horizontal_plant(h: float, n: int, tau: float, tilt_gains: NDArray[np.float6
     return SampledPlant(phi, gamma, e[0], e[1], n * h)
 
 
-def acceleration_path_ss(plant_fine: tuple[NDArray[np.float64], NDArray[np.float64]], n: int, h: float,
-                         applied_now: NDArray[np.float64], applied_next: NDArray[np.float64]) -> control.StateSpace:
+def acceleration_path_ss(
+    plant_fine: tuple[NDArray[np.float64], NDArray[np.float64]],
+    n: int,
+    h: float,
+    applied_now: NDArray[np.float64],
+    applied_next: NDArray[np.float64],
+) -> control.StateSpace:
     """Average applied acceleration over a position period per commanded acceleration (held).
 
     The output at tick j is (v_{j+1} - v_j) / T, the mean over the N physics steps of the applied
@@ -464,7 +488,7 @@ def acceleration_path_ss(plant_fine: tuple[NDArray[np.float64], NDArray[np.float
     m = a.shape[0]
     c = np.zeros(m)
     d = 0.0
-    a_pow, gamma = np.eye(m), np.zeros(m)         # x_k = a_pow x_0 + gamma u
+    a_pow, gamma = np.eye(m), np.zeros(m)  # x_k = a_pow x_0 + gamma u
     for _ in range(n):
         nxt_pow, nxt_gamma = a @ a_pow, a @ gamma + b
         c += applied_now @ a_pow + applied_next @ nxt_pow
@@ -494,7 +518,7 @@ def place_pid(plant: SampledPlant, poles: Sequence[complex]) -> NDArray[np.float
     for s in poles:
         if any(abs(s.conjugate() - p) < 1e-12 * max(1.0, abs(s)) for p in done):
             done.append(s)
-            continue                                 # the conjugate's equations are the same
+            continue  # the conjugate's equations are the same
         done.append(s)
         z = np.exp(complex(s) * plant.dt)
         g = c0 @ np.linalg.solve(z * np.eye(a0.shape[0]) - a0, b0.astype(complex))
@@ -600,7 +624,7 @@ def closed_loop_bandwidth(plant: SampledPlant, gains: NDArray[np.float64]) -> fl
 class _LoopDesign:
     """Result of designing one loop."""
 
-    gains: NDArray[np.float64]     # (3,) kp 1/s^2, kd 1/s, ki 1/s^3
+    gains: NDArray[np.float64]  # (3,) kp 1/s^2, kd 1/s, ki 1/s^3
     report: LoopReport
 
 
@@ -634,7 +658,7 @@ def _evaluate(plant: SampledPlant, spec: DesignSpec, wn: float, max_bandwidth: f
     if not np.all(np.real(poles) < 0.0):
         raise _Infeasible(f"closed loop unstable at w_n {wn:.3g} rad/s")
     others = list(poles)
-    for p in placed:                                  # remove the placed poles, the nearest each
+    for p in placed:  # remove the placed poles, the nearest each
         others.pop(int(np.argmin([abs(q - p) for q in others])))
     pair_re = spec.damping * wn
     dominance = min(-q.real for q in others) / pair_re if others else math.inf
@@ -651,9 +675,16 @@ def _evaluate(plant: SampledPlant, spec: DesignSpec, wn: float, max_bandwidth: f
     bw = closed_loop_bandwidth(plant, gains)
     if not math.isfinite(bw) or bw > max_bandwidth:
         raise _Infeasible(f"bandwidth {bw:.3g} rad/s above {max_bandwidth:.3g} rad/s at w_n {wn:.3g} rad/s")
-    report = LoopReport(gain_margin_db=gm_db, phase_margin_deg=pm_deg, bandwidth_rad_s=bw,
-                        natural_frequency_rad_s=wn, sample_period_s=plant.dt, placed_poles=tuple(placed),
-                        achieved_poles=tuple(complex(p) for p in poles), dominance=float(dominance))
+    report = LoopReport(
+        gain_margin_db=gm_db,
+        phase_margin_deg=pm_deg,
+        bandwidth_rad_s=bw,
+        natural_frequency_rad_s=wn,
+        sample_period_s=plant.dt,
+        placed_poles=tuple(placed),
+        achieved_poles=tuple(complex(p) for p in poles),
+        dominance=float(dominance),
+    )
     return _LoopDesign(gains, report)
 
 
@@ -696,8 +727,9 @@ def _design_loop(
     try:
         best = attempt(lo)
     except _Infeasible as exc:
-        raise _NoGains(name, f"no gains: not even w_n = {lo:g} rad/s passes the checks ({exc})",
-                       saturated=exc.saturated) from None
+        raise _NoGains(
+            name, f"no gains: not even w_n = {lo:g} rad/s passes the checks ({exc})", saturated=exc.saturated
+        ) from None
     while hi / lo > 1.0 + spec.wn_rel_tol:
         mid = math.sqrt(lo * hi)
         try:
@@ -715,11 +747,11 @@ def _design_loop(
 class Airframe:
     """What the saturation check needs of a vehicle (from its ``VehicleParams`` and the gravity)."""
 
-    mass: float                       # kg
-    inertia: tuple[float, float, float]   # kg m^2
-    mixer_inverse: NDArray[np.float64]    # (4, 4) [T, tau] -> w^2
-    max_rotor_speed: float            # rad/s
-    gravity: float                    # m/s^2
+    mass: float  # kg
+    inertia: tuple[float, float, float]  # kg m^2
+    mixer_inverse: NDArray[np.float64]  # (4, 4) [T, tau] -> w^2
+    max_rotor_speed: float  # rad/s
+    gravity: float  # m/s^2
 
     @property
     def hover_speed_sq(self) -> NDArray[np.float64]:
@@ -727,8 +759,9 @@ class Airframe:
         return self.mixer_inverse @ np.array([self.mass * self.gravity, 0.0, 0.0, 0.0])
 
 
-def _step_outputs(a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64], d: NDArray[np.float64],
-                  n: int) -> NDArray[np.float64]:
+def _step_outputs(
+    a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64], d: NDArray[np.float64], n: int
+) -> NDArray[np.float64]:
     """Outputs (n, p) of x' = a x + b u, y = c x + d u from x_0 = 0 for a unit step u = 1 at k = 0.
 
     y_k = d + sum_{i<k} c a^i b; the Markov parameters c a^i b are built in blocks of about
@@ -739,19 +772,19 @@ def _step_outputs(a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.
     """
     m = a.shape[0]
     blk = max(1, int(math.ceil(math.sqrt(n))))
-    powers_b = np.empty((blk, m))            # a^i b
+    powers_b = np.empty((blk, m))  # a^i b
     v = b.astype(float)
     for i in range(blk):
         powers_b[i] = v
         v = a @ v
     a_blk = np.linalg.matrix_power(a, blk)
     rows = -(-n // blk)
-    left = np.empty((rows, c.shape[0], m))   # c a^{jB}
+    left = np.empty((rows, c.shape[0], m))  # c a^{jB}
     q = c.astype(float)
     for j in range(rows):
         left[j] = q
         q = q @ a_blk
-    markov = np.einsum("jpm,im->jip", left, powers_b).reshape(rows * blk, c.shape[0])[:n]   # (n, p)
+    markov = np.einsum("jpm,im->jip", left, powers_b).reshape(rows * blk, c.shape[0])[:n]  # (n, p)
     out = np.empty((n, c.shape[0]))
     out[0] = d
     out[1:] = d + np.cumsum(markov[:-1], axis=0)
@@ -765,35 +798,43 @@ def _loop_command(plant: SampledPlant, gains: NDArray[np.float64], step: float, 
     return step * _step_outputs(a_cl, b_r, c.reshape(1, -1), np.array([d]), n)[:, 0]
 
 
-def _horizontal_raw_command(h: float, n_sub: int, tau: float, tilt_gains: NDArray[np.float64],
-                            pos_gains: NDArray[np.float64], step: float, n: int) -> NDArray[np.float64]:
+def _horizontal_raw_command(
+    h: float,
+    n_sub: int,
+    tau: float,
+    tilt_gains: NDArray[np.float64],
+    pos_gains: NDArray[np.float64],
+    step: float,
+    n: int,
+) -> NDArray[np.float64]:
     """(n,) tilt-loop command at the physics rate after a raw position step of ``step`` m.
 
     In phi units (g times the angular acceleration; divide by g for rad/s^2), as
     ``_horizontal_fine``. The position loop runs every ``n_sub`` physics steps: its closed loop is
     stepped at the position period, and each period is expanded into its ``n_sub`` physics steps.
     """
-    a_f, b_f = _horizontal_fine(h, tau, tilt_gains)                # state [x, v, phi, w, m, I_a]
-    att_c, att_d = attitude_plant(h, tau).command(tilt_gains)      # over [phi, w, m, I_a]; r = phi_ref
+    a_f, b_f = _horizontal_fine(h, tau, tilt_gains)  # state [x, v, phi, w, m, I_a]
+    att_c, att_d = attitude_plant(h, tau).command(tilt_gains)  # over [phi, w, m, I_a]; r = phi_ref
     c_att = np.concatenate([np.zeros(2), att_c])
     coarse = horizontal_plant(h, n_sub, tau, tilt_gains)
-    a_cl, b_r = coarse.closed(pos_gains)                           # state [X (6), I_p]
+    a_cl, b_r = coarse.closed(pos_gains)  # state [X (6), I_p]
     u_c, u_d = coarse.command(pos_gains)
     periods = -(-n // n_sub)
-    c_out = np.vstack([np.hstack([np.eye(6), np.zeros((6, 1))]), u_c])   # X and u
+    c_out = np.vstack([np.hstack([np.eye(6), np.zeros((6, 1))]), u_c])  # X and u
     d_out = np.append(np.zeros(6), u_d)
-    states = step * _step_outputs(a_cl, b_r, c_out, d_out, periods)    # (periods, 7)
+    states = step * _step_outputs(a_cl, b_r, c_out, d_out, periods)  # (periods, 7)
     x_j, u_j = states[:, :6], states[:, 6]
     out = np.empty((periods, n_sub))
-    a_pow, gamma = np.eye(6), np.zeros(6)                           # x_{jN+i} = a^i X_j + gamma_i u_j
+    a_pow, gamma = np.eye(6), np.zeros(6)  # x_{jN+i} = a^i X_j + gamma_i u_j
     for i in range(n_sub):
         out[:, i] = x_j @ (c_att @ a_pow) + u_j * (c_att @ gamma + att_d)
         a_pow, gamma = a_f @ a_pow, a_f @ gamma + b_f
     return out.reshape(-1)[:n]
 
 
-def _vertical_raw_command(plant: SampledPlant, gains: NDArray[np.float64], step: float, n_sub: int,
-                          n: int) -> NDArray[np.float64]:
+def _vertical_raw_command(
+    plant: SampledPlant, gains: NDArray[np.float64], step: float, n_sub: int, n: int
+) -> NDArray[np.float64]:
     """(n,) commanded vertical acceleration at the physics rate (held n_sub steps) after a raw step."""
     coarse = _loop_command(plant, gains, step, -(-n // n_sub))
     return np.repeat(coarse, n_sub)[:n]
@@ -809,8 +850,16 @@ class _Gains:
     yaw: NDArray[np.float64] | None = None
 
 
-def _saturation(vehicle: Airframe, step: ReferenceStep, gains: _Gains, h: float, n_sub: int, tau: float,
-                spec: DesignSpec, horizon_s: float) -> SaturationReport:
+def _saturation(
+    vehicle: Airframe,
+    step: ReferenceStep,
+    gains: _Gains,
+    h: float,
+    n_sub: int,
+    tau: float,
+    spec: DesignSpec,
+    horizon_s: float,
+) -> SaturationReport:
     """Rotor commands while the loops designed so far follow ``step`` from hover (worst signs).
 
     Each channel's generalised force [thrust N, tau_x, tau_y, tau_z N m] is computed at the
@@ -820,7 +869,7 @@ def _saturation(vehicle: Airframe, step: ReferenceStep, gains: _Gains, h: float,
     n = max(1, int(math.ceil(horizon_s / h)))
     g = vehicle.gravity
     jx, jy, jz = vehicle.inertia
-    channels: dict[str, NDArray[np.float64]] = {}     # name -> (n, 4) generalised force
+    channels: dict[str, NDArray[np.float64]] = {}  # name -> (n, 4) generalised force
     att = attitude_plant(h, tau)
     if gains.tilt is not None:
         for name, axis, col, j in (("x", 0, 2, jy), ("y", 1, 1, jx)):
@@ -843,8 +892,8 @@ def _saturation(vehicle: Airframe, step: ReferenceStep, gains: _Gains, h: float,
         force = np.zeros((n, 4))
         force[:, 3] = jz * _loop_command(att, gains.yaw, step.yaw, n)
         channels["yaw"] = force
-    base = vehicle.hover_speed_sq                                      # (4,)
-    contrib = {k: np.abs(f @ vehicle.mixer_inverse.T) for k, f in channels.items()}   # (n, 4) each
+    base = vehicle.hover_speed_sq  # (4,)
+    contrib = {k: np.abs(f @ vehicle.mixer_inverse.T) for k, f in channels.items()}  # (n, 4) each
     total = sum(contrib.values(), np.zeros((n, 4)))
     high = base[None, :] + total
     low = base[None, :] - total
@@ -859,8 +908,10 @@ def _saturation(vehicle: Airframe, step: ReferenceStep, gains: _Gains, h: float,
         peak_fraction=float(math.sqrt(float(high.max())) / wmax),
         min_fraction=float(math.copysign(math.sqrt(abs(lowest)), lowest) / wmax),
         peak_channel=str(peak_channel),
-        peak_shares={"hover": float(base[i_hi]) / wmax**2,
-                     **{k: float(c[k_hi, i_hi]) / wmax**2 for k, c in contrib.items()}},
+        peak_shares={
+            "hover": float(base[i_hi]) / wmax**2,
+            **{k: float(c[k_hi, i_hi]) / wmax**2 for k, c in contrib.items()},
+        },
         alone=alone,
         limit=spec.max_rotor_fraction,
     )
@@ -880,8 +931,10 @@ def _saturation_reason(rep: SaturationReport) -> str | None:
         return None
     if rep.peak_fraction > rep.limit:
         shares = ", ".join(f"{k} {100 * v:.0f} %" for k, v in rep.peak_shares.items())
-        return (f"rotor speed command {100 * rep.peak_fraction:.1f} % of max_rotor_speed (limit "
-                f"{100 * rep.limit:.0f} %; parts of its square: {shares}) for the reference step")
+        return (
+            f"rotor speed command {100 * rep.peak_fraction:.1f} % of max_rotor_speed (limit "
+            f"{100 * rep.limit:.0f} %; parts of its square: {shares}) for the reference step"
+        )
     return f"a rotor command below zero ({100 * rep.min_fraction:.1f} % of max_rotor_speed) for the reference step"
 
 
@@ -980,7 +1033,7 @@ class ControllerDesign:
         if lp.is_attitude:
             raise ValueError(f"acceleration_path: expected a position loop (x, y, z), got {lp.value!r}")
         h, tau, n = 1.0 / self.physics_hz, self.motor_time_constant, self.substeps
-        if lp is Loop.Z:       # only the motor state: the applied acceleration is the lagged command
+        if lp is Loop.Z:  # only the motor state: the applied acceleration is the lagged command
             beta = _motor_beta(h, tau)
             return acceleration_path_ss((np.array([[beta]]), np.array([1.0 - beta])), n, h, np.zeros(1), np.ones(1))
         tilt = Loop.PITCH if lp is Loop.X else Loop.ROLL
@@ -989,11 +1042,20 @@ class ControllerDesign:
 
     def saturation_for(self, step: ReferenceStep) -> SaturationReport:
         """Rotor commands of these gains while following another reference step (e.g. a scenario's)."""
-        gains = _Gains(tilt=self.gains(Loop.ROLL), z=self.gains(Loop.Z), xy=self.gains(Loop.X),
-                       yaw=self.gains(Loop.YAW))
+        gains = _Gains(
+            tilt=self.gains(Loop.ROLL), z=self.gains(Loop.Z), xy=self.gains(Loop.X), yaw=self.gains(Loop.YAW)
+        )
         slowest = self.spec.integral_pole_ratio * min(self.natural_frequency.values())
-        return _saturation(self.airframe, step, gains, 1.0 / self.physics_hz, self.substeps, self.motor_time_constant,
-                           self.spec, min(_FINAL_HORIZON_MAX_S, 6.0 / slowest))
+        return _saturation(
+            self.airframe,
+            step,
+            gains,
+            1.0 / self.physics_hz,
+            self.substeps,
+            self.motor_time_constant,
+            self.spec,
+            min(_FINAL_HORIZON_MAX_S, 6.0 / slowest),
+        )
 
     def check_step(self, step: ReferenceStep) -> SaturationReport:
         """``saturation_for(step)``, refused when a rotor command leaves its range.
@@ -1004,12 +1066,16 @@ class ControllerDesign:
         rep = self.saturation_for(step)
         if not rep.ok:
             source = Path(self.vehicle_file).name if self.vehicle_file else f"vehicle {self.vehicle!r}"
-            raise ConfigError(f"the controller cannot follow the reference step: {_saturation_reason(rep)}",
-                              source=source, field=rep.peak_channel)
+            raise ConfigError(
+                f"the controller cannot follow the reference step: {_saturation_reason(rep)}",
+                source=source,
+                field=rep.peak_channel,
+            )
         return rep
 
     def to_json_dict(self) -> dict[str, object]:
         """The report as JSON-ready plain Python values."""
+
         def loop_dict(lp: Loop) -> dict[str, object]:
             kp, kd, ki = (float(g) for g in self.gains(lp))
             return {**self.report(lp).to_json_dict(), "gains": {"kp": kp, "kd": kd, "ki": ki}}
@@ -1033,9 +1099,7 @@ class ControllerDesign:
         for lp in Loop:
             rep = self.report(lp)
             if rep.gain_margin_db is not None and rep.gain_margin_db < REQUIRED_GAIN_MARGIN_DB:
-                problems.append(
-                    f"{lp.value}: gain margin {rep.gain_margin_db:.2f} dB < {REQUIRED_GAIN_MARGIN_DB:g} dB"
-                )
+                problems.append(f"{lp.value}: gain margin {rep.gain_margin_db:.2f} dB < {REQUIRED_GAIN_MARGIN_DB:g} dB")
             if rep.phase_margin_deg < REQUIRED_PHASE_MARGIN_DEG:
                 problems.append(
                     f"{lp.value}: phase margin {rep.phase_margin_deg:.2f} deg < {REQUIRED_PHASE_MARGIN_DEG:g} deg"
@@ -1060,9 +1124,7 @@ def check_rates(physics_hz: float, position_hz: float) -> int:
     ratio = physics_hz / position_hz
     n = round(ratio)
     if n < 1 or abs(ratio - n) > 1e-9 * ratio:
-        raise ValueError(
-            f"position_hz {position_hz} must divide physics_hz {physics_hz} exactly (ratio {ratio:g})"
-        )
+        raise ValueError(f"position_hz {position_hz} must divide physics_hz {physics_hz} exactly (ratio {ratio:g})")
     return n
 
 
@@ -1095,24 +1157,28 @@ def design_controller(
     check_rates(physics_hz, position_hz)
     if not (gravity > 0 and math.isfinite(gravity)):
         raise ValueError(f"gravity: must be positive, got {gravity}")
-    return _design_cached(params, float(physics_hz), float(position_hz), spec or DesignSpec(),
-                          step or ReferenceStep(), float(gravity))
+    return _design_cached(
+        params, float(physics_hz), float(position_hz), spec or DesignSpec(), step or ReferenceStep(), float(gravity)
+    )
 
 
 @functools.lru_cache(maxsize=64)
-def _design_cached(params: VehicleParams, physics_hz: float, position_hz: float, spec: DesignSpec,
-                   step: ReferenceStep, gravity: float) -> ControllerDesign:
+def _design_cached(
+    params: VehicleParams, physics_hz: float, position_hz: float, spec: DesignSpec, step: ReferenceStep, gravity: float
+) -> ControllerDesign:
     h, n_sub, tau = 1.0 / physics_hz, check_rates(physics_hz, position_hz), float(params.motor_time_constant)
     source = params.param_file.name if params.param_file is not None else f"vehicle {params.name!r}"
     jx, jy, jz = (float(j) for j in params.inertia)
-    vehicle = Airframe(params.mass, (jx, jy, jz), np.asarray(params.mixer_inverse, dtype=float),
-                       float(params.max_rotor_speed), gravity)
+    vehicle = Airframe(
+        params.mass, (jx, jy, jz), np.asarray(params.mixer_inverse, dtype=float), float(params.max_rotor_speed), gravity
+    )
     hover = math.sqrt(float(vehicle.hover_speed_sq.max())) / vehicle.max_rotor_speed
     if hover >= spec.max_rotor_fraction:
-        raise ConfigError(f"cannot hover: hover rotor speed is {100 * hover:.1f} % of max_rotor_speed",
-                          source=source, field="z")
+        raise ConfigError(
+            f"cannot hover: hover rotor speed is {100 * hover:.1f} % of max_rotor_speed", source=source, field="z"
+        )
 
-    climb = _saturation(vehicle, step, _Gains(), h, n_sub, tau, spec, h)   # the thrust step needs no gains
+    climb = _saturation(vehicle, step, _Gains(), h, n_sub, tau, spec, h)  # the thrust step needs no gains
     if not climb.ok:
         raise ConfigError(f"{_saturation_reason(climb)}", source=source, field="z")
 
@@ -1124,28 +1190,53 @@ def _design_cached(params: VehicleParams, physics_hz: float, position_hz: float,
     cap = spec.attitude_wn_max
     while True:
         try:
-            tilt = _design_loop(lambda: attitude_plant(h, tau), spec, cap, name="roll/pitch",
-                                extra=lambda g: check(_Gains(tilt=g)))
+            tilt = _design_loop(
+                lambda: attitude_plant(h, tau), spec, cap, name="roll/pitch", extra=lambda g: check(_Gains(tilt=g))
+            )
             max_pos_bw = tilt.report.bandwidth_rad_s / spec.separation
             wn_pos_max = tilt.report.natural_frequency_rad_s
-            vert = _design_loop(lambda: vertical_plant(h, n_sub, tau), spec, wn_pos_max, max_bandwidth=max_pos_bw,
-                                name="z", extra=lambda g: check(_Gains(tilt=tilt.gains, z=g)))
-            horiz = _design_loop(lambda: horizontal_plant(h, n_sub, tau, tilt.gains), spec, wn_pos_max,
-                                 max_bandwidth=max_pos_bw, name="x/y",
-                                 extra=lambda g: check(_Gains(tilt=tilt.gains, z=vert.gains, xy=g)))
-            yaw = _design_loop(lambda: attitude_plant(h, tau), spec, tilt.report.natural_frequency_rad_s, name="yaw",
-                               extra=lambda g: check(_Gains(tilt=tilt.gains, z=vert.gains, xy=horiz.gains, yaw=g)))
+            vert = _design_loop(
+                lambda: vertical_plant(h, n_sub, tau),
+                spec,
+                wn_pos_max,
+                max_bandwidth=max_pos_bw,
+                name="z",
+                extra=lambda g: check(_Gains(tilt=tilt.gains, z=g)),
+            )
+            horiz = _design_loop(
+                lambda: horizontal_plant(h, n_sub, tau, tilt.gains),
+                spec,
+                wn_pos_max,
+                max_bandwidth=max_pos_bw,
+                name="x/y",
+                extra=lambda g: check(_Gains(tilt=tilt.gains, z=vert.gains, xy=g)),
+            )
+            yaw = _design_loop(
+                lambda: attitude_plant(h, tau),
+                spec,
+                tilt.report.natural_frequency_rad_s,
+                name="yaw",
+                extra=lambda g: check(_Gains(tilt=tilt.gains, z=vert.gains, xy=horiz.gains, yaw=g)),
+            )
             break
         except _NoGains as exc:
             wn_tilt = tilt.report.natural_frequency_rad_s if exc.loop != "roll/pitch" else spec.wn_min
-            if not exc.saturated or wn_tilt <= spec.wn_min * _TILT_CAP_FACTOR ** -1:
+            if not exc.saturated or wn_tilt <= spec.wn_min * _TILT_CAP_FACTOR**-1:
                 raise ConfigError(str(exc), source=source, field=exc.loop) from None
             cap = wn_tilt * _TILT_CAP_FACTOR
     # The final check runs until the slowest placed pole has decayed (e^-6), in case a peak comes late.
     slowest = min(spec.integral_pole_ratio * d.report.natural_frequency_rad_s for d in (tilt, vert, horiz, yaw))
-    saturation = _saturation(vehicle, step, _Gains(tilt.gains, vert.gains, horiz.gains, yaw.gains), h, n_sub, tau,
-                             spec, min(_FINAL_HORIZON_MAX_S, 6.0 / slowest))
-    if not saturation.ok:   # a longer horizon found a later peak than the searches looked at
+    saturation = _saturation(
+        vehicle,
+        step,
+        _Gains(tilt.gains, vert.gains, horiz.gains, yaw.gains),
+        h,
+        n_sub,
+        tau,
+        spec,
+        min(_FINAL_HORIZON_MAX_S, 6.0 / slowest),
+    )
+    if not saturation.ok:  # a longer horizon found a later peak than the searches looked at
         raise ConfigError(f"{_saturation_reason(saturation)}", source=source, field=saturation.peak_channel)
 
     by_loop = {Loop.ROLL: tilt, Loop.PITCH: tilt, Loop.YAW: yaw, Loop.X: horiz, Loop.Y: horiz, Loop.Z: vert}

@@ -6,6 +6,7 @@ zero (see ``scripts/bench.py``). Arrays follow the conventions of ``pybullet_swa
 states (n, 13) = position m, quaternion (x, y, z, w), world velocity m/s,
 world angular velocity rad/s.
 """
+
 from __future__ import annotations
 
 import math
@@ -39,17 +40,17 @@ def _quat_to_R(pose: NDArray[np.float64], i: int, R: NDArray[np.float64]) -> Non
 
 @numba.njit(cache=True)
 def position_tick(
-    state: NDArray[np.float64],       # (n, 13) position, quaternion, velocity, angular velocity
-    p_ref: NDArray[np.float64],       # (n, 3) m
-    v_ref: NDArray[np.float64],       # (n, 3) m/s
-    a_ref: NDArray[np.float64],       # (n, 3) m/s^2
-    yaw_ref: NDArray[np.float64],     # (n,) rad
+    state: NDArray[np.float64],  # (n, 13) position, quaternion, velocity, angular velocity
+    p_ref: NDArray[np.float64],  # (n, 3) m
+    v_ref: NDArray[np.float64],  # (n, 3) m/s
+    a_ref: NDArray[np.float64],  # (n, 3) m/s^2
+    yaw_ref: NDArray[np.float64],  # (n,) rad
     yaw_rate_ref: NDArray[np.float64],  # (n,) rad/s
-    gains: NDArray[np.float64],       # (3, 3) rows x, y, z; cols kp, kd, ki
-    integ: NDArray[np.float64],       # (n, 3) m s, integral of the position error (in/out)
-    int_max: NDArray[np.float64],     # (3,) m/s^2, bound on |ki * integral| per axis
-    scal: NDArray[np.float64],        # (4,) period s, gravity m/s^2, tan(max tilt), max specific thrust m/s^2
-    ctrl: NDArray[np.float64],        # (n, CTRL_COLS) out: desired attitude and specific thrust (C_RDES, C_THRUST)
+    gains: NDArray[np.float64],  # (3, 3) rows x, y, z; cols kp, kd, ki
+    integ: NDArray[np.float64],  # (n, 3) m s, integral of the position error (in/out)
+    int_max: NDArray[np.float64],  # (3,) m/s^2, bound on |ki * integral| per axis
+    scal: NDArray[np.float64],  # (4,) period s, gravity m/s^2, tan(max tilt), max specific thrust m/s^2
+    ctrl: NDArray[np.float64],  # (n, CTRL_COLS) out: desired attitude and specific thrust (C_RDES, C_THRUST)
 ) -> None:
     """PID position loop with anti-windup: references and state -> desired attitude and thrust."""
     dt, g, max_tilt_tan, max_acc = scal[0], scal[1], scal[2], scal[3]
@@ -60,7 +61,12 @@ def position_tick(
         _quat_to_R(state, i, R)
         for k in range(3):
             e[k] = state[i, k] - p_ref[i, k]
-            a[k] = a_ref[i, k] - gains[k, 0] * e[k] - gains[k, 1] * (state[i, 7 + k] - v_ref[i, k]) - gains[k, 2] * integ[i, k]
+            a[k] = (
+                a_ref[i, k]
+                - gains[k, 0] * e[k]
+                - gains[k, 1] * (state[i, 7 + k] - v_ref[i, k])
+                - gains[k, 2] * integ[i, k]
+            )
         fx, fy, fz = a[0], a[1], a[2] + g
         sat_xy = False
         sat_z = False
@@ -116,48 +122,48 @@ def position_tick(
 
 # Column layout of the per-agent controller array ``ctrl`` (n, CTRL_COLS) shared by the kernels;
 # ``CascadeController`` exposes named views of it.
-C_RDES = 0          # 9: desired attitude, body -> world, row-major
-C_THRUST = 9        # 1: commanded specific thrust, m/s^2
-C_YAWRATE = 10      # 1: yaw-rate reference, rad/s
-C_INTEG = 11        # 3: integral of the attitude error, rad s
-C_W = 14            # 4: rotor speeds (motor state), rad/s
-C_WCMD = 18         # 4: rotor speed commands, rad/s
-C_RATES = 22        # 3: body rates, rad/s
-C_MASS = 25         # 1: mass the thrust is computed for (airframe + payload), kg
+C_RDES = 0  # 9: desired attitude, body -> world, row-major
+C_THRUST = 9  # 1: commanded specific thrust, m/s^2
+C_YAWRATE = 10  # 1: yaw-rate reference, rad/s
+C_INTEG = 11  # 3: integral of the attitude error, rad s
+C_W = 14  # 4: rotor speeds (motor state), rad/s
+C_WCMD = 18  # 4: rotor speed commands, rad/s
+C_RATES = 22  # 3: body rates, rad/s
+C_MASS = 25  # 1: mass the thrust is computed for (airframe + payload), kg
 CTRL_COLS = 26
 
 # Layout of the constant array ``const`` of ``physics_tick``.
-K_GAINS = 0         # 9: attitude gains (3, 3) rows roll, pitch, yaw; cols kp [1/s^2], kd [1/s], ki [1/s^3]
-K_INTMAX = 9        # 3: bound on |ki * integral| per axis, rad/s^2
-K_INERTIA = 12      # 3: kg m^2
-K_MIXER = 15        # 16: (4, 4) w^2 -> [T, tau]
-K_MIXINV = 31       # 16: (4, 4) [T, tau] -> w^2
-K_WMAX = 47         # rad/s
-K_ALPHA = 48        # 1 - exp(-dt / tau_motor)
-K_DT = 49           # s, physics period
-K_DRAG = 50         # N/(m/s), linear drag (0: none)
-K_GROUND_R = 51     # m, rotor radius for ground effect (0: none)
-K_CLOSED = 52       # 1: run the attitude loop, 0: hold the rotor commands (open loop)
-CONST_LEN = 53      # (each agent's mass, airframe + payload, is ctrl[:, C_MASS])
+K_GAINS = 0  # 9: attitude gains (3, 3) rows roll, pitch, yaw; cols kp [1/s^2], kd [1/s], ki [1/s^3]
+K_INTMAX = 9  # 3: bound on |ki * integral| per axis, rad/s^2
+K_INERTIA = 12  # 3: kg m^2
+K_MIXER = 15  # 16: (4, 4) w^2 -> [T, tau]
+K_MIXINV = 31  # 16: (4, 4) [T, tau] -> w^2
+K_WMAX = 47  # rad/s
+K_ALPHA = 48  # 1 - exp(-dt / tau_motor)
+K_DT = 49  # s, physics period
+K_DRAG = 50  # N/(m/s), linear drag (0: none)
+K_GROUND_R = 51  # m, rotor radius for ground effect (0: none)
+K_CLOSED = 52  # 1: run the attitude loop, 0: hold the rotor commands (open loop)
+CONST_LEN = 53  # (each agent's mass, airframe + payload, is ctrl[:, C_MASS])
 
 
 @numba.njit(cache=True)
 def physics_tick(
-    state: NDArray[np.float64],        # (n, 13) position, quaternion, velocity, angular velocity (world)
-    ctrl: NDArray[np.float64],         # (n, CTRL_COLS) controller state, see C_* above (in/out)
-    force: NDArray[np.float64],        # (n, 3) out: world force, N
-    torque: NDArray[np.float64],       # (n, 3) out: world torque, N m
-    status: NDArray[np.int64],         # (n,) out: STATUS_*
-    const: NDArray[np.float64],        # (CONST_LEN,) see K_* above
+    state: NDArray[np.float64],  # (n, 13) position, quaternion, velocity, angular velocity (world)
+    ctrl: NDArray[np.float64],  # (n, CTRL_COLS) controller state, see C_* above (in/out)
+    force: NDArray[np.float64],  # (n, 3) out: world force, N
+    torque: NDArray[np.float64],  # (n, 3) out: world torque, N m
+    status: NDArray[np.int64],  # (n,) out: STATUS_*
+    const: NDArray[np.float64],  # (CONST_LEN,) see K_* above
 ) -> int:
     """Attitude loop, mixer, motor lag and rotor wrench for every agent, one physics step.
 
     Returns the worst status over agents (0 when every agent is upright and finite).
     """
-    gains = const[K_GAINS:K_GAINS + 9].reshape(3, 3)
-    int_max = const[K_INTMAX:K_INTMAX + 3]
-    mixer = const[K_MIXER:K_MIXER + 16].reshape(4, 4)
-    mixer_inv = const[K_MIXINV:K_MIXINV + 16].reshape(4, 4)
+    gains = const[K_GAINS : K_GAINS + 9].reshape(3, 3)
+    int_max = const[K_INTMAX : K_INTMAX + 3]
+    mixer = const[K_MIXER : K_MIXER + 16].reshape(4, 4)
+    mixer_inv = const[K_MIXINV : K_MIXINV + 16].reshape(4, 4)
     w_max = const[K_WMAX]
     alpha = const[K_ALPHA]
     dt = const[K_DT]
@@ -166,8 +172,8 @@ def physics_tick(
     closed_loop = const[K_CLOSED] > 0.5
     wmax2 = w_max * w_max
     jx, jy, jz = const[K_INERTIA], const[K_INERTIA + 1], const[K_INERTIA + 2]
-    w = ctrl[:, C_W:C_W + 4]           # rad/s, motor state
-    w_cmd = ctrl[:, C_WCMD:C_WCMD + 4]  # rad/s, motor commands
+    w = ctrl[:, C_W : C_W + 4]  # rad/s, motor state
+    w_cmd = ctrl[:, C_WCMD : C_WCMD + 4]  # rad/s, motor commands
     worst = 0
     R = np.empty((3, 3))
     for i in range(state.shape[0]):
@@ -273,13 +279,13 @@ def physics_tick(
 
 @numba.njit(cache=True)
 def shape_references(
-    target: NDArray[np.float64],     # (n, 3) m target position, or m/s target velocity
+    target: NDArray[np.float64],  # (n, 3) m target position, or m/s target velocity
     velocity_mode: NDArray[np.bool_],  # (n,) True: target is a velocity
-    p_ref: NDArray[np.float64],      # (n, 3) m (in/out)
-    v_ref: NDArray[np.float64],      # (n, 3) m/s (in/out)
-    a_ref: NDArray[np.float64],      # (n, 3) m/s^2 (out)
-    v_max: NDArray[np.float64],      # (3,) m/s per axis
-    a_max: NDArray[np.float64],      # (3,) m/s^2 per axis
+    p_ref: NDArray[np.float64],  # (n, 3) m (in/out)
+    v_ref: NDArray[np.float64],  # (n, 3) m/s (in/out)
+    a_ref: NDArray[np.float64],  # (n, 3) m/s^2 (out)
+    v_max: NDArray[np.float64],  # (3,) m/s per axis
+    a_max: NDArray[np.float64],  # (3,) m/s^2 per axis
     dt: float,
 ) -> None:
     """Move references towards targets within per-axis velocity and acceleration limits.
@@ -322,17 +328,17 @@ def shape_references(
 
 @numba.njit(cache=True)
 def prefilter_references(
-    p_ref: NDArray[np.float64],    # (n, 3) m, shaped position references
-    v_ref: NDArray[np.float64],    # (n, 3) m/s, shaped velocity references
-    At: NDArray[np.float64],       # (3, m, m) per axis, transposed discrete state matrix (zero-padded)
-    B: NDArray[np.float64],        # (3, m)
-    C: NDArray[np.float64],        # (3, m)
-    D: NDArray[np.float64],        # (3,)
-    x_unit: NDArray[np.float64],   # (3, m) steady state for a unit input
-    x: NDArray[np.float64],        # (2, n, 3, m) filter states of positions and velocities (in/out)
-    primed: bool,                  # False: start in steady state at these references
-    p_out: NDArray[np.float64],    # (n, 3) m, out
-    v_out: NDArray[np.float64],    # (n, 3) m/s, out
+    p_ref: NDArray[np.float64],  # (n, 3) m, shaped position references
+    v_ref: NDArray[np.float64],  # (n, 3) m/s, shaped velocity references
+    At: NDArray[np.float64],  # (3, m, m) per axis, transposed discrete state matrix (zero-padded)
+    B: NDArray[np.float64],  # (3, m)
+    C: NDArray[np.float64],  # (3, m)
+    D: NDArray[np.float64],  # (3,)
+    x_unit: NDArray[np.float64],  # (3, m) steady state for a unit input
+    x: NDArray[np.float64],  # (2, n, 3, m) filter states of positions and velocities (in/out)
+    primed: bool,  # False: start in steady state at these references
+    p_out: NDArray[np.float64],  # (n, 3) m, out
+    v_out: NDArray[np.float64],  # (n, 3) m/s, out
 ) -> None:
     """One tick of the reference prefilter (``CascadeController``) for all agents and axes."""
     m = B.shape[1]

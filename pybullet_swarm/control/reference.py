@@ -1,4 +1,5 @@
 """Reference shaping: waypoints or velocity set-points -> position/velocity/acceleration references."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -48,16 +49,24 @@ class ReferenceShaper:
         self.v_max = None if v_max is None else np.asarray(v_max, dtype=float).reshape(3)
         self.a_max = np.asarray(a_max, dtype=float).reshape(3)
         self.dt = float(dt)
-        self.p = np.zeros((n, 3))          # m
-        self.v = np.zeros((n, 3))          # m/s
-        self.a = np.zeros((n, 3))          # m/s^2
-        self.yaw = np.zeros(n)             # rad
-        self.yaw_rate = np.zeros(n)        # rad/s
-        self.target = np.zeros((n, 3))     # m or m/s
+        self.p = np.zeros((n, 3))  # m
+        self.v = np.zeros((n, 3))  # m/s
+        self.a = np.zeros((n, 3))  # m/s^2
+        self.yaw = np.zeros(n)  # rad
+        self.yaw_rate = np.zeros(n)  # rad/s
+        self.target = np.zeros((n, 3))  # m or m/s
         self.velocity_mode = np.zeros(n, dtype=np.bool_)
         self._ref = Reference(self.p, self.v, self.a, self.yaw, self.yaw_rate)
-        self._args = (self.target, self.velocity_mode, self.p, self.v, self.a,
-                      self.v_max if self.v_max is not None else np.zeros(3), self.a_max, self.dt)
+        self._args = (
+            self.target,
+            self.velocity_mode,
+            self.p,
+            self.v,
+            self.a,
+            self.v_max if self.v_max is not None else np.zeros(3),
+            self.a_max,
+            self.dt,
+        )
 
     def reset(self, positions: NDArray[np.float64], yaw: NDArray[np.float64] | None = None) -> None:
         """Start at rest at ``positions`` (n, 3) m, holding them."""

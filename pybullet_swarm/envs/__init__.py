@@ -11,14 +11,16 @@ this package registers ``pybullet_swarm/Hover-v0`` and ``pybullet_swarm/Waypoint
     env = SwarmParallelEnv("construction", action_type="waypoint")
     obs, infos = env.reset(seed=0)
 """
+
 from __future__ import annotations
 
 try:
     import gymnasium
     import pettingzoo  # noqa: F401
 except ImportError as exc:  # pragma: no cover - depends on the installation
-    raise ImportError("pybullet_swarm.envs needs the 'rl' extra (gymnasium, pettingzoo): "
-                      "pip install 'pybullet_swarm[rl]'") from exc
+    raise ImportError(
+        "pybullet_swarm.envs needs the 'rl' extra (gymnasium, pettingzoo): pip install 'pybullet_swarm[rl]'"
+    ) from exc
 
 from pybullet_swarm.envs.actions import ActionMapper
 from pybullet_swarm.envs.config import ActionType, EnvConfig, RewardWeights, StepPeriod

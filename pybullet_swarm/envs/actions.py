@@ -12,6 +12,7 @@ to GRASP, below -0.5 to RELEASE, anything between does nothing.
 
 Actions outside the space are clipped to it.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -22,7 +23,7 @@ from numpy.typing import NDArray
 from pybullet_swarm.envs.config import ActionType, EnvConfig
 from pybullet_swarm.planning.base import Action
 
-GRIP_THRESHOLD = 0.5   # |gripper| above this asks for GRASP (+) or RELEASE (-)
+GRIP_THRESHOLD = 0.5  # |gripper| above this asks for GRASP (+) or RELEASE (-)
 DEFAULT_CEILING = 2.0  # m, top of the waypoint range when the arena has no height
 
 
@@ -38,10 +39,10 @@ class ActionMapper:
         sc = sim.scenario
         self.type = ActionType(config.action_type)
         self.normalized = bool(config.normalize_actions)
-        self.gripper = len(sim.info.depot) > 0   # the task has objects to grasp and release
+        self.gripper = len(sim.info.depot) > 0  # the task has objects to grasp and release
         self.span = float(config.rotor_span)
-        self.hover_speed = sim.params.hover_rotor_speed(sc.sim.gravity)    # rad/s
-        self.max_speed = float(sim.params.max_rotor_speed)                 # rad/s
+        self.hover_speed = sim.params.hover_rotor_speed(sc.sim.gravity)  # rad/s
+        self.max_speed = float(sim.params.max_rotor_speed)  # rad/s
         if self.type is ActionType.VELOCITY:
             v = sc.velocity_limits()
             vmax = np.full(3, config.velocity_scale) if v is None else v
@@ -55,7 +56,7 @@ class ActionMapper:
         else:
             lo, hi = np.zeros(4), np.full(4, self.max_speed)
         self.core = lo.shape[0]
-        self.phys_low = np.asarray(lo, dtype=float)     # SI bounds of the command columns
+        self.phys_low = np.asarray(lo, dtype=float)  # SI bounds of the command columns
         self.phys_high = np.asarray(hi, dtype=float)
         self.dim = self.core + (1 if self.gripper else 0)
         if self.normalized:
@@ -83,8 +84,9 @@ class ActionMapper:
         if not self.gripper:
             return cmd, None
         g = a[:, self.core]
-        grip = np.where(g > GRIP_THRESHOLD, int(Action.GRASP), np.where(g < -GRIP_THRESHOLD, int(Action.RELEASE),
-                                                                         int(Action.NONE)))
+        grip = np.where(
+            g > GRIP_THRESHOLD, int(Action.GRASP), np.where(g < -GRIP_THRESHOLD, int(Action.RELEASE), int(Action.NONE))
+        )
         return cmd, grip.astype(np.int64)
 
     def hover_action(self, sim: Any) -> NDArray[Any]:

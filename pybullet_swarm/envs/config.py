@@ -3,6 +3,7 @@
 Every option is validated when an environment is built; bad values are one-line ``ConfigError``s
 naming the scenario file and the option (``hover.yaml: env.action_type: ...``).
 """
+
 from __future__ import annotations
 
 import enum
@@ -17,9 +18,9 @@ from pybullet_swarm.validation import validate
 class ActionType(str, enum.Enum):
     """What an agent's action commands."""
 
-    VELOCITY = "velocity"          # (vx, vy, vz) m/s set-point through the reference shaper and the cascade
-    WAYPOINT = "waypoint"          # (x, y, z) m target position through the reference shaper and the cascade
-    ROTOR_SPEED = "rotor_speed"    # (w0, w1, w2, w3) rad/s, open loop: the designed controller is bypassed
+    VELOCITY = "velocity"  # (vx, vy, vz) m/s set-point through the reference shaper and the cascade
+    WAYPOINT = "waypoint"  # (x, y, z) m target position through the reference shaper and the cascade
+    ROTOR_SPEED = "rotor_speed"  # (w0, w1, w2, w3) rad/s, open loop: the designed controller is bypassed
 
     def __str__(self) -> str:
         return self.value
@@ -28,9 +29,9 @@ class ActionType(str, enum.Enum):
 class StepPeriod(str, enum.Enum):
     """How much simulated time one environment step covers."""
 
-    PLANNER = "planner"   # one planner period (1 / sim.planner_hz), what the swarm planners use
-    CONTROL = "control"   # one position-loop period (1 / sim.control_hz)
-    PHYSICS = "physics"   # one physics step (1 / sim.physics_hz)
+    PLANNER = "planner"  # one planner period (1 / sim.planner_hz), what the swarm planners use
+    CONTROL = "control"  # one position-loop period (1 / sim.control_hz)
+    PHYSICS = "physics"  # one physics step (1 / sim.physics_hz)
 
     def __str__(self) -> str:
         return self.value
@@ -50,14 +51,14 @@ class RewardWeights(_Options):
     crash penalties go to the agents involved.
     """
 
-    box_placed: Weight = 10.0           # per box that fills a slot (a box knocked out of its slot costs as much)
-    box_to_goal: Weight = 1.0           # per m the total box-to-goal distance shrinks (optimal box-slot matching)
-    goal_progress: Weight = 1.0         # per m an agent gets closer to its active set-point (waypoint tasks)
-    point_visited: Weight = 1.0         # per tour point visited
-    completion: Weight = 10.0           # once, when the task is completed
-    collision_penalty: Weight = 1.0     # per contact event (onset) the agent is part of
-    crash_penalty: Weight = 10.0        # to the agent that crashed (hard ground impact, flip) or diverged
-    time_penalty: Weight = 0.0          # per simulated second, every agent
+    box_placed: Weight = 10.0  # per box that fills a slot (a box knocked out of its slot costs as much)
+    box_to_goal: Weight = 1.0  # per m the total box-to-goal distance shrinks (optimal box-slot matching)
+    goal_progress: Weight = 1.0  # per m an agent gets closer to its active set-point (waypoint tasks)
+    point_visited: Weight = 1.0  # per tour point visited
+    completion: Weight = 10.0  # once, when the task is completed
+    collision_penalty: Weight = 1.0  # per contact event (onset) the agent is part of
+    crash_penalty: Weight = 10.0  # to the agent that crashed (hard ground impact, flip) or diverged
+    time_penalty: Weight = 0.0  # per simulated second, every agent
 
 
 class EnvConfig(_Options):
@@ -96,8 +97,9 @@ class EnvConfig(_Options):
     rewards: RewardWeights = RewardWeights()
 
 
-def make_config(config: EnvConfig | Mapping[str, Any] | None, options: Mapping[str, Any], *,
-                source: str | None) -> EnvConfig:
+def make_config(
+    config: EnvConfig | Mapping[str, Any] | None, options: Mapping[str, Any], *, source: str | None
+) -> EnvConfig:
     """Merge ``config`` (an ``EnvConfig`` or a mapping) with keyword ``options`` and validate.
 
     Raises:
@@ -117,7 +119,7 @@ def make_config(config: EnvConfig | Mapping[str, Any] | None, options: Mapping[s
         if isinstance(data.get(key), enum.Enum):
             data[key] = data[key].value
     if "period" not in data and data.get("action_type") in (ActionType.ROTOR_SPEED, ActionType.ROTOR_SPEED.value):
-        data["period"] = StepPeriod.CONTROL.value   # rotor speeds want a fast loop: default to the control period
+        data["period"] = StepPeriod.CONTROL.value  # rotor speeds want a fast loop: default to the control period
     if isinstance(data.get("render_size"), tuple):
         data["render_size"] = list(data["render_size"])
     return validate(EnvConfig, data, source=source, prefix="env")

@@ -13,6 +13,7 @@ the task applies a planner's commands. When a step ends on a planner tick, the t
 once: a step that completes the task (or reaches the time limit) reports it itself, never the
 step after.
 """
+
 from __future__ import annotations
 
 from typing import Any, ClassVar
@@ -45,9 +46,9 @@ class ActionBridge:
 
     def __init__(self, n: int, yaw: NDArray[np.float64]) -> None:
         self.kind = CommandKind.HOLD
-        self.vectors = np.zeros((n, 3))          # m or m/s
+        self.vectors = np.zeros((n, 3))  # m or m/s
         self.actions = np.zeros(n, dtype=np.int64)
-        self.yaw = yaw                           # (n,) rad, the shaper's yaw (kept)
+        self.yaw = yaw  # (n,) rad, the shaper's yaw (kept)
 
     def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Nothing to prepare."""
@@ -59,7 +60,7 @@ class ActionBridge:
             self.vectors = np.array(vectors, dtype=float).reshape(-1, 3)
         if actions is None:
             self.actions = np.zeros(len(self.actions), dtype=np.int64)
-        else:   # a request waits for the next planner tick unless a newer one replaces it
+        else:  # a request waits for the next planner tick unless a newer one replaces it
             self.actions = np.where(actions != int(Action.NONE), actions, self.actions)
 
     def plan_all(self, view: WorldView) -> list[Command]:
@@ -88,16 +89,22 @@ class SwarmEpisode:
         self.scenario = scenario
         self.config = config
         self.sim: Simulation = Simulation(scenario, seed=scenario.seed, record=config.record)
-        self._pristine = True    # self.sim is fresh (not stepped): a reset with its seed may use it
+        self._pristine = True  # self.sim is fresh (not stepped): a reset with its seed may use it
         self.n = self.sim.n
-        ranges = getattr(self.sim, "ranges", None)   # (n, r) m, readings of the last planner tick
+        ranges = getattr(self.sim, "ranges", None)  # (n, r) m, readings of the last planner tick
         self.n_ranges = int(ranges.shape[1]) if ranges is not None else 0
         sensor = getattr(self.sim, "range_sensor", None)
         range_bound = float(sensor.fan.range_m) if self.n_ranges and hasattr(sensor, "fan") else RANGE_BOUND
         self.mapper = ActionMapper(self.sim, config)
-        self.builder = ObservationBuilder(self.sim, neighbours=config.neighbours, boxes=config.boxes,
-                                          slots=config.slots, points=config.points, ranges=self.n_ranges,
-                                          range_bound=range_bound)
+        self.builder = ObservationBuilder(
+            self.sim,
+            neighbours=config.neighbours,
+            boxes=config.boxes,
+            slots=config.slots,
+            points=config.points,
+            ranges=self.n_ranges,
+            range_bound=range_bound,
+        )
         self.layout: ObservationLayout = self.builder.layout
         self.done = False
         self.steps = 0
@@ -124,7 +131,7 @@ class SwarmEpisode:
             sim.planner = self.bridge
             sim.agent_planners = None
         elif rotor:
-            sim.set_targets(sim.state_array[:, :3].copy())   # the scenario's planner stays idle
+            sim.set_targets(sim.state_array[:, :3].copy())  # the scenario's planner stays idle
         self._camera: Any = None
         self.rewards = RewardTracker(sim, self.config.rewards)
         self.targets = self._targets()
@@ -173,7 +180,7 @@ class SwarmEpisode:
             return
         if sim.time >= sim.time_limit - 1e-9 or _task_done(sim):
             if self.bridge is not None:
-                self.bridge.set(self.bridge.kind, None, None)   # no task action at the closing tick
+                self.bridge.set(self.bridge.kind, None, None)  # no task action at the closing tick
             sim.step(1)
 
     def step(self, actions: NDArray[Any]) -> tuple[NDArray[np.float32], StepOutcome, bool, bool]:
@@ -204,9 +211,12 @@ class SwarmEpisode:
         if self.done:
             return sim.metrics()
         contacts = sim.contacts
-        m = {"exit_status": sim.exit_status.value, "sim_time_s": round(sim.time, 9),
-             "collisions": dict(contacts.counts),
-             "collision_time_s": dict(contacts.time_s)}
+        m = {
+            "exit_status": sim.exit_status.value,
+            "sim_time_s": round(sim.time, 9),
+            "collisions": dict(contacts.counts),
+            "collision_time_s": dict(contacts.time_s),
+        }
         m.update(self.rewards.progress())
         return m
 
@@ -215,7 +225,7 @@ class SwarmEpisode:
         from pybullet_swarm.experiment.video import camera_for_arena, render_frame
 
         sim = self.sim
-        if self._camera is None:   # one camera per episode, framing the flight volume as the run's video does
+        if self._camera is None:  # one camera per episode, framing the flight volume as the run's video does
             height = max(1.0, float(np.max(sim.starts[:, 2])) + 0.5)
             targets = sim.task.view(sim.time).targets
             if len(targets):

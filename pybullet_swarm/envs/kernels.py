@@ -4,6 +4,7 @@ A numpy version of the same arithmetic (quaternion to roll/pitch/yaw, copies, cl
 tens of microseconds per step in dispatch alone, which at one agent is a sizeable part of a
 planner period's physics.
 """
+
 from __future__ import annotations
 
 import math
@@ -14,8 +15,13 @@ from numpy.typing import NDArray
 
 
 @numba.njit(cache=True)
-def fill_own(out: NDArray[np.float64], s: NDArray[np.float64], rates: NDArray[np.float64],
-             carrying: NDArray[np.float64], t_frac: float) -> None:  # pragma: no cover - compiled
+def fill_own(
+    out: NDArray[np.float64],
+    s: NDArray[np.float64],
+    rates: NDArray[np.float64],
+    carrying: NDArray[np.float64],
+    t_frac: float,
+) -> None:  # pragma: no cover - compiled
     """Write the 14 ``own`` columns of every row of ``out`` (n, dim).
 
     Args:
@@ -40,7 +46,9 @@ def fill_own(out: NDArray[np.float64], s: NDArray[np.float64], rates: NDArray[np
 
 
 @numba.njit(cache=True)
-def clip_rows(out: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]) -> bool:  # pragma: no cover
+def clip_rows(
+    out: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]
+) -> bool:  # pragma: no cover
     """Clip every row of ``out`` (n, dim) to [low, high] (dim,) in place, non-finite values to 0;
     returns True when a value was not finite."""
     bad = False
@@ -56,4 +64,3 @@ def clip_rows(out: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[
                 v = high[j]
             out[i, j] = v
     return bad
-

@@ -12,6 +12,7 @@ Per agent i and step (weights from ``RewardWeights``)::
         - crash_penalty * [agent i crashed or diverged]        # own
         - time_penalty * (simulated seconds of the step)       # shared
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -67,7 +68,7 @@ class RewardTracker:
     def __init__(self, sim: Any, weights: RewardWeights) -> None:
         self.w = weights
         self.n = sim.n
-        self.agent_of = {f"agent{i}": i for i in range(sim.n)}   # World body names of the agents
+        self.agent_of = {f"agent{i}": i for i in range(sim.n)}  # World body names of the agents
         self.task = sim.task
         view = sim.task.view(sim.time)
         self.has_slots = len(view.slots) > 0
@@ -130,7 +131,7 @@ class RewardTracker:
             r = np.full(self.n, shared)
         collisions: list[list[dict[str, Any]]] = [[] for _ in range(self.n)]
         if len(sim.events) > self.events_seen:
-            new = sim.events[self.events_seen:]
+            new = sim.events[self.events_seen :]
             self.events_seen = len(sim.events)
             self._charge(new, r, collisions)
         return StepOutcome(r, collisions, goal_distance)

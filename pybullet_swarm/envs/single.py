@@ -11,6 +11,7 @@ crashed, truncated at the scenario's time limit.
 - ``Waypoints-v0``: the bundled ``hover`` scenario: take off, then 0.5 m steps in x, y and z
   on a timed schedule (40 s).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -62,16 +63,28 @@ class SingleAgentEnv(gymnasium.Env[NDArray[np.float32], NDArray[Any]]):
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 10}
 
-    def __init__(self, scenario: Scenario | str | Path = "hover", *,
-                 overrides: Mapping[str, Any] | Sequence[str] = (), config: EnvConfig | Mapping[str, Any] | None = None,
-                 render_mode: str | None = None, **options: Any) -> None:
+    def __init__(
+        self,
+        scenario: Scenario | str | Path = "hover",
+        *,
+        overrides: Mapping[str, Any] | Sequence[str] = (),
+        config: EnvConfig | Mapping[str, Any] | None = None,
+        render_mode: str | None = None,
+        **options: Any,
+    ) -> None:
         sc = resolve_scenario(scenario, overrides)
         if sc.agents.count != 1:
-            raise ConfigError(f"must be 1 for a single-agent environment, got {sc.agents.count}", source=sc.source,
-                              field="agents.count")
+            raise ConfigError(
+                f"must be 1 for a single-agent environment, got {sc.agents.count}",
+                source=sc.source,
+                field="agents.count",
+            )
         if not isinstance(sc.task, WaypointsTask):
-            raise ConfigError(f"must be 'waypoints' for a single-agent environment, got {sc.task.kind!r}",
-                              source=sc.source, field="task.kind")
+            raise ConfigError(
+                f"must be 'waypoints' for a single-agent environment, got {sc.task.kind!r}",
+                source=sc.source,
+                field="task.kind",
+            )
         check_render_mode(render_mode, sc.source)
         self.scenario = sc
         self.config = make_config(config, options, source=sc.source)
@@ -98,8 +111,9 @@ class SingleAgentEnv(gymnasium.Env[NDArray[np.float32], NDArray[Any]]):
         """The action that holds the agent where it is."""
         return self._episode.mapper.hover_action(self.sim)[0]
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
-              ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         """Start an episode; returns the observation and info."""
         super().reset(seed=seed)
         run_seed = int(seed) if seed is not None else int(self.np_random.integers(SEED_BOUND))
@@ -120,8 +134,9 @@ class SingleAgentEnv(gymnasium.Env[NDArray[np.float32], NDArray[Any]]):
     def render(self) -> NDArray[np.uint8] | None:  # type: ignore[override]
         """An RGB frame (height, width, 3) uint8 with ``render_mode="rgb_array"`` (DIRECT mode), else None."""
         if self.render_mode is None:
-            gymnasium.logger.warn("render() called without a render mode; make the environment with "
-                                  "render_mode='rgb_array'")
+            gymnasium.logger.warn(
+                "render() called without a render mode; make the environment with render_mode='rgb_array'"
+            )
             return None
         return self._episode.render()
 
@@ -138,8 +153,13 @@ class HoverEnv(SingleAgentEnv):
         overrides: scenario overrides (applied to the default task when ``scenario`` is None).
     """
 
-    def __init__(self, scenario: Scenario | str | Path | None = None, *,
-                 overrides: Mapping[str, Any] | Sequence[str] = (), **kwargs: Any) -> None:
+    def __init__(
+        self,
+        scenario: Scenario | str | Path | None = None,
+        *,
+        overrides: Mapping[str, Any] | Sequence[str] = (),
+        **kwargs: Any,
+    ) -> None:
         if scenario is None:
             super().__init__(hover_scenario(overrides), **kwargs)
         else:

@@ -21,6 +21,7 @@ task's points not yet passed or visited (route and tour tasks). Absent entries (
 bounds (an agent that left the arena) are clipped, so every observation lies in its space.
 ``ObservationLayout.slice(name)`` gives a block's columns.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -33,10 +34,10 @@ from pybullet_swarm.envs.kernels import clip_rows, fill_own
 from pybullet_swarm.sensing.perception import PerceptionStage
 
 OWN_SIZE = 14
-VELOCITY_BOUND = 10.0         # m/s, own velocity
+VELOCITY_BOUND = 10.0  # m/s, own velocity
 RELATIVE_VELOCITY_BOUND = 20.0  # m/s, neighbour velocity relative to the agent
-RATE_BOUND = 50.0             # rad/s, body rates
-RANGE_BOUND = 100.0           # m, range readings
+RATE_BOUND = 50.0  # rad/s, body rates
+RANGE_BOUND = 100.0  # m, range readings
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,7 +81,9 @@ class ObservationLayout:
         return [{"name": b, "start": s, "stop": e} for b, s, e in self.blocks]
 
 
-def _nearest(rel: NDArray[np.float64], valid: NDArray[np.bool_], k: int) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+def _nearest(
+    rel: NDArray[np.float64], valid: NDArray[np.bool_], k: int
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """The k nearest valid vectors per row: rel (n, m, 3), valid (n, m) -> (n, k, 3), (n, k); absent ones zero."""
     n, m = valid.shape
     out = np.zeros((n, k, 3))
@@ -109,16 +112,25 @@ class ObservationBuilder:
         range_bound: m, upper bound of a range reading.
     """
 
-    def __init__(self, sim: Any, *, neighbours: int, boxes: int, slots: int, points: int, ranges: int = 0,
-                 range_bound: float = RANGE_BOUND) -> None:
+    def __init__(
+        self,
+        sim: Any,
+        *,
+        neighbours: int,
+        boxes: int,
+        slots: int,
+        points: int,
+        ranges: int = 0,
+        range_bound: float = RANGE_BOUND,
+    ) -> None:
         sc = sim.scenario
         self.n = sim.n
         lx, ly = (float(v) for v in sc.arena.size)
         ceiling = float(sc.arena.height) if sc.arena.height is not None else 5.0
-        self.far = max(3.0 * lx, 3.0 * ly, 2.0 * ceiling + 1.0)   # m, bound of long relative vectors
+        self.far = max(3.0 * lx, 3.0 * ly, 2.0 * ceiling + 1.0)  # m, bound of long relative vectors
         self.radius = float(sc.agents.sensing_radius)
         self.k = min(int(neighbours), self.n - 1)
-        self.stage = PerceptionStage(self.n, self.radius)   # no neighbour noise: observing draws nothing
+        self.stage = PerceptionStage(self.n, self.radius)  # no neighbour noise: observing draws nothing
         task = sim.task.view(sim.time)
         info = sim.info
         self.waypoints = len(task.targets) == self.n
@@ -133,8 +145,11 @@ class ObservationBuilder:
         pi = math.pi
         pos_low, pos_high = [-lx, -ly, -1.0], [2.0 * lx, 2.0 * ly, 2.0 * ceiling]
         parts: list[tuple[str, list[float], list[float]]] = [
-            ("own", pos_low + [-VELOCITY_BOUND] * 3 + [-pi, -pi / 2, -pi] + [-RATE_BOUND] * 3 + [0.0, 0.0],
-             pos_high + [VELOCITY_BOUND] * 3 + [pi, pi / 2, pi] + [RATE_BOUND] * 3 + [1.0, 1.0]),
+            (
+                "own",
+                pos_low + [-VELOCITY_BOUND] * 3 + [-pi, -pi / 2, -pi] + [-RATE_BOUND] * 3 + [0.0, 0.0],
+                pos_high + [VELOCITY_BOUND] * 3 + [pi, pi / 2, pi] + [RATE_BOUND] * 3 + [1.0, 1.0],
+            ),
         ]
         if self.waypoints:
             parts.append(("goal", [-self.far] * 3, [self.far] * 3))
@@ -157,7 +172,7 @@ class ObservationBuilder:
         low = np.concatenate([np.asarray(lo, dtype=np.float32) for _, lo, _ in parts])
         high = np.concatenate([np.asarray(hi, dtype=np.float32) for _, _, hi in parts])
         self.layout = ObservationLayout(tuple(blocks), low, high, self.k, self.kb, self.ks, self.kp, self.r)
-        self._low = low.astype(np.float64)     # float32 bounds, exactly, for clipping in float64
+        self._low = low.astype(np.float64)  # float32 bounds, exactly, for clipping in float64
         self._high = high.astype(np.float64)
         self._sl = {name: slice(s, e) for name, s, e in blocks}
         self._goal = self._sl.get("goal", slice(0, 0))
@@ -180,7 +195,7 @@ class ObservationBuilder:
         if self.waypoints:
             out[:, self._goal] = (task.targets if goal is None else goal) - pos
         if self.k:
-            table = pc.nearest_table(self.k)[:, :self.k]                      # (n, k), nearest first
+            table = pc.nearest_table(self.k)[:, : self.k]  # (n, k), nearest first
             present = table >= 0
             j = np.where(present, table, 0)
             true = sim.state_array
@@ -200,7 +215,7 @@ class ObservationBuilder:
             out[:, self._sl["points"]] = np.concatenate([vec, present_p[:, :, None]], axis=2).reshape(n, -1)
         if self.r:
             out[:, self._sl["ranges"]] = sim.ranges
-        clip_rows(out, self._low, self._high)   # non-finite values (a diverged run) become 0
+        clip_rows(out, self._low, self._high)  # non-finite values (a diverged run) become 0
         return out.astype(np.float32)
 
 
@@ -212,7 +227,7 @@ def _nearest_block(seen: list[NDArray[np.float64]], pos: NDArray[np.float64], k:
     rel = np.zeros((n, m, 3))
     valid = np.zeros((n, m), dtype=bool)
     for i, x in enumerate(seen):
-        rel[i, :len(x)] = x - pos[i]
-        valid[i, :len(x)] = True
+        rel[i, : len(x)] = x - pos[i]
+        valid[i, : len(x)] = True
     vec, present = _nearest(rel, valid, k)
     return np.concatenate([vec, present[:, :, None]], axis=2).reshape(n, -1)

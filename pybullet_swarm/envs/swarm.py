@@ -13,6 +13,7 @@ metrics of the run, the same as ``metrics.json`` of ``pybullet-swarm run``, one 
 all agents), ``goal_distance_m`` on waypoint tasks, and at the end ``episode``
 (``{"return": float, "length": steps}``).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -31,7 +32,7 @@ from pybullet_swarm.experiment.scenario import Scenario, load_scenario
 from pybullet_swarm.experiment.simulation import Simulation
 
 RENDER_MODES = ("rgb_array",)
-SEED_BOUND = 2**63 - 1   # exclusive bound of the run seeds drawn by an unseeded reset
+SEED_BOUND = 2**63 - 1  # exclusive bound of the run seeds drawn by an unseeded reset
 
 
 def resolve_scenario(scenario: Scenario | str | Path, overrides: Mapping[str, Any] | Sequence[str]) -> Scenario:
@@ -44,8 +45,11 @@ def resolve_scenario(scenario: Scenario | str | Path, overrides: Mapping[str, An
 def check_render_mode(render_mode: str | None, source: str) -> None:
     """Refuse render modes other than None and ``rgb_array``."""
     if render_mode is not None and render_mode not in RENDER_MODES:
-        raise ConfigError(f"must be None or one of {', '.join(RENDER_MODES)}, got {render_mode!r}", source=source,
-                          field="env.render_mode")
+        raise ConfigError(
+            f"must be None or one of {', '.join(RENDER_MODES)}, got {render_mode!r}",
+            source=source,
+            field="env.render_mode",
+        )
 
 
 class SwarmParallelEnv(ParallelEnv):
@@ -66,12 +70,22 @@ class SwarmParallelEnv(ParallelEnv):
     the last ``reset(seed=...)``, else from fresh entropy).
     """
 
-    metadata = {"name": "pybullet_swarm_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True,
-                "render_fps": 10}
+    metadata = {
+        "name": "pybullet_swarm_v0",
+        "render_modes": list(RENDER_MODES),
+        "is_parallelizable": True,
+        "render_fps": 10,
+    }
 
-    def __init__(self, scenario: Scenario | str | Path = "hover_swarm", *,
-                 overrides: Mapping[str, Any] | Sequence[str] = (), config: EnvConfig | Mapping[str, Any] | None = None,
-                 render_mode: str | None = None, **options: Any) -> None:
+    def __init__(
+        self,
+        scenario: Scenario | str | Path = "hover_swarm",
+        *,
+        overrides: Mapping[str, Any] | Sequence[str] = (),
+        config: EnvConfig | Mapping[str, Any] | None = None,
+        render_mode: str | None = None,
+        **options: Any,
+    ) -> None:
         sc = resolve_scenario(scenario, overrides)
         check_render_mode(render_mode, sc.source)
         self.scenario = sc
@@ -83,7 +97,9 @@ class SwarmParallelEnv(ParallelEnv):
         self.possible_agents: list[str] = [f"agent_{i}" for i in range(ep.n)]
         self.agents: list[str] = []
         self.layout: ObservationLayout = ep.layout
-        self._obs_spaces = {a: spaces.Box(ep.layout.low, ep.layout.high, dtype=np.float32) for a in self.possible_agents}
+        self._obs_spaces = {
+            a: spaces.Box(ep.layout.low, ep.layout.high, dtype=np.float32) for a in self.possible_agents
+        }
         m = ep.mapper
         self._act_spaces = {a: spaces.Box(m.low, m.high, dtype=m.dtype) for a in self.possible_agents}
         self._np_random: np.random.Generator | None = None
@@ -113,8 +129,9 @@ class SwarmParallelEnv(ParallelEnv):
         return {a: rows[int(a.rsplit("_", 1)[1])] for a in self.agents}
 
     # ------------------------------------------------------------------- API
-    def reset(self, seed: int | None = None, options: dict[str, Any] | None = None
-              ) -> tuple[dict[str, NDArray[np.float32]], dict[str, dict[str, Any]]]:
+    def reset(
+        self, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, NDArray[np.float32]], dict[str, dict[str, Any]]]:
         """Start an episode; returns observations and infos by agent."""
         if seed is not None:
             self._np_random = np.random.default_rng(seed)
@@ -129,8 +146,11 @@ class SwarmParallelEnv(ParallelEnv):
         infos = {a: {"collisions": [], "metrics": metrics} for a in self.agents}
         return {a: obs[i] for i, a in enumerate(self.agents)}, infos
 
-    def step(self, actions: Mapping[str, Any]) -> tuple[dict[str, NDArray[np.float32]], dict[str, float],
-                                                       dict[str, bool], dict[str, bool], dict[str, dict[str, Any]]]:
+    def step(
+        self, actions: Mapping[str, Any]
+    ) -> tuple[
+        dict[str, NDArray[np.float32]], dict[str, float], dict[str, bool], dict[str, bool], dict[str, dict[str, Any]]
+    ]:
         """Advance one period with the agents' actions (a missing agent holds where it is)."""
         if not self.agents:
             raise RuntimeError("the episode has ended (no live agents); call reset() first")
@@ -148,8 +168,9 @@ class SwarmParallelEnv(ParallelEnv):
         rew_d = dict(zip(names, out.rewards.tolist()))
         term_d = dict.fromkeys(names, terminated)
         trunc_d = dict.fromkeys(names, truncated)
-        infos: dict[str, dict[str, Any]] = {a: {"collisions": c, "metrics": metrics}
-                                            for a, c in zip(names, out.collisions)}
+        infos: dict[str, dict[str, Any]] = {
+            a: {"collisions": c, "metrics": metrics} for a, c in zip(names, out.collisions)
+        }
         if out.goal_distance is not None:
             for a, d in zip(names, out.goal_distance.tolist()):
                 infos[a]["goal_distance_m"] = d

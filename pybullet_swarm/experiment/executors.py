@@ -13,6 +13,7 @@ Two executors behind one small interface (``imap_unordered`` in a ``with`` block
   the sweep with ``workers`` CPUs. Tasks are retried by Ray (``max_retries``, ``retry_exceptions``);
   a run that still fails is recorded with its error.
 """
+
 from __future__ import annotations
 
 import collections
@@ -89,7 +90,7 @@ def _watch_parent(pid: int, period_s: float = 1.0) -> None:
     sweep killed with SIGKILL forever (and keep writing into a directory a restarted sweep uses).
     A daemon thread polls the sweep process and ends the worker within ``period_s``.
     """
-    if os.name != "posix":   # os.kill(pid, 0) only tests for existence on POSIX
+    if os.name != "posix":  # os.kill(pid, 0) only tests for existence on POSIX
         return
 
     def watch() -> None:
@@ -99,7 +100,7 @@ def _watch_parent(pid: int, period_s: float = 1.0) -> None:
                 os.kill(pid, 0)
             except ProcessLookupError:
                 os._exit(1)
-            except PermissionError:   # alive, owned by someone else after a pid reuse: keep going
+            except PermissionError:  # alive, owned by someone else after a pid reuse: keep going
                 pass
 
     threading.Thread(target=watch, name="sweep-parent-watch", daemon=True).start()
@@ -128,8 +129,15 @@ class LocalExecutor(_Executor):
         max_tasks_per_child: replace a worker after this many runs (None: never), to bound memory.
     """
 
-    def __init__(self, workers: int, *, worker: Worker | None = None, retries: int = 2, method: str | None = None,
-                 max_tasks_per_child: int | None = None) -> None:
+    def __init__(
+        self,
+        workers: int,
+        *,
+        worker: Worker | None = None,
+        retries: int = 2,
+        method: str | None = None,
+        max_tasks_per_child: int | None = None,
+    ) -> None:
         if workers < 1:
             raise ConfigError(f"must be >= 1, got {workers}", source="--workers")
         self.workers = int(workers)
@@ -150,14 +158,17 @@ class LocalExecutor(_Executor):
         kwargs: dict[str, Any] = {}
         if self.max_tasks_per_child is not None:
             kwargs["max_tasks_per_child"] = self.max_tasks_per_child
-        pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx, initializer=_watch_parent,
-                                      initargs=(os.getpid(),), **kwargs)
+        pool = cf.ProcessPoolExecutor(
+            max_workers=self.workers, mp_context=ctx, initializer=_watch_parent, initargs=(os.getpid(),), **kwargs
+        )
         try:
             pool.submit(_ping).result()
         except Exception as exc:  # noqa: BLE001 - BrokenProcessPool, or the ping could not be unpickled
             pool.shutdown(wait=False, cancel_futures=True)
-            raise RuntimeError(f"worker processes cannot start ({type(exc).__name__}: {exc}); a script that "
-                               "runs a sweep needs an `if __name__ == '__main__':` guard") from None
+            raise RuntimeError(
+                f"worker processes cannot start ({type(exc).__name__}: {exc}); a script that "
+                "runs a sweep needs an `if __name__ == '__main__':` guard"
+            ) from None
         return pool
 
     def _submit(self, spec: RunSpec) -> tuple[cf.Future[Row], cf.ProcessPoolExecutor]:
@@ -240,8 +251,15 @@ class RayExecutor(_Executor):
         quiet: keep Ray's own start-up messages and worker logs off the terminal.
     """
 
-    def __init__(self, workers: int | None = None, *, address: str | None = None, worker: Worker | None = None,
-                 retries: int = 2, quiet: bool = True) -> None:
+    def __init__(
+        self,
+        workers: int | None = None,
+        *,
+        address: str | None = None,
+        worker: Worker | None = None,
+        retries: int = 2,
+        quiet: bool = True,
+    ) -> None:
         try:
             import ray
         except ImportError:
@@ -264,8 +282,10 @@ class RayExecutor(_Executor):
                     # address="local": always a new Ray of our own, never a cluster found on this machine
                     ray.init(address="local", num_cpus=workers or cpu_count(), include_dashboard=False, **kwargs)
             except (ConnectionError, RuntimeError, ValueError) as exc:
-                raise ConfigError(f"cannot start or reach Ray ({' '.join(str(exc).split())[:300]})",
-                                  source="--address" if address else "--executor ray") from None
+                raise ConfigError(
+                    f"cannot start or reach Ray ({' '.join(str(exc).split())[:300]})",
+                    source="--address" if address else "--executor ray",
+                ) from None
             self._started = True
         cpus = int(ray.cluster_resources().get("CPU", 1))
         # tasks submitted at once: on a cluster with --workers, exactly that many run at a time;
@@ -312,8 +332,9 @@ def check_executor(kind: ExecutorKind | str, *, workers: int | None = None, addr
     try:
         kind = ExecutorKind(kind)
     except ValueError:
-        raise ConfigError(f"must be one of {', '.join(k.value for k in ExecutorKind)}, got {kind!r}",
-                          source="--executor") from None
+        raise ConfigError(
+            f"must be one of {', '.join(k.value for k in ExecutorKind)}, got {kind!r}", source="--executor"
+        ) from None
     if workers is not None and workers < 1:
         raise ConfigError(f"must be >= 1, got {workers}", source="--workers")
     if kind is ExecutorKind.LOCAL and address is not None:
@@ -326,9 +347,15 @@ def check_executor(kind: ExecutorKind | str, *, workers: int | None = None, addr
     return kind
 
 
-def make_executor(kind: ExecutorKind | str = ExecutorKind.LOCAL, *, workers: int | None = None,
-                  address: str | None = None, worker: Worker | None = None, retries: int = 2,
-                  quiet: bool = True) -> _Executor:
+def make_executor(
+    kind: ExecutorKind | str = ExecutorKind.LOCAL,
+    *,
+    workers: int | None = None,
+    address: str | None = None,
+    worker: Worker | None = None,
+    retries: int = 2,
+    quiet: bool = True,
+) -> _Executor:
     """The executor named ``kind``.
 
     Raises:
@@ -342,5 +369,13 @@ def make_executor(kind: ExecutorKind | str = ExecutorKind.LOCAL, *, workers: int
     return RayExecutor(workers, address=address, worker=worker, retries=retries, quiet=quiet)
 
 
-__all__ = ["ExecutorKind", "LocalExecutor", "RayExecutor", "RunFailed", "check_executor", "make_executor",
-           "prestart", "start_method"]
+__all__ = [
+    "ExecutorKind",
+    "LocalExecutor",
+    "RayExecutor",
+    "RunFailed",
+    "check_executor",
+    "make_executor",
+    "prestart",
+    "start_method",
+]

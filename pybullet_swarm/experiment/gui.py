@@ -9,6 +9,7 @@ involved, and a heads-up line with simulated time, boxes placed and contacts so 
 overlay is drawn with few calls (points of all agents at once): in GUI mode each call to Bullet
 waits for the GUI's thread.
 """
+
 from __future__ import annotations
 
 import colorsys
@@ -21,17 +22,26 @@ import numpy as np
 from numpy.typing import NDArray
 
 #: matplotlib's tab10, the replay's agent colours up to 10 agents (RGB in [0, 1])
-TAB10 = ((0.122, 0.467, 0.706), (1.0, 0.498, 0.055), (0.173, 0.627, 0.173), (0.839, 0.153, 0.157),
-         (0.580, 0.404, 0.741), (0.549, 0.337, 0.294), (0.890, 0.467, 0.761), (0.498, 0.498, 0.498),
-         (0.737, 0.741, 0.133), (0.090, 0.745, 0.812))
+TAB10 = (
+    (0.122, 0.467, 0.706),
+    (1.0, 0.498, 0.055),
+    (0.173, 0.627, 0.173),
+    (0.839, 0.153, 0.157),
+    (0.580, 0.404, 0.741),
+    (0.549, 0.337, 0.294),
+    (0.890, 0.467, 0.761),
+    (0.498, 0.498, 0.498),
+    (0.737, 0.741, 0.133),
+    (0.090, 0.745, 0.812),
+)
 BOX_FREE = (0.76, 0.60, 0.42)
 BOX_PLACED = (0.42, 0.62, 0.33)
-GUI_ASPECT = 4.0 / 3.0       # width / height of Bullet's default GUI window
-GUI_FOV_DEG = 90.0           # vertical field of view of Bullet's GUI camera (its frustum's top is its near distance)
-TRAIL_S = 3.0                # s of simulated time a trail point stays
-TRAIL_STEP_S = 0.25          # s of simulated time between trail points
-HUD_STEP_S = 1.0             # s of simulated time between updates of the heads-up line
-FLASH_S = 0.6                # s of simulated time a contact mark stays
+GUI_ASPECT = 4.0 / 3.0  # width / height of Bullet's default GUI window
+GUI_FOV_DEG = 90.0  # vertical field of view of Bullet's GUI camera (its frustum's top is its near distance)
+TRAIL_S = 3.0  # s of simulated time a trail point stays
+TRAIL_STEP_S = 0.25  # s of simulated time between trail points
+HUD_STEP_S = 1.0  # s of simulated time between updates of the heads-up line
+FLASH_S = 0.6  # s of simulated time a contact mark stays
 
 
 def agent_rgb(n: int) -> list[tuple[float, float, float]]:
@@ -60,15 +70,21 @@ class Pacer:
         max_lag_s: s of wall-clock lag tolerated before re-anchoring.
     """
 
-    def __init__(self, speed: float, *, clock: Callable[[], float] = time.perf_counter,
-                 sleep: Callable[[float], Any] = time.sleep, max_lag_s: float = 0.25) -> None:
+    def __init__(
+        self,
+        speed: float,
+        *,
+        clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], Any] = time.sleep,
+        max_lag_s: float = 0.25,
+    ) -> None:
         if not (math.isfinite(speed) and speed > 0):
             raise ValueError(f"speed: expected a positive number, got {speed!r}")
         self.speed = float(speed)
         self._clock = clock
         self._sleep = sleep
         self.max_lag_s = float(max_lag_s)
-        self._anchor: tuple[float, float] | None = None   # (wall s, simulated s)
+        self._anchor: tuple[float, float] | None = None  # (wall s, simulated s)
 
     def wait(self, sim_time: float) -> float:
         """Sleep until the wall clock is due for simulated time ``sim_time`` s; returns the seconds slept."""
@@ -133,8 +149,9 @@ class GuiViewer:
             self._flash_contacts(pos)
             self._colour_boxes()
             if t >= self._next_hud - 1e-9:
-                self._hud_id = self.world.debug_text(self.hud_text(), (0.0, self.arena[1], self.height + 0.15),
-                                                     size=1.3, replace=self._hud_id)
+                self._hud_id = self.world.debug_text(
+                    self.hud_text(), (0.0, self.arena[1], self.height + 0.15), size=1.3, replace=self._hud_id
+                )
                 self._next_hud = t + HUD_STEP_S
         self.pacer.wait(t)
 
@@ -153,12 +170,23 @@ class GuiViewer:
         from pybullet_swarm.metrics.collisions import COLLISION_CLASSES
 
         events = self.sim.events
-        new, self._events_seen = events[self._events_seen:], len(events)
-        hit = sorted({int(name[5:]) for e in new if e.kind in COLLISION_CLASSES for name in (e.a, e.b)
-                      if name.startswith("agent") and name[5:].isdigit() and int(name[5:]) < len(pos)})
+        new, self._events_seen = events[self._events_seen :], len(events)
+        hit = sorted(
+            {
+                int(name[5:])
+                for e in new
+                if e.kind in COLLISION_CLASSES
+                for name in (e.a, e.b)
+                if name.startswith("agent") and name[5:].isdigit() and int(name[5:]) < len(pos)
+            }
+        )
         if hit:
-            self.world.debug_points(pos[hit] + [0.0, 0.0, 0.05], [(0.9, 0.05, 0.05)] * len(hit), size=14.0,
-                                    lifetime=FLASH_S / self.pacer.speed)
+            self.world.debug_points(
+                pos[hit] + [0.0, 0.0, 0.05],
+                [(0.9, 0.05, 0.05)] * len(hit),
+                size=14.0,
+                lifetime=FLASH_S / self.pacer.speed,
+            )
 
     def _colour_boxes(self) -> None:
         c = _box_task(self.sim)

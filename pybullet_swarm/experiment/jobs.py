@@ -2,6 +2,7 @@
 
 Executors (``pybullet_swarm.experiment.executors``) run jobs; sweeps (``...sweep``) plan them.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -56,14 +57,20 @@ class RunSpec:
 
 
 # -------------------------------------------------------------------- worker
-def make_row(spec: RunSpec, metrics: Mapping[str, Any] | None, *, error: str | None = None,
-             worker_time_s: float | None = None) -> Row:
+def make_row(
+    spec: RunSpec, metrics: Mapping[str, Any] | None, *, error: str | None = None, worker_time_s: float | None = None
+) -> Row:
     """The ``runs.csv`` row of a run: identity, outcome, flattened scalar metrics."""
     row = spec.identity()
     status = RunStatus.ERROR.value if metrics is None else str(metrics.get("exit_status", RunStatus.ERROR.value))
-    row.update({"exit_status": status, "error": None if error is None else one_line(error),
-                "worker_time_s": None if worker_time_s is None else round(float(worker_time_s), 4),
-                "run_dir": spec.rel_dir})
+    row.update(
+        {
+            "exit_status": status,
+            "error": None if error is None else one_line(error),
+            "worker_time_s": None if worker_time_s is None else round(float(worker_time_s), 4),
+            "run_dir": spec.rel_dir,
+        }
+    )
     if metrics is not None:
         row.update(metrics_row(metrics))
     return row
@@ -82,11 +89,19 @@ def execute_run(spec: RunSpec) -> Row:
     t0 = time.perf_counter()
     run_dir = Path(spec.run_dir)
     try:
-        if run_dir.exists():        # a run killed part-way: start it again from nothing
+        if run_dir.exists():  # a run killed part-way: start it again from nothing
             shutil.rmtree(run_dir)
         scenario = build_scenario(copy.deepcopy(dict(spec.scenario_data)), source=spec.source)
-        result = run(scenario, planner=spec.planner, avoidance=spec.avoidance, seed=spec.seed, out=run_dir,
-                     plots=spec.plots, report=spec.plots, quiet=True)
+        result = run(
+            scenario,
+            planner=spec.planner,
+            avoidance=spec.avoidance,
+            seed=spec.seed,
+            out=run_dir,
+            plots=spec.plots,
+            report=spec.plots,
+            quiet=True,
+        )
         return make_row(spec, result.metrics, worker_time_s=time.perf_counter() - t0)
     except Exception as exc:  # noqa: BLE001 - a failed run is a result, recorded with its error
         with contextlib.suppress(OSError):
@@ -103,5 +118,5 @@ def cpu_count() -> int:
     """Cores this process may use."""
     try:
         return len(os.sched_getaffinity(0))
-    except AttributeError:   # not Linux
+    except AttributeError:  # not Linux
         return os.cpu_count() or 1

@@ -1,4 +1,5 @@
 """Decimated time series in preallocated arrays."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -39,8 +40,15 @@ class Recorder:
         for key, a in self._extra.items():
             self._extra[key] = np.concatenate([a, np.zeros_like(a)])
 
-    def record(self, t: float, pose: NDArray[np.float64], twist: NDArray[np.float64], rotor: NDArray[np.float64],
-               ref_p: NDArray[np.float64], ref_v: NDArray[np.float64]) -> None:
+    def record(
+        self,
+        t: float,
+        pose: NDArray[np.float64],
+        twist: NDArray[np.float64],
+        rotor: NDArray[np.float64],
+        ref_p: NDArray[np.float64],
+        ref_v: NDArray[np.float64],
+    ) -> None:
         """Store one sample (state arrays of the whole swarm)."""
         k = self.k
         if k >= self._t.shape[0]:
@@ -66,9 +74,14 @@ class Recorder:
         """The samples so far (copies)."""
         k = self.k
         return TimeSeries(
-            t=self._t[:k].copy(), positions=self._pose[:k, :, :3].copy(), quaternions=self._pose[:k, :, 3:].copy(),
-            velocities=self._vel[:k].copy(), rotor_speeds=self._rotor[:k].copy(), ref_positions=self._refp[:k].copy(),
-            ref_velocities=self._refv[:k].copy(), extra={n: a[:k].copy() for n, a in self._extra.items()},
+            t=self._t[:k].copy(),
+            positions=self._pose[:k, :, :3].copy(),
+            quaternions=self._pose[:k, :, 3:].copy(),
+            velocities=self._vel[:k].copy(),
+            rotor_speeds=self._rotor[:k].copy(),
+            ref_positions=self._refp[:k].copy(),
+            ref_velocities=self._refv[:k].copy(),
+            extra={n: a[:k].copy() for n, a in self._extra.items()},
         )
 
     @property

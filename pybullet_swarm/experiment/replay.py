@@ -1,6 +1,7 @@
 """Replays of finished runs written from their run directories: a video (``replay RUN_DIR``, ``run
 --video``) or one frame as a PNG (``replay --frame T``). The frames are drawn by
 ``plotting.replay`` from the saved results; nothing is simulated again."""
+
 from __future__ import annotations
 
 import json
@@ -13,8 +14,16 @@ import numpy as np
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.results import read_events, read_scenario_data
-from pybullet_swarm.plotting.replay import (DEFAULT_FPS, DEFAULT_SIZE, DEFAULT_SPEED, ReplayData, ReplayOptions,
-                                            ReplayRenderer, View, replay_data)
+from pybullet_swarm.plotting.replay import (
+    DEFAULT_FPS,
+    DEFAULT_SIZE,
+    DEFAULT_SPEED,
+    ReplayData,
+    ReplayOptions,
+    ReplayRenderer,
+    View,
+    replay_data,
+)
 from pybullet_swarm.types import TimeSeries
 
 
@@ -53,9 +62,17 @@ def _options(**kw: Any) -> ReplayOptions:
         raise ConfigError(str(exc), source="replay") from None
 
 
-def render_replay(run_dir: Path | str, out: Path | str | None = None, *, view: View | str = View.THREE_D,
-                  speed: float = DEFAULT_SPEED, size: tuple[int, int] = DEFAULT_SIZE, fps: int = DEFAULT_FPS,
-                  metrics: Mapping[str, Any] | None = None, quiet: bool = True) -> Path:
+def render_replay(
+    run_dir: Path | str,
+    out: Path | str | None = None,
+    *,
+    view: View | str = View.THREE_D,
+    speed: float = DEFAULT_SPEED,
+    size: tuple[int, int] = DEFAULT_SIZE,
+    fps: int = DEFAULT_FPS,
+    metrics: Mapping[str, Any] | None = None,
+    quiet: bool = True,
+) -> Path:
     """Render the replay video of a finished run.
 
     Args:
@@ -88,8 +105,9 @@ def render_replay(run_dir: Path | str, out: Path | str | None = None, *, view: V
     return writer.path
 
 
-def still_png(data: ReplayData, t: float, *, view: View | str = View.THREE_D,
-              size: tuple[int, int] = DEFAULT_SIZE) -> bytes:
+def still_png(
+    data: ReplayData, t: float, *, view: View | str = View.THREE_D, size: tuple[int, int] = DEFAULT_SIZE
+) -> bytes:
     """PNG bytes of the one frame of a replay at simulated time ``t`` s (no playback speed shown)."""
     import io
 
@@ -101,8 +119,15 @@ def still_png(data: ReplayData, t: float, *, view: View | str = View.THREE_D,
     return buf.getvalue()
 
 
-def render_still(run_dir: Path | str, t: float, out: Path | str | None = None, *, view: View | str = View.THREE_D,
-                 size: tuple[int, int] = DEFAULT_SIZE, metrics: Mapping[str, Any] | None = None) -> Path:
+def render_still(
+    run_dir: Path | str,
+    t: float,
+    out: Path | str | None = None,
+    *,
+    view: View | str = View.THREE_D,
+    size: tuple[int, int] = DEFAULT_SIZE,
+    metrics: Mapping[str, Any] | None = None,
+) -> Path:
     """Write the one frame of a run's replay at simulated time ``t`` s as a PNG.
 
     Args:

@@ -5,6 +5,7 @@ drawn by ``plotting.report`` (a sweep's page: ``experiment.sweep_report``).
 events figure and one still of the replay); ``pybullet-swarm report RUN_DIR`` writes it again,
 e.g. after ``plot`` or ``replay``.
 """
+
 from __future__ import annotations
 
 import json
@@ -17,7 +18,7 @@ from pybullet_swarm.experiment.rundir import atomic_write
 from pybullet_swarm.plotting.report import RunPage, run_report_html
 
 REPORT_NAME = "report.html"
-STILL_WIDTH = 1280   # px, width of the still of a run's last instant (its height fits the arena)
+STILL_WIDTH = 1280  # px, width of the still of a run's last instant (its height fits the arena)
 
 
 def plot_files(directory: Path) -> list[tuple[str, bytes]]:
@@ -45,9 +46,16 @@ def run_page(run_dir: Path) -> RunPage:
     path = run_dir / "metrics.json"
     metrics: dict[str, Any] = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
     video = next((p.name for p in (run_dir / "video.mp4", run_dir / "video.gif") if p.is_file()), None)
-    return RunPage(directory=str(run_dir.resolve()), scenario=read_scenario_data(run_dir) or {}, metrics=metrics,
-                   flat_metrics=list(flatten_metrics(metrics).items()), events=read_events(run_dir / "events.csv"),
-                   figures=plot_files(run_dir), still=_still(run_dir, metrics), video=video)
+    return RunPage(
+        directory=str(run_dir.resolve()),
+        scenario=read_scenario_data(run_dir) or {},
+        metrics=metrics,
+        flat_metrics=list(flatten_metrics(metrics).items()),
+        events=read_events(run_dir / "events.csv"),
+        figures=plot_files(run_dir),
+        still=_still(run_dir, metrics),
+        video=video,
+    )
 
 
 def write_run_report(run_dir: Path | str) -> Path:
@@ -63,4 +71,3 @@ def write_run_report(run_dir: Path | str) -> Path:
     path = run_dir / REPORT_NAME
     atomic_write(path, lambda fh: fh.write(text))
     return path
-

@@ -6,6 +6,7 @@ metric of its ``metrics.json`` flattened with dots (``collisions.agent_agent``).
 values) stay in the run directory. Cells hold plain scalars: ``None``, ``bool``, ``int``,
 ``float`` or ``str`` (lists and mappings of grid values are stored as JSON text).
 """
+
 from __future__ import annotations
 
 import csv
@@ -46,8 +47,7 @@ ID_COLUMNS: tuple[str, ...] = ("run_id", "planner", "avoidance", "seed")
 #: Outcome columns of a row, after the grid values and before the metrics.
 STATUS_COLUMNS: tuple[str, ...] = ("exit_status", "error", "worker_time_s", "run_dir")
 #: Columns that are not outcomes of a run (never summarised or plotted).
-NOT_METRICS: frozenset[str] = frozenset({*ID_COLUMNS, *STATUS_COLUMNS, "crashed_agent", "scenario", "vehicle",
-                                         "video"})
+NOT_METRICS: frozenset[str] = frozenset({*ID_COLUMNS, *STATUS_COLUMNS, "crashed_agent", "scenario", "vehicle", "video"})
 #: Metric keys already in the identity or status columns.
 _DUPLICATES = frozenset({"planner", "avoidance", "seed", "exit_status"})
 
@@ -168,7 +168,7 @@ class RunsTable:
             return
         raw = self.path.read_bytes()
         repaired = False
-        if raw and not raw.endswith(b"\n"):   # torn last line of a killed writer: drop it
+        if raw and not raw.endswith(b"\n"):  # torn last line of a killed writer: drop it
             raw = raw[: raw.rfind(b"\n") + 1]
             repaired = True
         try:
@@ -181,8 +181,9 @@ class RunsTable:
                 self.path.unlink()
                 return
             if not header or header[0] != "run_id" or len(set(header)) != len(header):
-                raise ConfigError("not a runs table (its first column must be run_id, its columns unique)",
-                                  source=str(self.path))
+                raise ConfigError(
+                    "not a runs table (its first column must be run_id, its columns unique)", source=str(self.path)
+                )
             self.columns = header
             for cells in reader:
                 if not cells:
@@ -190,11 +191,11 @@ class RunsTable:
                 row = {c: parse_cell(t) for c, t in zip(header, cells)}
                 run_id = str(row["run_id"])
                 if run_id in self._rows:
-                    repaired = True       # keep one row per run: the later one, unless it is an error
+                    repaired = True  # keep one row per run: the later one, unless it is an error
                     if row.get("exit_status") == RunStatus.ERROR.value:
                         continue
                 self._rows[run_id] = row
-        except (ValueError, csv.Error) as exc:   # UnicodeDecodeError is a ValueError
+        except (ValueError, csv.Error) as exc:  # UnicodeDecodeError is a ValueError
             if isinstance(exc, ConfigError):
                 raise
             raise ConfigError(f"unreadable runs table ({_reason(exc)})", source=str(self.path)) from None
@@ -268,7 +269,8 @@ class RunsTable:
         if not self.columns:
             self.columns = ["run_id"]
         text = _csv_line(self.columns) + "".join(
-            _csv_line(format_cell(r.get(c)) for c in self.columns) for r in self._rows.values())
+            _csv_line(format_cell(r.get(c)) for c in self.columns) for r in self._rows.values()
+        )
         atomic_write(self.path, lambda fh: fh.write(text))
 
 
@@ -365,14 +367,16 @@ def _read_text(path: Path) -> str:
     return text
 
 
-MAX_RESULT_BYTES = 256 << 20   # largest metrics.json, scenario.yaml or events.csv read back, bytes
+MAX_RESULT_BYTES = 256 << 20  # largest metrics.json, scenario.yaml or events.csv read back, bytes
 
 
 def _check_metrics(data: Mapping[str, Any], path: Path) -> None:
     """Refuse metrics whose values the figures and tables read have the wrong shape."""
+
     def bad(field: str, want: str) -> ConfigError:
-        return ConfigError(f"corrupt: must be {want}, got {_short_value(data.get(field))}",
-                           source=str(path), field=field)
+        return ConfigError(
+            f"corrupt: must be {want}, got {_short_value(data.get(field))}", source=str(path), field=field
+        )
 
     for key in ("completion_time_s", "sim_time_s", "positioning_noise_std_m"):
         v = data.get(key)
@@ -386,8 +390,9 @@ def _check_metrics(data: Mapping[str, Any], path: Path) -> None:
     if times is not None and not (isinstance(times, list) and all(v is None or is_number(v) for v in times)):
         raise bad("waypoint_times_s", "a list of numbers or nulls")
     est = data.get("estimation")
-    if est is not None and not (isinstance(est, dict) and all(isinstance(est.get(k, {}), dict)
-                                                              for k in ("kalman", "gps", "imu"))):
+    if est is not None and not (
+        isinstance(est, dict) and all(isinstance(est.get(k, {}), dict) for k in ("kalman", "gps", "imu"))
+    ):
         raise bad("estimation", "a mapping of kalman, gps and imu mappings")
 
 
@@ -453,8 +458,15 @@ def read_events(path: Path) -> list[Event]:
     try:
         for rec in csv.DictReader(io.StringIO(text, newline="")):
             try:
-                events.append(Event(time_s=float(rec["time_s"]), kind=str(rec["kind"]), a=str(rec.get("a", "") or ""),
-                                    b=str(rec.get("b", "") or ""), detail=str(rec.get("detail", "") or "")))
+                events.append(
+                    Event(
+                        time_s=float(rec["time_s"]),
+                        kind=str(rec["kind"]),
+                        a=str(rec.get("a", "") or ""),
+                        b=str(rec.get("b", "") or ""),
+                        detail=str(rec.get("detail", "") or ""),
+                    )
+                )
             except (KeyError, TypeError, ValueError):
                 continue
     except csv.Error as exc:
@@ -474,8 +486,9 @@ def _open_npz(path: Path) -> Any:
         with zipfile.ZipFile(path) as zf:
             size = sum(info.file_size for info in zf.infolist())
         if size > memory_budget():
-            raise ConfigError(f"unreadable (its arrays would take {format_bytes(size)}, above the memory "
-                              f"budget)", source=str(path))
+            raise ConfigError(
+                f"unreadable (its arrays would take {format_bytes(size)}, above the memory budget)", source=str(path)
+            )
         return np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
         if isinstance(exc, ConfigError):
@@ -493,8 +506,15 @@ def _npz_arrays(path: Path) -> dict[str, Any]:
         raise ConfigError(f"unreadable ({_reason(exc)})", source=str(path)) from None
 
 
-_SERIES_SHAPES = {"t": (), "positions": (3,), "quaternions": (4,), "velocities": (3,), "rotor_speeds": (4,),
-                  "ref_positions": (3,), "ref_velocities": (3,)}
+_SERIES_SHAPES = {
+    "t": (),
+    "positions": (3,),
+    "quaternions": (4,),
+    "velocities": (3,),
+    "rotor_speeds": (4,),
+    "ref_positions": (3,),
+    "ref_velocities": (3,),
+}
 
 
 def read_timeseries(path: Path) -> Any:
@@ -530,8 +550,9 @@ def read_timeseries(path: Path) -> Any:
         want = (m, *(() if name == "t" else (n, *tail)))
         if arrays[name].shape != want:
             raise bad(name, f"must have shape {want}, got {arrays[name].shape}")
-        if name in ("t", "positions", "quaternions", "velocities", "rotor_speeds") and \
-                not np.all(np.isfinite(arrays[name])):
+        if name in ("t", "positions", "quaternions", "velocities", "rotor_speeds") and not np.all(
+            np.isfinite(arrays[name])
+        ):
             raise bad(name, "must hold finite numbers")
     extra = {}
     for key, value in arrays.items():
@@ -580,9 +601,12 @@ def check_saved_run(run_dir: Path) -> dict[str, Any]:
     npz = run_dir / "timeseries.npz"
     if not npz.is_file():
         raise ConfigError("not a run directory (no timeseries.npz)", source=str(run_dir))
-    out: dict[str, Any] = {"metrics": read_metrics(run_dir) if (run_dir / "metrics.json").is_file() else {},
-                           "timeseries": read_timeseries(npz), "scenario": read_scenario_data(run_dir),
-                           "events": read_events(run_dir / "events.csv")}
+    out: dict[str, Any] = {
+        "metrics": read_metrics(run_dir) if (run_dir / "metrics.json").is_file() else {},
+        "timeseries": read_timeseries(npz),
+        "scenario": read_scenario_data(run_dir),
+        "events": read_events(run_dir / "events.csv"),
+    }
     if (run_dir / "pheromones.npz").is_file():
         read_pheromones(run_dir / "pheromones.npz")
     if (run_dir / "tour.json").is_file():
@@ -621,14 +645,19 @@ def read_tour(path: Path) -> dict[str, Any]:
         raise ConfigError("corrupt: must hold a mapping", source=str(path))
     w = points(data.get("points"), "points")
     size = data.get("arena_size")
-    if size is not None and not (isinstance(size, list) and len(size) == 2 and all(is_number(v) and v > 0 for v in size)):
+    if size is not None and not (
+        isinstance(size, list) and len(size) == 2 and all(is_number(v) and v > 0 for v in size)
+    ):
         raise bad("arena_size", "two lengths > 0")
     radius = data.get("visit_radius")
     if radius is not None and not is_number(radius):
         raise bad("visit_radius", "a finite number")
     by = data.get("visited_by")
-    if by is not None and not (isinstance(by, list) and len(by) == w and
-                               all(isinstance(v, int) and not isinstance(v, bool) and v >= -1 for v in by)):
+    if by is not None and not (
+        isinstance(by, list)
+        and len(by) == w
+        and all(isinstance(v, int) and not isinstance(v, bool) and v >= -1 for v in by)
+    ):
         raise bad("visited_by", f"a list of {w} agent indices (-1: not visited)")
     plan = data.get("plan")
     if plan is not None:
@@ -679,8 +708,10 @@ def read_pheromones(path: Path) -> dict[str, Any]:
         values = numeric(name, 3)
         hist = numeric(f"{name}_history", 3)
         if hist.shape[0] not in (0, t.shape[0]) or hist.shape[1:] != values.shape[:2] or 0 in values.shape:
-            raise bad(f"{name}_history", f"must have shape ({t.shape[0]}, {values.shape[0]}, {values.shape[1]}), "
-                                         f"got {hist.shape}")
+            raise bad(
+                f"{name}_history",
+                f"must have shape ({t.shape[0]}, {values.shape[0]}, {values.shape[1]}), got {hist.shape}",
+            )
         marked = numeric(f"{name}_marked", 1)
         if marked.shape != t.shape:
             raise bad(f"{name}_marked", f"must have shape {t.shape}, got {marked.shape}")

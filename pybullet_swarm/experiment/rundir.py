@@ -1,4 +1,5 @@
 """Run directories: resolved scenario, metrics, time series, events and plots, written atomically."""
+
 from __future__ import annotations
 
 import contextlib
@@ -24,7 +25,7 @@ def exclusive_directory(out: Path, holder: str) -> Iterator[None]:
     """Hold ``out/.lock`` so that two ``holder``s (a sweep, a tuner) never write one directory at once."""
     try:
         import fcntl
-    except ImportError:    # not POSIX: no lock
+    except ImportError:  # not POSIX: no lock
         yield
         return
     out.mkdir(parents=True, exist_ok=True)
@@ -49,7 +50,7 @@ def atomic_write(path: Path, write: Callable[[Any], None], *, binary: bool = Fal
             write(fh)
             fh.flush()
             os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)   # mkstemp makes files private; results are for sharing
+        os.chmod(tmp, 0o644)  # mkstemp makes files private; results are for sharing
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -150,8 +151,21 @@ def check_output_dir(path: Path, *, source: str | None = None) -> Path:
 
 
 #: What a run directory holds (``runner.write_run``, the artifacts, ``--video``, a sweep's error.txt).
-RUN_FILES = frozenset({"scenario.yaml", "metrics.json", "timeseries.npz", "events.csv", "pheromones.npz", "tour.json",
-                       "video.mp4", "video.gif", "error.txt", "report.html", "frame.png"})
+RUN_FILES = frozenset(
+    {
+        "scenario.yaml",
+        "metrics.json",
+        "timeseries.npz",
+        "events.csv",
+        "pheromones.npz",
+        "tour.json",
+        "video.mp4",
+        "video.gif",
+        "error.txt",
+        "report.html",
+        "frame.png",
+    }
+)
 RUN_DIRS = frozenset({"plots"})
 
 
@@ -159,7 +173,7 @@ def _is_run_output(p: Path) -> bool:
     name = p.name
     if name in RUN_FILES or (name in RUN_DIRS and p.is_dir()):
         return True
-    return name.startswith(".") and ".tmp" in name   # a temporary file of an interrupted atomic write
+    return name.startswith(".") and ".tmp" in name  # a temporary file of an interrupted atomic write
 
 
 def check_run_dir(path: Path, *, source: str | None = None) -> Path:
@@ -178,8 +192,9 @@ def check_run_dir(path: Path, *, source: str | None = None) -> Path:
         if foreign:
             shown = ", ".join(foreign[:3]) + (" ..." if len(foreign) > 3 else "")
             where = f"{source} {path}" if source else str(path)
-            raise ConfigError(f"is not empty and not a run directory (holds {shown}); use a new or empty directory",
-                              source=where)
+            raise ConfigError(
+                f"is not empty and not a run directory (holds {shown}); use a new or empty directory", source=where
+            )
     return path
 
 
@@ -194,8 +209,9 @@ def clear_run_dir(path: Path, keep: frozenset[str] = frozenset()) -> None:
     path = Path(path)
     if not path.is_dir():
         return
-    old = sorted((p for p in path.iterdir() if _is_run_output(p) and p.name not in keep),
-                 key=lambda p: p.name != "metrics.json")
+    old = sorted(
+        (p for p in path.iterdir() if _is_run_output(p) and p.name not in keep), key=lambda p: p.name != "metrics.json"
+    )
     for p in old:
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p)

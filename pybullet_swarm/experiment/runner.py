@@ -1,4 +1,5 @@
 """Scripted runs: load a scenario, simulate it, optionally write a run directory."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -59,7 +60,7 @@ def run(
     if out is not None:
         from pybullet_swarm.experiment.rundir import check_run_dir
 
-        check_run_dir(Path(out))   # before the simulation: a directory it could not write is refused now
+        check_run_dir(Path(out))  # before the simulation: a directory it could not write is refused now
     if speed is not None and not (math.isfinite(speed) and speed > 0):
         raise ValueError(f"speed: expected a positive number, got {speed!r}")
     with Simulation(scenario, gui=gui) as sim:
@@ -94,8 +95,16 @@ def _watch(sim: Simulation, speed: float) -> RunResult:
     return sim.result()
 
 
-def write_run(result: RunResult, out: Path, *, plots: bool = True, video: bool = False,
-              video_speed: float | None = None, report: bool = False, quiet: bool = True) -> Path:
+def write_run(
+    result: RunResult,
+    out: Path,
+    *,
+    plots: bool = True,
+    video: bool = False,
+    video_speed: float | None = None,
+    report: bool = False,
+    quiet: bool = True,
+) -> Path:
     """Write ``scenario.yaml``, ``timeseries.npz``, ``events.csv``, the artefacts' files, ``plots/``,
     ``video.mp4`` (with ``video``), ``metrics.json`` (it marks a finished run), then ``report.html``
     (with ``report``).
@@ -107,24 +116,24 @@ def write_run(result: RunResult, out: Path, *, plots: bool = True, video: bool =
 
     clear_run_dir(out)
     out.mkdir(parents=True, exist_ok=True)
-    write_yaml(out / "scenario.yaml", dict(result.scenario.data))   # resolved: planner, avoidance, seed, parameters
+    write_yaml(out / "scenario.yaml", dict(result.scenario.data))  # resolved: planner, avoidance, seed, parameters
     atomic_write(out / "timeseries.npz", result.timeseries.save_to, binary=True)
     write_events(out / "events.csv", result.events)
     write_artefacts(out, result.artifacts)
     if plots:
         from pybullet_swarm.plotting.run_plots import plot_run, plot_saved_artifacts
 
-        plot_run(result.timeseries, out / "plots", result.metrics, scenario=result.scenario.data,
-                 events=result.events)
+        plot_run(result.timeseries, out / "plots", result.metrics, scenario=result.scenario.data, events=result.events)
         plot_saved_artifacts(out, out / "plots")
     if video:
         from pybullet_swarm.experiment.replay import render_replay
         from pybullet_swarm.plotting.replay import DEFAULT_SPEED
 
-        written = render_replay(out, out / "video.mp4", speed=video_speed or DEFAULT_SPEED, metrics=result.metrics,
-                                quiet=quiet)
+        written = render_replay(
+            out, out / "video.mp4", speed=video_speed or DEFAULT_SPEED, metrics=result.metrics, quiet=quiet
+        )
         result.metrics["video"] = written.name
-    write_json(out / "metrics.json", result.metrics)   # its presence marks a finished run
+    write_json(out / "metrics.json", result.metrics)  # its presence marks a finished run
     if report:
         from pybullet_swarm.experiment.report import write_run_report
 

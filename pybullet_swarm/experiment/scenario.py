@@ -2,6 +2,7 @@
 
 Every problem becomes one ``ConfigError`` line: ``file: field.path: expectation, got value``.
 """
+
 from __future__ import annotations
 
 import copy
@@ -27,7 +28,7 @@ from pybullet_swarm.validation import _short, check_plain, parse_yaml, read_yaml
 if TYPE_CHECKING:  # pragma: no cover
     from pybullet_swarm.vehicle import VehicleParams
 
-MAX_COORD = 1e5   # m, largest coordinate accepted anywhere (the largest arena is 1e4 m)
+MAX_COORD = 1e5  # m, largest coordinate accepted anywhere (the largest arena is 1e4 m)
 Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD)]
 Vec3 = Annotated[list[Coord], Field(min_length=3, max_length=3)]
 PosFloat = Annotated[float, Field(gt=0, le=1e6)]
@@ -44,22 +45,22 @@ class _Strict(pydantic.BaseModel):
 class SimSection(_Strict):
     """Clock and physics options."""
 
-    physics_hz: int = Field(240, ge=60, le=10_000)        # Hz, physics and attitude-loop rate
-    control_hz: int = Field(48, ge=1, le=10_000)          # Hz, position-loop and reference rate
-    planner_hz: int = Field(10, ge=1, le=10_000)          # Hz, planner and task rate
-    record_hz: int = Field(20, ge=1, le=10_000)           # Hz, time-series decimation
-    gravity: float = Field(9.81, ge=0.0, le=100.0)        # m/s^2
+    physics_hz: int = Field(240, ge=60, le=10_000)  # Hz, physics and attitude-loop rate
+    control_hz: int = Field(48, ge=1, le=10_000)  # Hz, position-loop and reference rate
+    planner_hz: int = Field(10, ge=1, le=10_000)  # Hz, planner and task rate
+    record_hz: int = Field(20, ge=1, le=10_000)  # Hz, time-series decimation
+    gravity: float = Field(9.81, ge=0.0, le=100.0)  # m/s^2
     drag_coefficient: float = Field(0.0, ge=0.0, le=10.0)  # N/(m/s), linear air drag
-    ground_effect: bool = False                            # thrust gain near the ground
-    max_tilt_deg: float = Field(35.0, gt=0.0, lt=80.0)     # deg, largest commanded tilt
-    crash_speed: float = Field(2.0, gt=0.0, le=100.0)      # m/s, ground impact counted as a crash
+    ground_effect: bool = False  # thrust gain near the ground
+    max_tilt_deg: float = Field(35.0, gt=0.0, lt=80.0)  # deg, largest commanded tilt
+    crash_speed: float = Field(2.0, gt=0.0, le=100.0)  # m/s, ground impact counted as a crash
 
 
 class ObstacleShape(str, enum.Enum):
     """Shape of a static obstacle."""
 
-    CYLINDER = "cylinder"   # vertical pillar: size [radius, height] m
-    BOX = "box"             # size [x, y, z] m, turned by yaw_deg about the vertical
+    CYLINDER = "cylinder"  # vertical pillar: size [radius, height] m
+    BOX = "box"  # size [x, y, z] m, turned by yaw_deg about the vertical
 
 
 class Obstacle(_Strict):
@@ -68,7 +69,7 @@ class Obstacle(_Strict):
     ``position`` is [x, y] (standing on the ground) or [x, y, z] (centre) in m.
     """
 
-    shape: Literal["cylinder", "box"]   # an ObstacleShape value
+    shape: Literal["cylinder", "box"]  # an ObstacleShape value
     size: Annotated[list[Annotated[float, Field(gt=0, le=1e4)]], Field(min_length=2, max_length=3)]
     position: Annotated[list[Coord], Field(min_length=2, max_length=3)]
     yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)
@@ -100,10 +101,10 @@ class ArenaSection(_Strict):
     """The flight area: x in [0, Lx], y in [0, Ly], ground at z = 0."""
 
     size: Annotated[list[Annotated[float, Field(gt=0, le=1e4)]], Field(min_length=2, max_length=2)] = [3.0, 1.0]
-    height: PosFloat | None = None   # m, ceiling (None: open height)
-    walls: bool = False              # add four walls of `wall_height` around the arena
+    height: PosFloat | None = None  # m, ceiling (None: open height)
+    walls: bool = False  # add four walls of `wall_height` around the arena
     wall_height: PosFloat = 2.0
-    obstacles: list[Obstacle] = Field(default_factory=list)   # static pillars and boxes
+    obstacles: list[Obstacle] = Field(default_factory=list)  # static pillars and boxes
 
 
 class AgentsSection(_Strict):
@@ -111,19 +112,21 @@ class AgentsSection(_Strict):
 
     count: int = Field(1, ge=1, le=2000)
     vehicle: str = "quad150"
-    start: list[Vec3] | None = None          # m, explicit start positions (count of them)
+    start: list[Vec3] | None = None  # m, explicit start positions (count of them)
     layout: Literal["grid", "line"] = "grid"  # used when `start` is not given
-    spacing: PosFloat = 0.5                  # m, between neighbours of the layout
-    origin: Annotated[list[Coord], Field(min_length=2, max_length=2)] | None = None  # m, layout centre (default: arena centre)
-    sensing_radius: PosFloat = 1.0           # m, neighbours within it are observed
+    spacing: PosFloat = 0.5  # m, between neighbours of the layout
+    origin: Annotated[list[Coord], Field(min_length=2, max_length=2)] | None = (
+        None  # m, layout centre (default: arena centre)
+    )
+    sensing_radius: PosFloat = 1.0  # m, neighbours within it are observed
     start_jitter: float = Field(0.0, ge=0.0, le=1.0)  # m, uniform horizontal noise on start positions (per seed)
 
 
 class LimitsSection(_Strict):
     """Reference-shaping limits, per axis (a number applies to all three axes)."""
 
-    velocity: Limit | LimitVec3 | None = 0.5   # m/s; None: no shaping (raw steps)
-    acceleration: Limit | LimitVec3 = 1.0      # m/s^2
+    velocity: Limit | LimitVec3 | None = 0.5  # m/s; None: no shaping (raw steps)
+    acceleration: Limit | LimitVec3 = 1.0  # m/s^2
 
 
 TASK_MODELS: dict[str, type[pydantic.BaseModel]] = {"waypoints": WaypointsTask}
@@ -136,54 +139,55 @@ class RangeSensing(_Strict):
     yaw only); a reading is the free distance m along a ray, ``range_m`` when nothing is hit.
     """
 
-    enabled: bool = False                                # cast and observe (braitenberg turns it on)
-    rays: int = Field(8, ge=1, le=360)                   # rays per agent
-    range_m: float = Field(0.5, gt=0.0, le=100.0)        # m, longest reading
-    noise_std_m: float = Field(0.005, ge=0.0, le=10.0)   # m, Gaussian noise on a hit
-    fov_deg: float = Field(360.0, gt=0.0, le=360.0)      # deg, spread of the fan, centred on body x
+    enabled: bool = False  # cast and observe (braitenberg turns it on)
+    rays: int = Field(8, ge=1, le=360)  # rays per agent
+    range_m: float = Field(0.5, gt=0.0, le=100.0)  # m, longest reading
+    noise_std_m: float = Field(0.005, ge=0.0, le=10.0)  # m, Gaussian noise on a hit
+    fov_deg: float = Field(360.0, gt=0.0, le=360.0)  # deg, spread of the fan, centred on body x
 
 
 class OwnState(str, enum.Enum):
     """Where the position loop and the planners take an agent's own state from."""
 
-    TRUE = "true"             # the simulator's true state
-    ESTIMATED = "estimated"   # the onboard estimate (IMU + positioning, Kalman fusion)
+    TRUE = "true"  # the simulator's true state
+    ESTIMATED = "estimated"  # the onboard estimate (IMU + positioning, Kalman fusion)
 
 
 class ImuSensing(_Strict):
     """Accelerometer and gyroscope noise, sampled at sim.control_hz (defaults: Crazyflie 2.x class,
     Bosch BMI088 data sheet typical figures; see ``pybullet_swarm/sensing/imu.py``)."""
 
-    accel_noise_density: float = Field(1.716e-3, ge=0.0, le=100.0)   # m/s^2/sqrt(Hz) (175 ug/sqrt(Hz))
-    gyro_noise_density: float = Field(2.443e-4, ge=0.0, le=100.0)    # rad/s/sqrt(Hz) (0.014 deg/s/sqrt(Hz))
-    accel_bias_std: float = Field(0.196, ge=0.0, le=100.0)           # m/s^2 per axis, drawn per agent (20 mg)
-    gyro_bias_std: float = Field(0.01745, ge=0.0, le=100.0)          # rad/s per axis, drawn per agent (1 deg/s)
-    accel_bias: Vec3 | None = None   # m/s^2, one constant bias for every agent instead of drawn ones
-    gyro_bias: Vec3 | None = None    # rad/s, likewise
+    accel_noise_density: float = Field(1.716e-3, ge=0.0, le=100.0)  # m/s^2/sqrt(Hz) (175 ug/sqrt(Hz))
+    gyro_noise_density: float = Field(2.443e-4, ge=0.0, le=100.0)  # rad/s/sqrt(Hz) (0.014 deg/s/sqrt(Hz))
+    accel_bias_std: float = Field(0.196, ge=0.0, le=100.0)  # m/s^2 per axis, drawn per agent (20 mg)
+    gyro_bias_std: float = Field(0.01745, ge=0.0, le=100.0)  # rad/s per axis, drawn per agent (1 deg/s)
+    accel_bias: Vec3 | None = None  # m/s^2, one constant bias for every agent instead of drawn ones
+    gyro_bias: Vec3 | None = None  # rad/s, likewise
 
 
 class PositioningSensing(_Strict):
     """Absolute positioning fixes (GPS, motion capture): rate, noise, dropouts (defaults: indoor
     positioning, 1 cm per axis at 10 Hz; see ``pybullet_swarm/sensing/positioning.py``)."""
 
-    rate_hz: int = Field(10, ge=1, le=10_000)                  # Hz; divides sim.physics_hz, at most sim.control_hz
-    noise_std: float = Field(0.01, ge=0.0, le=100.0)           # m per axis
+    rate_hz: int = Field(10, ge=1, le=10_000)  # Hz; divides sim.physics_hz, at most sim.control_hz
+    noise_std: float = Field(0.01, ge=0.0, le=100.0)  # m per axis
     heading_noise_std: float | None = Field(0.01, ge=0.0, le=10.0)  # rad; null: fixes carry no heading
-    dropout_probability: float = Field(0.0, ge=0.0, lt=1.0)    # chance that an agent's fix is lost
-    outages: list[Annotated[list[Annotated[float, Field(ge=0.0, le=1e6)]], Field(min_length=2, max_length=2)]] = \
-        Field(default_factory=list)                            # [start_s, end_s] intervals without fixes
+    dropout_probability: float = Field(0.0, ge=0.0, lt=1.0)  # chance that an agent's fix is lost
+    outages: list[Annotated[list[Annotated[float, Field(ge=0.0, le=1e6)]], Field(min_length=2, max_length=2)]] = Field(
+        default_factory=list
+    )  # [start_s, end_s] intervals without fixes
 
 
 class EstimatorSensing(_Strict):
     """Calibration and filter settings of the onboard estimator (``pybullet_swarm/sensing/estimator.py``)."""
 
-    calibration_s: float = Field(2.0, ge=0.0, le=600.0)        # s at rest before take-off (bias calibration)
-    tilt_gain: float = Field(0.5, ge=0.0, le=100.0)            # 1/s, accelerometer correction of roll and pitch
-    heading_gain: float = Field(0.3, ge=0.0, le=1.0)           # fraction of the heading error removed per fix
-    accel_process_std: float = Field(0.03, gt=0.0, le=100.0)   # m/s^2, acceleration input error per IMU sample
-    estimate_bias: bool = True                                 # world-frame acceleration bias in the Kalman state
-    bias_walk: float = Field(0.003, ge=0.0, le=100.0)          # m/s^2/sqrt(s), random walk of that bias
-    initial_bias_std: float = Field(0.05, gt=0.0, le=100.0)    # m/s^2
+    calibration_s: float = Field(2.0, ge=0.0, le=600.0)  # s at rest before take-off (bias calibration)
+    tilt_gain: float = Field(0.5, ge=0.0, le=100.0)  # 1/s, accelerometer correction of roll and pitch
+    heading_gain: float = Field(0.3, ge=0.0, le=1.0)  # fraction of the heading error removed per fix
+    accel_process_std: float = Field(0.03, gt=0.0, le=100.0)  # m/s^2, acceleration input error per IMU sample
+    estimate_bias: bool = True  # world-frame acceleration bias in the Kalman state
+    bias_walk: float = Field(0.003, ge=0.0, le=100.0)  # m/s^2/sqrt(s), random walk of that bias
+    initial_bias_std: float = Field(0.05, gt=0.0, le=100.0)  # m/s^2
     initial_velocity_std: float = Field(0.01, gt=0.0, le=100.0)  # m/s
 
 
@@ -194,8 +198,8 @@ class SensingSection(_Strict):
     """
 
     # --- own state (estimation) ---
-    state: OwnState = OwnState.TRUE        # true | estimated: what the position loop and the planners use
-    run_estimator: bool = False            # run sensors and estimator (and report them) on true state too
+    state: OwnState = OwnState.TRUE  # true | estimated: what the position loop and the planners use
+    run_estimator: bool = False  # run sensors and estimator (and report them) on true state too
     imu: ImuSensing = ImuSensing()
     positioning: PositioningSensing = PositioningSensing()
     estimator: EstimatorSensing = EstimatorSensing()
@@ -216,7 +220,7 @@ class SensingSection(_Strict):
         return self.state is OwnState.ESTIMATED or self.run_estimator
 
     # --- range sensors ---
-    range: RangeSensing = RangeSensing()   # fan of horizontal range rays per agent
+    range: RangeSensing = RangeSensing()  # fan of horizontal range rays per agent
 
 
 class PlannerSection(_Strict):
@@ -306,8 +310,11 @@ class Scenario:
         and ``avoidance`` overrides are taken as choices (``with_choices``): another planner or
         layer starts from its own defaults.
         """
-        items = overrides.items() if isinstance(overrides, Mapping) else (
-            parse_override(o, source=self.source) if isinstance(o, str) else tuple(o) for o in overrides)
+        items = (
+            overrides.items()
+            if isinstance(overrides, Mapping)
+            else (parse_override(o, source=self.source) if isinstance(o, str) else tuple(o) for o in overrides)
+        )
         choices: dict[str, Any] = {}
         rest: dict[str, Any] = {}
         for key, value in items:
@@ -317,19 +324,30 @@ class Scenario:
                 rest[key] = value
         return self.with_choices(**choices, overrides=rest)
 
-    def with_choices(self, *, planner: str | None = None, avoidance: str | None = None, seed: int | None = None,
-                     overrides: Mapping[str, Any] | Sequence[str] = ()) -> Scenario:
+    def with_choices(
+        self,
+        *,
+        planner: str | None = None,
+        avoidance: str | None = None,
+        seed: int | None = None,
+        overrides: Mapping[str, Any] | Sequence[str] = (),
+    ) -> Scenario:
         """A new scenario with another planner, avoidance layer or seed (see ``apply_choices``), then
         ``overrides``, validated again; the same scenario when nothing changes."""
         seed = None if seed is None else _seed(seed, self.source)
-        if (planner in (None, self.planner.name) and avoidance in (None, self.avoidance) and not overrides
-                and seed in (None, self.seed)):
+        if (
+            planner in (None, self.planner.name)
+            and avoidance in (None, self.avoidance)
+            and not overrides
+            and seed in (None, self.seed)
+        ):
             return self
         if planner in (None, self.planner.name) and avoidance in (None, self.avoidance) and not overrides:
-            assert seed is not None   # only the seed changes: nothing else to validate again
+            assert seed is not None  # only the seed changes: nothing else to validate again
             return dataclasses.replace(self, seed=seed, data={**self.data, "seed": seed})
-        data = apply_choices(copy.deepcopy(dict(self.data)), planner=planner, avoidance=avoidance, seed=seed,
-                             source=self.source)
+        data = apply_choices(
+            copy.deepcopy(dict(self.data)), planner=planner, avoidance=avoidance, seed=seed, source=self.source
+        )
         return build_scenario(apply_overrides(data, overrides, source=self.source), source=self.source)
 
 
@@ -361,7 +379,9 @@ def parse_override(text: str, *, source: str = "--set") -> tuple[str, Any]:
     return key, value
 
 
-def apply_overrides(data: dict[str, Any], overrides: Mapping[str, Any] | Sequence[str], *, source: str) -> dict[str, Any]:
+def apply_overrides(
+    data: dict[str, Any], overrides: Mapping[str, Any] | Sequence[str], *, source: str
+) -> dict[str, Any]:
     """Set nested keys of ``data`` from ``{'a.b': v}`` or ``['a.b=v', ...]``; returns ``data``."""
     items = overrides.items() if isinstance(overrides, Mapping) else (parse_override(s) for s in overrides)
     for key, value in items:
@@ -375,15 +395,24 @@ def apply_overrides(data: dict[str, Any], overrides: Mapping[str, Any] | Sequenc
                 nxt = {}
                 node[part] = nxt
             elif not isinstance(nxt, dict):
-                raise ConfigError(f"must be a mapping to set {key} inside it, got {_short(nxt)}", source=source,
-                                  field=".".join(parts[: depth + 1]))
+                raise ConfigError(
+                    f"must be a mapping to set {key} inside it, got {_short(nxt)}",
+                    source=source,
+                    field=".".join(parts[: depth + 1]),
+                )
             node = nxt
         node[parts[-1]] = value
     return data
 
 
-def apply_choices(data: dict[str, Any], *, planner: str | None = None, avoidance: str | None = None,
-                  seed: int | None = None, source: str) -> dict[str, Any]:
+def apply_choices(
+    data: dict[str, Any],
+    *,
+    planner: str | None = None,
+    avoidance: str | None = None,
+    seed: int | None = None,
+    source: str,
+) -> dict[str, Any]:
     """Apply a run's choices (``--planner``, ``--avoidance``, ``--seed``) to scenario data before it
     is validated; returns ``data``.
 
@@ -395,8 +424,9 @@ def apply_choices(data: dict[str, Any], *, planner: str | None = None, avoidance
         section = data.get("planner")
         section = {} if section is None else section
         if not isinstance(section, dict):
-            raise ConfigError(f"must be a mapping of name and params, got {_short(section)}", source=source,
-                              field="planner")
+            raise ConfigError(
+                f"must be a mapping of name and params, got {_short(section)}", source=source, field="planner"
+            )
         if section.get("name") not in (None, planner):
             section = {k: v for k, v in section.items() if k != "params"}
         data["planner"] = {**section, "name": planner}
@@ -429,16 +459,21 @@ def _resolve_plugins(f: _ScenarioFile, task: Any, source: str) -> tuple[str, Par
     registry = planners()
     name = f.planner.name if f.planner.name is not None else default_planner(kind)
     if name is None:
-        raise ConfigError(f"is required: task kind {kind!r} has no default planner", source=source,
-                          field="planner.name")
+        raise ConfigError(
+            f"is required: task kind {kind!r} has no default planner", source=source, field="planner.name"
+        )
     if name not in registry:
-        raise ConfigError(f"must be one of {', '.join(sorted(registry))}, got {_short(name)}", source=source,
-                          field="planner.name")
+        raise ConfigError(
+            f"must be one of {', '.join(sorted(registry))}, got {_short(name)}", source=source, field="planner.name"
+        )
     entry = registry[name]
     if kind not in entry.tasks:
-        raise ConfigError(f"planner {name!r} does not solve {kind!r} tasks (it solves {', '.join(entry.tasks)})",
-                          source=source, field="planner.name")
-    check_task = getattr(entry.factory, "check_task", None)   # what a planner needs of its task (a formation ...)
+        raise ConfigError(
+            f"planner {name!r} does not solve {kind!r} tasks (it solves {', '.join(entry.tasks)})",
+            source=source,
+            field="planner.name",
+        )
+    check_task = getattr(entry.factory, "check_task", None)  # what a planner needs of its task (a formation ...)
     if callable(check_task):
         try:
             check_task(task)
@@ -446,15 +481,21 @@ def _resolve_plugins(f: _ScenarioFile, task: Any, source: str) -> tuple[str, Par
             raise exc.with_source(source) from None
     layers = avoidance_layers()
     if f.avoidance not in layers:
-        raise ConfigError(f"must be one of {', '.join(sorted(layers))}, got {_short(f.avoidance)}", source=source,
-                          field="avoidance")
+        raise ConfigError(
+            f"must be one of {', '.join(sorted(layers))}, got {_short(f.avoidance)}", source=source, field="avoidance"
+        )
     params = validate(entry.params, f.planner.params, source=source, prefix="planner.params")
     avoidance = validate(layers[f.avoidance].params, f.avoidance_params, source=source, prefix="avoidance_params")
     from pybullet_swarm.memory import memory_budget
 
-    context = PlanContext(arena_size=(float(f.arena.size[0]), float(f.arena.size[1])), n_agents=f.agents.count,
-                          time_limit_s=float(task.time_limit_s), planner_hz=f.sim.planner_hz,
-                          range_rays=f.sensing.range.rays, memory_budget=memory_budget())
+    context = PlanContext(
+        arena_size=(float(f.arena.size[0]), float(f.arena.size[1])),
+        n_agents=f.agents.count,
+        time_limit_s=float(task.time_limit_s),
+        planner_hz=f.sim.planner_hz,
+        range_rays=f.sensing.range.rays,
+        memory_budget=memory_budget(),
+    )
     for model, prefix in ((params, "planner.params"), (avoidance, "avoidance_params")):
         try:
             model.check_for(context)
@@ -467,21 +508,30 @@ def _check_rates(sim: SimSection, source: str) -> None:
     for name in ("control_hz", "planner_hz", "record_hz"):
         rate = getattr(sim, name)
         if rate > sim.physics_hz or sim.physics_hz % rate != 0:
-            raise ConfigError(f"must divide sim.physics_hz ({sim.physics_hz}) into an integer ratio, got {rate}",
-                              source=source, field=f"sim.{name}")
+            raise ConfigError(
+                f"must divide sim.physics_hz ({sim.physics_hz}) into an integer ratio, got {rate}",
+                source=source,
+                field=f"sim.{name}",
+            )
 
 
 def _check_sensing(sim: SimSection, sensing: SensingSection, source: str) -> None:
     """Positioning fixes at an integer division of the physics rate, at most one per control period."""
     rate = sensing.positioning.rate_hz
     if sim.physics_hz % rate != 0 or rate > sim.control_hz:
-        raise ConfigError(f"must divide sim.physics_hz ({sim.physics_hz}) into an integer ratio and be at most "
-                          f"sim.control_hz ({sim.control_hz}), got {rate}", source=source,
-                          field="sensing.positioning.rate_hz")
+        raise ConfigError(
+            f"must divide sim.physics_hz ({sim.physics_hz}) into an integer ratio and be at most "
+            f"sim.control_hz ({sim.control_hz}), got {rate}",
+            source=source,
+            field="sensing.positioning.rate_hz",
+        )
     for i, (start, end) in enumerate(sensing.positioning.outages):
         if end <= start:
-            raise ConfigError(f"must be [start_s, end_s] with end_s > start_s, got [{start:g}, {end:g}]",
-                              source=source, field=f"sensing.positioning.outages[{i}]")
+            raise ConfigError(
+                f"must be [start_s, end_s] with end_s > start_s, got [{start:g}, {end:g}]",
+                source=source,
+                field=f"sensing.positioning.outages[{i}]",
+            )
 
 
 def _load_vehicle(s: Scenario, source: str) -> VehicleParams:
@@ -490,17 +540,23 @@ def _load_vehicle(s: Scenario, source: str) -> VehicleParams:
 
     try:
         return load_vehicle(s.agents.vehicle)
-    except ConfigError as exc:   # str(exc) names the vehicle file and its field, when it has them
+    except ConfigError as exc:  # str(exc) names the vehicle file and its field, when it has them
         raise ConfigError(str(exc), source=source, field="agents.vehicle") from None
     except OSError as exc:  # e.g. a name too long for the file system
-        raise ConfigError(f"must be a bundled vehicle name or a vehicle .yaml file ({exc.strerror}), "
-                          f"got {_short(s.agents.vehicle)}", source=source, field="agents.vehicle") from None
+        raise ConfigError(
+            f"must be a bundled vehicle name or a vehicle .yaml file ({exc.strerror}), got {_short(s.agents.vehicle)}",
+            source=source,
+            field="agents.vehicle",
+        ) from None
 
 
 def _check_agents(s: Scenario, vehicle: VehicleParams, source: str) -> None:
     if s.agents.start is not None and len(s.agents.start) != s.agents.count:
-        raise ConfigError(f"must hold agents.count ({s.agents.count}) positions, got {len(s.agents.start)}",
-                          source=source, field="agents.start")
+        raise ConfigError(
+            f"must hold agents.count ({s.agents.count}) positions, got {len(s.agents.start)}",
+            source=source,
+            field="agents.start",
+        )
     half_h = 0.5 * vehicle.collision_size[2]
     starts = s.start_positions(half_h + 1e-3)
     lx, ly = s.arena.size
@@ -511,21 +567,34 @@ def _check_agents(s: Scenario, vehicle: VehicleParams, source: str) -> None:
 
     if s.agents.start is None and s.agents.origin is not None and not inside(*s.layout_origin()):
         ox, oy = s.layout_origin()
-        raise ConfigError(f"layout centre ({ox:.3g}, {oy:.3g}) is outside the arena [0, {lx:g}] x [0, {ly:g}] m "
-                          f"(with the agents' radius {r:g} m)", source=source, field="agents.origin")
+        raise ConfigError(
+            f"layout centre ({ox:.3g}, {oy:.3g}) is outside the arena [0, {lx:g}] x [0, {ly:g}] m "
+            f"(with the agents' radius {r:g} m)",
+            source=source,
+            field="agents.origin",
+        )
     top = s.arena.height
     for i, p in enumerate(starts):
         if not inside(p[0], p[1]):
             field = f"agents.start[{i}]" if s.agents.start is not None else "agents.count"
-            raise ConfigError(f"agent {i} starts at ({p[0]:.3g}, {p[1]:.3g}), outside the arena "
-                              f"[0, {lx:g}] x [0, {ly:g}] m (with its radius {r:g} m)", source=source, field=field)
+            raise ConfigError(
+                f"agent {i} starts at ({p[0]:.3g}, {p[1]:.3g}), outside the arena "
+                f"[0, {lx:g}] x [0, {ly:g}] m (with its radius {r:g} m)",
+                source=source,
+                field=field,
+            )
         if p[2] < 0.0:
-            raise ConfigError(f"agent {i} starts below the ground, got z = {p[2]:g}", source=source,
-                              field=f"agents.start[{i}]")
+            raise ConfigError(
+                f"agent {i} starts below the ground, got z = {p[2]:g}", source=source, field=f"agents.start[{i}]"
+            )
         if top is not None and p[2] + half_h > top + 1e-9:
             field = f"agents.start[{i}]" if s.agents.start is not None else "arena.height"
-            raise ConfigError(f"agent {i} starts above the ceiling (arena.height {top:g} m less the airframe's half "
-                              f"height {half_h:g} m), got z = {p[2]:g}", source=source, field=field)
+            raise ConfigError(
+                f"agent {i} starts above the ceiling (arena.height {top:g} m less the airframe's half "
+                f"height {half_h:g} m), got z = {p[2]:g}",
+                source=source,
+                field=field,
+            )
     if s.agents.count > 1:
         from scipy.spatial import cKDTree
 
@@ -533,8 +602,9 @@ def _check_agents(s: Scenario, vehicle: VehicleParams, source: str) -> None:
         if pairs:
             i, j = min(pairs)
             field = "agents.start" if s.agents.start is not None else "agents.spacing"
-            raise ConfigError(f"agents {i} and {j} start overlapping (closer than {2 * r:.3g} m)",
-                              source=source, field=field)
+            raise ConfigError(
+                f"agents {i} and {j} start overlapping (closer than {2 * r:.3g} m)", source=source, field=field
+            )
 
 
 def _check_obstacles(s: Scenario, vehicle: VehicleParams, source: str) -> None:
@@ -553,37 +623,53 @@ def _check_obstacles(s: Scenario, vehicle: VehicleParams, source: str) -> None:
         want = 2 if ob.shape == ObstacleShape.CYLINDER else 3
         if len(ob.size) != want:
             what = "[radius, height]" if want == 2 else "[x, y, z]"
-            raise ConfigError(f"a {ob.shape} needs size {what} m, got {len(ob.size)} numbers",
-                              source=source, field=f"{field}.size")
+            raise ConfigError(
+                f"a {ob.shape} needs size {what} m, got {len(ob.size)} numbers", source=source, field=f"{field}.size"
+            )
         c, (hx, hy) = ob.center(), ob.half_extents_xy()
         if not (hx - 1e-9 <= c[0] <= lx - hx + 1e-9 and hy - 1e-9 <= c[1] <= ly - hy + 1e-9):
-            raise ConfigError(f"obstacle at ({c[0]:g}, {c[1]:g}) reaching {hx:.3g} m x {hy:.3g} m from its centre is "
-                              f"not inside the arena [0, {lx:g}] x [0, {ly:g}] m", source=source,
-                              field=f"{field}.position")
+            raise ConfigError(
+                f"obstacle at ({c[0]:g}, {c[1]:g}) reaching {hx:.3g} m x {hy:.3g} m from its centre is "
+                f"not inside the arena [0, {lx:g}] x [0, {ly:g}] m",
+                source=source,
+                field=f"{field}.position",
+            )
         h = ob.size[1] if ob.shape == ObstacleShape.CYLINDER else ob.size[2]
         bottom, top = c[2] - 0.5 * h, c[2] + 0.5 * h
         if bottom < -1e-9:
-            raise ConfigError(f"obstacle reaches below the ground (centre z {c[2]:g} m, height {h:g} m)",
-                              source=source, field=f"{field}.position")
+            raise ConfigError(
+                f"obstacle reaches below the ground (centre z {c[2]:g} m, height {h:g} m)",
+                source=source,
+                field=f"{field}.position",
+            )
         near = ob.horizontal_distance(starts[:, :2]) < clearance
         level = (starts[:, 2] + half_h > bottom + 1e-9) & (starts[:, 2] - half_h < top - 1e-9)
         inside = np.flatnonzero(near & level)
         if inside.size:
             k = int(inside[0])
-            raise ConfigError(f"agent {k} starts inside this obstacle (within {clearance:.3g} m of its footprint, "
-                              f"at z = {starts[k, 2]:.3g} m between its bottom {bottom:.3g} m and top {top:.3g} m)",
-                              source=source, field=field)
+            raise ConfigError(
+                f"agent {k} starts inside this obstacle (within {clearance:.3g} m of its footprint, "
+                f"at z = {starts[k, 2]:.3g} m between its bottom {bottom:.3g} m and top {top:.3g} m)",
+                source=source,
+                field=field,
+            )
 
 
 def _check_waypoints(s: Scenario, task: WaypointsTask, vehicle: VehicleParams, source: str) -> None:
     times = [w.t_s for w in task.waypoints]
     for i in range(1, len(times)):
         if times[i] < times[i - 1]:
-            raise ConfigError(f"waypoint times must not decrease, got {times[i]:g} after {times[i - 1]:g}",
-                              source=source, field=f"task.waypoints[{i}].t_s")
+            raise ConfigError(
+                f"waypoint times must not decrease, got {times[i]:g} after {times[i - 1]:g}",
+                source=source,
+                field=f"task.waypoints[{i}].t_s",
+            )
     if times[-1] > task.time_limit_s:
-        raise ConfigError(f"last waypoint at {times[-1]:g} s is after the time limit {task.time_limit_s:g} s",
-                          source=source, field="task.waypoints")
+        raise ConfigError(
+            f"last waypoint at {times[-1]:g} s is after the time limit {task.time_limit_s:g} s",
+            source=source,
+            field="task.waypoints",
+        )
     top = s.arena.height
     if top is None:
         return
@@ -593,12 +679,15 @@ def _check_waypoints(s: Scenario, task: WaypointsTask, vehicle: VehicleParams, s
         z = float(np.max(base)) + w.position[2]
         if z + half_h > top + 1e-9:
             where = " (relative to the highest start)" if task.relative else ""
-            raise ConfigError(f"set-point above the ceiling (arena.height {top:g} m less the airframe's half height "
-                              f"{half_h:g} m): z = {z:.3g} m{where}", source=source,
-                              field=f"task.waypoints[{i}].position")
+            raise ConfigError(
+                f"set-point above the ceiling (arena.height {top:g} m less the airframe's half height "
+                f"{half_h:g} m): z = {z:.3g} m{where}",
+                source=source,
+                field=f"task.waypoints[{i}].position",
+            )
 
 
-MIN_GRAVITY = 0.1   # m/s^2: the hover controller carries m g and limits its tilt relative to g
+MIN_GRAVITY = 0.1  # m/s^2: the hover controller carries m g and limits its tilt relative to g
 
 
 def _check_flight(s: Scenario, vehicle: VehicleParams, source: str) -> None:
@@ -611,11 +700,19 @@ def _check_flight(s: Scenario, vehicle: VehicleParams, source: str) -> None:
     """
     g = s.sim.gravity
     if g < MIN_GRAVITY:
-        raise ConfigError(f"must be >= {MIN_GRAVITY:g} m/s^2 (the hover controller carries the weight m g and "
-                          f"limits its tilt relative to g), got {g:g}", source=source, field="sim.gravity")
+        raise ConfigError(
+            f"must be >= {MIN_GRAVITY:g} m/s^2 (the hover controller carries the weight m g and "
+            f"limits its tilt relative to g), got {g:g}",
+            source=source,
+            field="sim.gravity",
+        )
     if vehicle.thrust_to_weight(g) < 1.0:
-        raise ConfigError(f"{vehicle.name} cannot lift its own weight at {g:g} m/s^2 (thrust-to-weight "
-                          f"{vehicle.thrust_to_weight(g):.3g} < 1)", source=source, field="sim.gravity")
+        raise ConfigError(
+            f"{vehicle.name} cannot lift its own weight at {g:g} m/s^2 (thrust-to-weight "
+            f"{vehicle.thrust_to_weight(g):.3g} < 1)",
+            source=source,
+            field="sim.gravity",
+        )
     from pybullet_swarm.control.design import ReferenceStep, design_controller
 
     # what the simulation's controller does when it is built: design (no gains for a loop is an
@@ -624,8 +721,12 @@ def _check_flight(s: Scenario, vehicle: VehicleParams, source: str) -> None:
     try:
         design = design_controller(vehicle, physics_hz=s.sim.physics_hz, position_hz=s.sim.control_hz, gravity=g)
     except ConfigError as exc:
-        raise ConfigError(f"{exc} (with sim.gravity {g:g} m/s^2, sim.physics_hz {s.sim.physics_hz}, sim.control_hz "
-                          f"{s.sim.control_hz})", source=source, field="agents.vehicle") from None
+        raise ConfigError(
+            f"{exc} (with sim.gravity {g:g} m/s^2, sim.physics_hz {s.sim.physics_hz}, sim.control_hz "
+            f"{s.sim.control_hz})",
+            source=source,
+            field="agents.vehicle",
+        ) from None
     try:
         design.check_step(ReferenceStep.from_limits(s.velocity_limits(), s.acceleration_limits()))
     except ConfigError as exc:
@@ -649,25 +750,39 @@ def _check_budgets(s: Scenario) -> None:
     src, n = s.source, s.agents.count
     samples = math.ceil(s.task.time_limit_s * s.sim.record_hz) + 2
     channels = 20 + (30 if s.sensing.estimating else 0)
-    memory.check_budget(memory.recorder_bytes(samples, n, channels),
-                        f"recording {samples} samples of {n} agents (task.time_limit_s x sim.record_hz)",
-                        source=src, field="sim.record_hz")
+    memory.check_budget(
+        memory.recorder_bytes(samples, n, channels),
+        f"recording {samples} samples of {n} agents (task.time_limit_s x sim.record_hz)",
+        source=src,
+        field="sim.record_hz",
+    )
     points = getattr(s.task, "points", None)
     if points is None:
         return
     w = len(points)
-    memory.check_budget(8.0 * 3 * 4 * n * w, f"the tour task's distances of {n} agents to {w} points",
-                        source=src, field="task.points")
+    memory.check_budget(
+        8.0 * 3 * 4 * n * w, f"the tour task's distances of {n} agents to {w} points", source=src, field="task.points"
+    )
     p = s.planner_params
     if s.planner.name == "aco_tour" and all(hasattr(p, k) for k in ("ants", "iterations", "candidates")):
-        ants, iterations, cand = int(p.ants), int(p.iterations), p.candidates   # type: ignore[attr-defined]
-        matrices = 8.0 * 16 * w * w   # the (W, W, 3) differences of the cost matrix and their temporaries
-        colony = memory.colony_bytes(w, ants=ants, iterations=iterations,
-                                     candidates=None if cand is None else int(cand))
-        field = "planner.params.iterations" if iterations > 16 * w * w else \
-            "planner.params.ants" if 3 * ants * w > 16 * w * w else "task.points"
-        memory.check_budget(max(matrices, colony), f"an ant colony on {w} points ({ants} ants, {iterations} "
-                            f"iterations)", source=src, field=field)
+        ants, iterations, cand = int(p.ants), int(p.iterations), p.candidates  # type: ignore[attr-defined]
+        matrices = 8.0 * 16 * w * w  # the (W, W, 3) differences of the cost matrix and their temporaries
+        colony = memory.colony_bytes(
+            w, ants=ants, iterations=iterations, candidates=None if cand is None else int(cand)
+        )
+        field = (
+            "planner.params.iterations"
+            if iterations > 16 * w * w
+            else "planner.params.ants"
+            if 3 * ants * w > 16 * w * w
+            else "task.points"
+        )
+        memory.check_budget(
+            max(matrices, colony),
+            f"an ant colony on {w} points ({ants} ants, {iterations} iterations)",
+            source=src,
+            field=field,
+        )
 
 
 def build_scenario(data: Any, *, source: str) -> Scenario:
@@ -683,8 +798,9 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
     if "kind" not in f.task:
         raise ConfigError("is required", source=source, field="task.kind")
     if not isinstance(kind, str) or kind not in models:  # not hashable: a list or a mapping
-        raise ConfigError(f"must be one of {', '.join(sorted(models))}, got {_short(kind)}", source=source,
-                          field="task.kind")
+        raise ConfigError(
+            f"must be one of {', '.join(sorted(models))}, got {_short(kind)}", source=source, field="task.kind"
+        )
     task = validate(models[kind], f.task, source=source, prefix="task")
     _check_rates(f.sim, source)
     _check_sensing(f.sim, f.sensing, source)
@@ -694,12 +810,26 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
     resolved["task"] = task.model_dump(mode="json")
     resolved["planner"] = planner.model_dump(mode="json")
     resolved["avoidance_params"] = avoidance_params.model_dump(mode="json")
-    s = Scenario(source=source, name=f.name, description=f.description, seed=f.seed, sim=f.sim, arena=f.arena,
-                 agents=f.agents, limits=f.limits, task=task, planner=planner, avoidance=f.avoidance,
-                 collisions=f.collisions, data=resolved, sensing=f.sensing, planner_params=planner_params,
-                 avoidance_params=avoidance_params)
+    s = Scenario(
+        source=source,
+        name=f.name,
+        description=f.description,
+        seed=f.seed,
+        sim=f.sim,
+        arena=f.arena,
+        agents=f.agents,
+        limits=f.limits,
+        task=task,
+        planner=planner,
+        avoidance=f.avoidance,
+        collisions=f.collisions,
+        data=resolved,
+        sensing=f.sensing,
+        planner_params=planner_params,
+        avoidance_params=avoidance_params,
+    )
     vehicle = _load_vehicle(s, source)
-    with np.errstate(all="ignore"):   # huge finite values may overflow in the geometry: refused, never warned
+    with np.errstate(all="ignore"):  # huge finite values may overflow in the geometry: refused, never warned
         _check_agents(s, vehicle, source)
         _check_obstacles(s, vehicle, source)
         if isinstance(task, WaypointsTask):
@@ -732,8 +862,9 @@ def check_saved_scenario(data: Any, *, source: str) -> None:
     models = {**TASK_MODELS, **_tasks.task_models()}
     kind = f.task.get("kind")
     if not isinstance(kind, str) or kind not in models:
-        raise ConfigError(f"must be one of {', '.join(sorted(models))}, got {_short(kind)}", source=source,
-                          field="task.kind")
+        raise ConfigError(
+            f"must be one of {', '.join(sorted(models))}, got {_short(kind)}", source=source, field="task.kind"
+        )
     validate(models[kind], f.task, source=source, prefix="task")
     try:
         load_vehicle(f.agents.vehicle)
@@ -769,9 +900,13 @@ def field_info(scenario: Scenario, key: str) -> ParamInfo | None:
     if f is None or (isinstance(f.annotation, type) and issubclass(f.annotation, pydantic.BaseModel)):
         return None
     default = f.get_default(call_default_factory=True)
-    return describe_field(parts[-1], f.annotation, f.metadata,
-                          default=default.value if isinstance(default, enum.Enum) else default,
-                          description=f.description or "")
+    return describe_field(
+        parts[-1],
+        f.annotation,
+        f.metadata,
+        default=default.value if isinstance(default, enum.Enum) else default,
+        description=f.description or "",
+    )
 
 
 def _is_file(p: Path) -> bool:
@@ -795,12 +930,20 @@ def resolve_scenario_path(path_or_name: str | Path) -> Path:
         if p.parent == Path(".") and _is_file(bundled):
             return bundled
         raise ConfigError("file not found", source=str(p))
-    raise ConfigError(f"no scenario file or bundled scenario named {str(path_or_name)!r}; bundled: "
-                      f"{', '.join(bundled_scenarios())}", source=str(path_or_name))
+    raise ConfigError(
+        f"no scenario file or bundled scenario named {str(path_or_name)!r}; bundled: {', '.join(bundled_scenarios())}",
+        source=str(path_or_name),
+    )
 
 
-def load_scenario(path_or_name: str | Path, overrides: Mapping[str, Any] | Sequence[str] = (), *,
-                  planner: str | None = None, avoidance: str | None = None, seed: int | None = None) -> Scenario:
+def load_scenario(
+    path_or_name: str | Path,
+    overrides: Mapping[str, Any] | Sequence[str] = (),
+    *,
+    planner: str | None = None,
+    avoidance: str | None = None,
+    seed: int | None = None,
+) -> Scenario:
     """Load, override and validate a scenario by path or bundled name.
 
     Args:
@@ -818,7 +961,12 @@ def load_scenario(path_or_name: str | Path, overrides: Mapping[str, Any] | Seque
     if overrides or planner is not None or avoidance is not None or seed is not None:
         if not isinstance(data, dict):
             raise ConfigError(f"must be a mapping of scenario sections, got {type(data).__name__}", source=path.name)
-        data = apply_choices(data, planner=planner, avoidance=avoidance,
-                             seed=None if seed is None else _seed(seed, path.name), source=path.name)
+        data = apply_choices(
+            data,
+            planner=planner,
+            avoidance=avoidance,
+            seed=None if seed is None else _seed(seed, path.name),
+            source=path.name,
+        )
         data = apply_overrides(data, overrides, source=path.name)
     return build_scenario(data, source=path.name)

@@ -3,6 +3,7 @@
 The loop can be stepped from outside (``reset``, ``step``, ``state``), which is what learning
 environments wrap, or run to the end with ``run``.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -25,8 +26,17 @@ from pybullet_swarm.experiment.scenario import Scenario
 from pybullet_swarm.metrics.collisions import COLLISION_CLASSES, CollisionClass, ContactTracker
 from pybullet_swarm.metrics.flight import flight_metrics
 from pybullet_swarm.rng import named_rng
-from pybullet_swarm.planning.base import (NOTHING_IN_VIEW, Action, AvoidanceSetup, Command, CommandKind, Observation,
-                                          TaskInfo, TaskView, WorldView)
+from pybullet_swarm.planning.base import (
+    NOTHING_IN_VIEW,
+    Action,
+    AvoidanceSetup,
+    Command,
+    CommandKind,
+    Observation,
+    TaskInfo,
+    TaskView,
+    WorldView,
+)
 from pybullet_swarm.sensing.perception import PerceptionStage
 from pybullet_swarm.tasks import task_runtimes
 from pybullet_swarm.tasks.base import NOT_MINE, TaskContext, TaskRuntime
@@ -74,9 +84,18 @@ class Simulation:
     (``Scenario.with_choices``): ``self.scenario`` names what runs.
     """
 
-    def __init__(self, scenario: Scenario, *, seed: int | None = None, planner: str | None = None,
-                 avoidance: str | None = None, gui: bool = False, record: bool = True,
-                 video: Path | None = None, video_quiet: bool = False) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        seed: int | None = None,
+        planner: str | None = None,
+        avoidance: str | None = None,
+        gui: bool = False,
+        record: bool = True,
+        video: Path | None = None,
+        video_quiet: bool = False,
+    ) -> None:
         # the choices are applied to the scenario and validated with it (its data then name them)
         scenario = scenario.with_choices(planner=planner, avoidance=avoidance, seed=seed)
         self.scenario = scenario
@@ -105,7 +124,7 @@ class Simulation:
         self.world.add_ground()
         if sc.arena.walls:
             self.world.add_walls(sc.arena.size, sc.arena.wall_height)
-        for k, ob in enumerate(sc.arena.obstacles):   # static pillars and boxes: contacts are agent_obstacle
+        for k, ob in enumerate(sc.arena.obstacles):  # static pillars and boxes: contacts are agent_obstacle
             if ob.shape == "cylinder":
                 self.world.add_cylinder(ob.center(), ob.size[0], ob.size[1], name=f"obstacle{k}")
             else:
@@ -113,28 +132,34 @@ class Simulation:
         self.rest_height = 0.5 * p.collision_size[2] + 1e-3
         self.starts = sc.start_positions(self.rest_height)
         jitter = sc.agents.start_jitter
-        if jitter > 0.0:   # hand placement is never exact; the seed decides how
+        if jitter > 0.0:  # hand placement is never exact; the seed decides how
             self.starts[:, :2] += named_rng(self.seed, "start_jitter").uniform(-jitter, jitter, size=(n, 2))
         self.world.add_agents(p.urdf_path, self.starts, mass=p.mass, inertia=p.inertia)
         if sc.collisions == "ghost":
             self.world.set_agent_collisions(False)
         self.agent_index = {b: i for i, b in enumerate(self.world.agent_bodies)}
-        self.controller = CascadeController(p, n, physics_hz=s.physics_hz, control_hz=s.control_hz, gravity=s.gravity,
-                                            max_tilt_deg=s.max_tilt_deg, drag=s.drag_coefficient,
-                                            ground_effect=s.ground_effect,
-                                            prefilter=sc.velocity_limits() is not None,
-                                            reference_step=ReferenceStep.from_limits(sc.velocity_limits(),
-                                                                                     sc.acceleration_limits()))
+        self.controller = CascadeController(
+            p,
+            n,
+            physics_hz=s.physics_hz,
+            control_hz=s.control_hz,
+            gravity=s.gravity,
+            max_tilt_deg=s.max_tilt_deg,
+            drag=s.drag_coefficient,
+            ground_effect=s.ground_effect,
+            prefilter=sc.velocity_limits() is not None,
+            reference_step=ReferenceStep.from_limits(sc.velocity_limits(), sc.acceleration_limits()),
+        )
         self.shaper = ReferenceShaper(n, sc.velocity_limits(), sc.acceleration_limits(), 1.0 / s.control_hz)
-        self.state_array = np.zeros((n, 13))   # position, quaternion, velocity, angular velocity (world)
+        self.state_array = np.zeros((n, 13))  # position, quaternion, velocity, angular velocity (world)
         self.world.read_agent_states(self.state_array)
         self.shaper.reset(self.state_array[:, :3])
         self.time_limit = float(sc.task.time_limit_s)
         cap = int(math.ceil(self.time_limit * s.record_hz)) + 2
         self.recorder = Recorder(n, cap) if self.record_enabled else None
         self.ghost = sc.collisions == "ghost"
-        self.diameter = float(max(p.collision_size[0], p.collision_size[1]))   # m, agent "diameter"
-        self.max_height = self.starts[:, 2].copy()   # m, highest recorded altitude per agent
+        self.diameter = float(max(p.collision_size[0], p.collision_size[1]))  # m, agent "diameter"
+        self.max_height = self.starts[:, 2].copy()  # m, highest recorded altitude per agent
         self.contacts = ContactTracker(self._classify, self.dt, debounce_s=0.1)
         self.events: list[Event] = []
         self.step_count = 0
@@ -144,28 +169,44 @@ class Simulation:
         self._external = False
         self._wall_time = 0.0
         self.range_sensor: Any = None
-        self.ranges = np.zeros((n, 0))   # (n, r) m, range readings of the last planner tick
+        self.ranges = np.zeros((n, 0))  # (n, r) m, range readings of the last planner tick
         from pybullet_swarm.planning.registry import avoidance_layers
 
         av_factory = avoidance_layers()[self.avoidance_name][0]
         if sc.sensing.range.enabled or getattr(av_factory, "needs_range_sensors", False):
             self.enable_range_sensors()
         self.position_std = self._expected_position_std()
-        self.task: TaskRuntime = task_runtimes()[sc.task.kind](sc.task, TaskContext(
-            world=self.world, n=n, starts=self.starts.copy(), agent_radius=float(p.radius),
-            collision_size=np.asarray(p.collision_size, dtype=float), arena_size=np.asarray(sc.arena.size, dtype=float),
-            arena_height=sc.arena.height, v_max=sc.velocity_limits(), a_max=sc.acceleration_limits(),
-            ghost=self.ghost, position_std=self.position_std, rng=named_rng(self.seed, "task")))
+        self.task: TaskRuntime = task_runtimes()[sc.task.kind](
+            sc.task,
+            TaskContext(
+                world=self.world,
+                n=n,
+                starts=self.starts.copy(),
+                agent_radius=float(p.radius),
+                collision_size=np.asarray(p.collision_size, dtype=float),
+                arena_size=np.asarray(sc.arena.size, dtype=float),
+                arena_height=sc.arena.height,
+                v_max=sc.velocity_limits(),
+                a_max=sc.acceleration_limits(),
+                ghost=self.ghost,
+                position_std=self.position_std,
+                rng=named_rng(self.seed, "task"),
+            ),
+        )
         self.info = self._task_info()
-        self.estimation: Any = None   # OnboardEstimation when sensing.state is estimated (or run_estimator)
+        self.estimation: Any = None  # OnboardEstimation when sensing.state is estimated (or run_estimator)
         self.flying_on_estimate = sc.sensing.state.value == "estimated"
         self._make_planner()
         if sc.sensing.estimating:
             self._make_estimation()
         self.perception_stage = PerceptionStage(
-            n, float(sc.agents.sensing_radius), position_std=self.position_std,
-            neighbour_noise=(lambda k: self.estimation.neighbour_noise(k)) if self.flying_on_estimate and n > 1
-            else None)
+            n,
+            float(sc.agents.sensing_radius),
+            position_std=self.position_std,
+            neighbour_noise=(lambda k: self.estimation.neighbour_noise(k))
+            if self.flying_on_estimate and n > 1
+            else None,
+        )
         self.task_view: TaskView = self.task.view(0.0)
         self.perception: Perception | None = None
 
@@ -196,9 +237,14 @@ class Simulation:
 
         cfg, s = self.scenario.sensing, self.scenario.sim
         self.estimation = OnboardEstimation(
-            self.n, ImuNoise(**cfg.imu.model_dump()), PositioningParams(**cfg.positioning.model_dump()),
-            EstimatorParams(**cfg.estimator.model_dump()), control_hz=s.control_hz, gravity=s.gravity,
-            rng=named_rng(self.seed, "estimation"))
+            self.n,
+            ImuNoise(**cfg.imu.model_dump()),
+            PositioningParams(**cfg.positioning.model_dump()),
+            EstimatorParams(**cfg.estimator.model_dump()),
+            control_hz=s.control_hz,
+            gravity=s.gravity,
+            rng=named_rng(self.seed, "estimation"),
+        )
         self.estimation.start(self.state_array, self.time)
         self.estimation_errors = EstimationErrors()
         self.fix_every = s.physics_hz // cfg.positioning.rate_hz
@@ -225,9 +271,13 @@ class Simulation:
         from pybullet_swarm.sensing.estimator import EstimatorParams, expected_position_std
         from pybullet_swarm.sensing.positioning import PositioningParams
 
-        return float(expected_position_std(PositioningParams(**sc.sensing.positioning.model_dump()),
-                                           EstimatorParams(**sc.sensing.estimator.model_dump()),
-                                           control_hz=sc.sim.control_hz))
+        return float(
+            expected_position_std(
+                PositioningParams(**sc.sensing.positioning.model_dump()),
+                EstimatorParams(**sc.sensing.estimator.model_dump()),
+                control_hz=sc.sim.control_hz,
+            )
+        )
 
     def _task_info(self) -> TaskInfo:
         """The static layout every agent knows: the arena, limits and what the task publishes."""
@@ -235,35 +285,48 @@ class Simulation:
         v = sc.velocity_limits()
         kw = dict(self.task.task_info())
         extra = dict(kw.pop("extra", {}))
-        if sc.sensing.state.value == "estimated":   # what an agent can expect of its own position estimate
+        if sc.sensing.state.value == "estimated":  # what an agent can expect of its own position estimate
             extra["position_std"] = self.position_std
-        return TaskInfo(arena_size=np.asarray(sc.arena.size, dtype=float), n_agents=self.n, agent_radius=p.radius,
-                        v_max=np.full(3, np.inf) if v is None else v, a_max=sc.acceleration_limits(), extra=extra,
-                        **kw)
+        return TaskInfo(
+            arena_size=np.asarray(sc.arena.size, dtype=float),
+            n_agents=self.n,
+            agent_radius=p.radius,
+            v_max=np.full(3, np.inf) if v is None else v,
+            a_max=sc.acceleration_limits(),
+            extra=extra,
+            **kw,
+        )
 
     def _avoidance_setup(self) -> AvoidanceSetup:
         sc, p = self.scenario, self.params
         fan = self.range_sensor.fan if self.range_sensor is not None else None
         return AvoidanceSetup(
-            n=self.n, info=self.info, agent_radius=float(p.radius),
-            collision_size=np.asarray(p.collision_size, dtype=float), v_max=sc.velocity_limits(),
-            a_max=sc.acceleration_limits(), control_dt=1.0 / sc.sim.control_hz, planner_dt=1.0 / sc.sim.planner_hz,
+            n=self.n,
+            info=self.info,
+            agent_radius=float(p.radius),
+            collision_size=np.asarray(p.collision_size, dtype=float),
+            v_max=sc.velocity_limits(),
+            a_max=sc.acceleration_limits(),
+            control_dt=1.0 / sc.sim.control_hz,
+            planner_dt=1.0 / sc.sim.planner_hz,
             sensing_radius=float(sc.agents.sensing_radius),
             range_angles=np.zeros(0) if fan is None else np.asarray(fan.angles, dtype=float),
-            range_m=0.0 if fan is None else float(fan.range_m), range_offset=0.0 if fan is None else
-            float(fan.start_offset))
+            range_m=0.0 if fan is None else float(fan.range_m),
+            range_offset=0.0 if fan is None else float(fan.start_offset),
+        )
 
     def _make_planner(self) -> None:
         from pybullet_swarm.planning.registry import avoidance_layers, planners
 
         factory = planners()[self.planner_name].factory
-        params = self.scenario.planner_params            # validated when the scenario was loaded
+        params = self.scenario.planner_params  # validated when the scenario was loaded
         # A planner may bring a shared medium (e.g. a pheromone grid): ``make_medium(params, info) -> medium``.
         make_medium = getattr(factory, "make_medium", None)
         self.medium = make_medium(params, self.info) if callable(make_medium) else None
         av_factory = avoidance_layers()[self.avoidance_name].factory
-        self.avoidance_layer = (av_factory(self._avoidance_setup(), self.scenario.avoidance_params)
-                                if av_factory is not None else None)
+        self.avoidance_layer = (
+            av_factory(self._avoidance_setup(), self.scenario.avoidance_params) if av_factory is not None else None
+        )
         try:
             if getattr(factory, "centralized", False):
                 self.planner = factory(params)
@@ -274,7 +337,7 @@ class Simulation:
                 self.agent_planners = [factory(params) for _ in range(self.n)]
                 for i, pl in enumerate(self.agent_planners):
                     pl.reset(i, named_rng(self.seed, f"planner/{i}"), self.info)
-        except ConfigError as exc:   # what only the task's layout shows (e.g. altitudes that do not rise)
+        except ConfigError as exc:  # what only the task's layout shows (e.g. altitudes that do not rise)
             raise (exc.with_source(self.scenario.source) if exc.source is None else exc) from None
 
     #: simulated frames per second of a video, and the playback rate (4x faster than real time)
@@ -285,8 +348,11 @@ class Simulation:
         from pybullet_swarm.experiment.video import VideoWriter, camera_for_arena
 
         if self.physics_hz % self.VIDEO_SIM_HZ:
-            raise ConfigError(f"must be a multiple of {self.VIDEO_SIM_HZ} Hz for video, got {self.physics_hz}",
-                              source=self.scenario.source, field="sim.physics_hz")
+            raise ConfigError(
+                f"must be a multiple of {self.VIDEO_SIM_HZ} Hz for video, got {self.physics_hz}",
+                source=self.scenario.source,
+                field="sim.physics_hz",
+            )
         self.video_every = self.physics_hz // self.VIDEO_SIM_HZ
         height = max(1.0, float(np.max(self.starts[:, 2])) + 0.5)
         if "search_height" in self.info.extra:
@@ -355,8 +421,9 @@ class Simulation:
         if motor_state:
             self.controller.rotor_speeds[:] = rotor_speeds
 
-    def set_targets(self, positions: NDArray[np.float64] | None, yaw: NDArray[np.float64] | None = None,
-                    *, velocities: bool = False) -> None:
+    def set_targets(
+        self, positions: NDArray[np.float64] | None, yaw: NDArray[np.float64] | None = None, *, velocities: bool = False
+    ) -> None:
         """Command the agents from outside: positions (n, 3) m (or velocities m/s with ``velocities``).
 
         From then on the task's own set-points are ignored (the task still judges completion);
@@ -429,8 +496,14 @@ class Simulation:
         an avoidance layer will read them."""
         if neighbours is None:
             neighbours = self.agent_planners is not None or self.avoidance_layer is not None
-        return self.perception_stage.snapshot(self.time, self.state_array, self.sensed_state_array, self.ranges,
-                                              self.task_view.carrying, neighbours=neighbours)
+        return self.perception_stage.snapshot(
+            self.time,
+            self.state_array,
+            self.sensed_state_array,
+            self.ranges,
+            self.task_view.carrying,
+            neighbours=neighbours,
+        )
 
     def world_view(self) -> WorldView:
         """Everything now (for centralised planners; agents as they know themselves)."""
@@ -445,9 +518,24 @@ class Simulation:
         for i in range(self.n):
             nb = pc.neighbours(i)
             lv = local[i] if local is not None else NOTHING_IN_VIEW
-            out.append(Observation(i, t, pc.positions[i], pc.velocities[i], float(pc.yaws[i]), int(pc.carrying[i]),
-                                   pc.nb_ids[nb], pc.nb_positions[nb], pc.nb_velocities[nb], lv.boxes, lv.box_ids,
-                                   lv.slots, lv.slot_ids, ranges=pc.ranges[i]))
+            out.append(
+                Observation(
+                    i,
+                    t,
+                    pc.positions[i],
+                    pc.velocities[i],
+                    float(pc.yaws[i]),
+                    int(pc.carrying[i]),
+                    pc.nb_ids[nb],
+                    pc.nb_positions[nb],
+                    pc.nb_velocities[nb],
+                    lv.boxes,
+                    lv.box_ids,
+                    lv.slots,
+                    lv.slot_ids,
+                    ranges=pc.ranges[i],
+                )
+            )
         return out
 
     def _finish(self, status: ExitStatus, agent: int | None = None, detail: str = "") -> None:
@@ -456,7 +544,9 @@ class Simulation:
             if agent is not None:
                 self.crashed_agent = agent
             if status in (ExitStatus.CRASHED, ExitStatus.DIVERGED):
-                self.events.append(Event(self.time, status.value, f"agent{agent}" if agent is not None else "", "", detail))
+                self.events.append(
+                    Event(self.time, status.value, f"agent{agent}" if agent is not None else "", "", detail)
+                )
 
     def _on_contacts(self, pairs: set[tuple[int, int]]) -> None:
         t = self.time
@@ -488,8 +578,12 @@ class Simulation:
         tick = physics_tick
         args = ctrl.physics_args(state)
         forces, torques = ctrl.forces, ctrl.torques
-        apply, advance, read, contact_pairs = (world.apply_agent_wrenches, world.step, world.read_agent_states,
-                                               world.contact_pairs)
+        apply, advance, read, contact_pairs = (
+            world.apply_agent_wrenches,
+            world.step,
+            world.read_agent_states,
+            world.contact_pairs,
+        )
         ce, pe, re = self.control_every, self.planner_every, self.record_every
         est = self.estimation
         fe = self.fix_every if est is not None else 0
@@ -553,8 +647,9 @@ class Simulation:
         np.maximum(self.max_height, self.state_array[:, 2], out=self.max_height)
         if self.recorder is not None:
             s = self.state_array
-            self.recorder.record(self.time, s[:, :7], s[:, 7:], self.controller.rotor_speeds, self.shaper.p,
-                                 self.shaper.v)
+            self.recorder.record(
+                self.time, s[:, :7], s[:, 7:], self.controller.rotor_speeds, self.shaper.p, self.shaper.v
+            )
             for name, value in self.task.sample().items():
                 self.recorder.record_extra(name, value)
             if self.estimation is not None:
@@ -600,7 +695,8 @@ class Simulation:
                 m.update(report())
         if self.estimation is not None:
             m["estimation"] = self.estimation_errors.metrics(
-                {"state": self.scenario.sensing.state.value, **self.estimation.summary()})
+                {"state": self.scenario.sensing.state.value, **self.estimation.summary()}
+            )
         return m
 
     def planner_artefacts(self) -> dict[str, Any]:
@@ -621,8 +717,9 @@ class Simulation:
         """The run's result now."""
         empty = Recorder(self.n, 1).series()
         ts = self.recorder.series() if self.recorder is not None else empty
-        return RunResult(self.exit_status, self.metrics(ts), self.all_events(), ts, self.scenario,
-                         artifacts=self.artifacts())
+        return RunResult(
+            self.exit_status, self.metrics(ts), self.all_events(), ts, self.scenario, artifacts=self.artifacts()
+        )
 
     def artifacts(self) -> dict[str, Any]:
         """Files for the run directory as data by file name: the medium's, the task's, the layer's."""

@@ -6,6 +6,7 @@ BCa, 9999 resamples, fixed seed so the table is reproducible). Runs that raised
 (``exit_status = error``) are counted in ``n_error`` and left out of every statistic; empty cells
 (a metric a run does not have, e.g. ``completion_time_s`` of a timeout) are left out of that metric.
 """
+
 from __future__ import annotations
 
 import csv
@@ -28,7 +29,7 @@ CONFIDENCE = 0.95
 class CIMethod(str, enum.Enum):
     """How the 95 % confidence interval of the mean is computed."""
 
-    T = "t"                  # Student's t-interval
+    T = "t"  # Student's t-interval
     BOOTSTRAP = "bootstrap"  # BCa bootstrap (scipy.stats.bootstrap)
 
 
@@ -50,8 +51,7 @@ class Stats:
     ci95_high: float
 
 
-def describe(values: ArrayLike, *, ci: CIMethod | str = CIMethod.T, n_resamples: int = 9999,
-             seed: int = 0) -> Stats:
+def describe(values: ArrayLike, *, ci: CIMethod | str = CIMethod.T, n_resamples: int = 9999, seed: int = 0) -> Stats:
     """Statistics of a sample; non-finite values are left out.
 
     Args:
@@ -74,7 +74,7 @@ def describe(values: ArrayLike, *, ci: CIMethod | str = CIMethod.T, n_resamples:
     if n < 2:
         return Stats(n, mean, nan, median, nan, nan)
     std = float(np.std(x, ddof=1))
-    if std == 0.0:   # every run gave the same value: the interval is that value
+    if std == 0.0:  # every run gave the same value: the interval is that value
         return Stats(n, mean, 0.0, median, mean, mean)
     low, high = _interval(x, ci, n_resamples, seed)
     return Stats(n, mean, std, median, low, high)
@@ -86,14 +86,28 @@ def _interval(x: np.ndarray, ci: CIMethod, n_resamples: int, seed: int) -> tuple
     if ci is CIMethod.T:
         low, high = stats.t.interval(CONFIDENCE, x.size - 1, loc=np.mean(x), scale=stats.sem(x))
         return float(low), float(high)
-    with warnings.catch_warnings():   # BCa on tiny or lumpy samples warns and may give NaN
+    with warnings.catch_warnings():  # BCa on tiny or lumpy samples warns and may give NaN
         warnings.simplefilter("ignore")
-        res = stats.bootstrap((x,), np.mean, confidence_level=CONFIDENCE, n_resamples=n_resamples,
-                              method="BCa", vectorized=True, rng=np.random.default_rng(seed))
+        res = stats.bootstrap(
+            (x,),
+            np.mean,
+            confidence_level=CONFIDENCE,
+            n_resamples=n_resamples,
+            method="BCa",
+            vectorized=True,
+            rng=np.random.default_rng(seed),
+        )
         low, high = float(res.confidence_interval.low), float(res.confidence_interval.high)
         if not (math.isfinite(low) and math.isfinite(high)):
-            res = stats.bootstrap((x,), np.mean, confidence_level=CONFIDENCE, n_resamples=n_resamples,
-                                  method="percentile", vectorized=True, rng=np.random.default_rng(seed))
+            res = stats.bootstrap(
+                (x,),
+                np.mean,
+                confidence_level=CONFIDENCE,
+                n_resamples=n_resamples,
+                method="percentile",
+                vectorized=True,
+                rng=np.random.default_rng(seed),
+            )
             low, high = float(res.confidence_interval.low), float(res.confidence_interval.high)
     return low, high
 
@@ -129,7 +143,7 @@ def group_rows(rows: Sequence[Mapping[str, Cell]], by: Sequence[str]) -> list[tu
         for i in varying:
             col, val = by[i], key[i]
             parts.append(str(val) if col in ("planner", "avoidance") else f"{col}={val}")
-        if not parts:   # one configuration: name it by its planner (or the first column)
+        if not parts:  # one configuration: name it by its planner (or the first column)
             parts = [str(key[by.index("planner")] if "planner" in by else key[0] if key else "all")]
         out.append((Config(tuple(zip(by, key)), " ".join(parts)), groups[key]))
     return out
@@ -156,8 +170,13 @@ class SummaryRow:
     ci_method: CIMethod
 
 
-def summarize(rows: Sequence[Mapping[str, Cell]], by: Sequence[str], *, metrics: Sequence[str] | None = None,
-              ci: CIMethod | str = CIMethod.T) -> list[SummaryRow]:
+def summarize(
+    rows: Sequence[Mapping[str, Cell]],
+    by: Sequence[str],
+    *,
+    metrics: Sequence[str] | None = None,
+    ci: CIMethod | str = CIMethod.T,
+) -> list[SummaryRow]:
     """Statistics per configuration and metric.
 
     Args:
@@ -188,8 +207,13 @@ def summary_records(summary: Sequence[SummaryRow]) -> list[dict[str, Any]]:
     """Plain records of a summary: configuration columns, metric, counts, statistics, CI method."""
     records = []
     for s in summary:
-        rec: dict[str, Any] = {"config": s.config.label, **dict(s.config.values), "metric": s.metric,
-                               "n_runs": s.n_runs, "n_error": s.n_error}
+        rec: dict[str, Any] = {
+            "config": s.config.label,
+            **dict(s.config.values),
+            "metric": s.metric,
+            "n_runs": s.n_runs,
+            "n_error": s.n_error,
+        }
         rec.update({k: getattr(s.stats, k) for k in SUMMARY_COLUMNS})
         rec["ci_method"] = s.ci_method.value
         records.append(rec)
@@ -219,8 +243,17 @@ def _text(v: Any) -> str:
 
 
 #: Metrics shown by ``format_table`` when present (in this order).
-HEADLINE_METRICS = ("completed", "completion_time_s", "sim_time_s", "collisions.total", "collisions.agent_agent",
-                    "path_length_m.total", "energy_j", "tracking_rmse_m", "min_separation_m")
+HEADLINE_METRICS = (
+    "completed",
+    "completion_time_s",
+    "sim_time_s",
+    "collisions.total",
+    "collisions.agent_agent",
+    "path_length_m.total",
+    "energy_j",
+    "tracking_rmse_m",
+    "min_separation_m",
+)
 
 
 def format_table(summary: Sequence[SummaryRow], metrics: Sequence[str] | None = None) -> str:
@@ -236,8 +269,17 @@ def format_table(summary: Sequence[SummaryRow], metrics: Sequence[str] | None = 
     for s in rows:
         st = s.stats
         n = f"{st.n}/{s.n_runs}" if st.n != s.n_runs else str(st.n)
-        lines.append((s.metric, s.config.label, n, _g(st.mean), _g(st.std), _g(st.median),
-                      f"[{_g(st.ci95_low)}, {_g(st.ci95_high)}]" if math.isfinite(st.ci95_low) else "-"))
+        lines.append(
+            (
+                s.metric,
+                s.config.label,
+                n,
+                _g(st.mean),
+                _g(st.std),
+                _g(st.median),
+                f"[{_g(st.ci95_low)}, {_g(st.ci95_high)}]" if math.isfinite(st.ci95_low) else "-",
+            )
+        )
     widths = [max(len(r[i]) for r in lines) for i in range(len(header))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in lines)
 

@@ -22,6 +22,7 @@ Scripted use (the ``__main__`` guard is needed: workers are fresh processes that
         result = run_sweep(sweep, "runs/thesis", workers=2, quiet=False)
         print(result.table())
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -35,9 +36,20 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from pybullet_swarm.errors import ConfigError
-from pybullet_swarm.experiment.results import (MANIFEST, RUNS_CSV, RUNS_PARQUET, SUMMARY_CSV, Row, RunStatus,
-                                               RunsTable, config_hash, one_line, plain_cell,
-                                               read_metrics, write_parquet)
+from pybullet_swarm.experiment.results import (
+    MANIFEST,
+    RUNS_CSV,
+    RUNS_PARQUET,
+    SUMMARY_CSV,
+    Row,
+    RunStatus,
+    RunsTable,
+    config_hash,
+    one_line,
+    plain_cell,
+    read_metrics,
+    write_parquet,
+)
 from pybullet_swarm.experiment.jobs import RunSpec, cpu_count, execute_run, failure_row, make_row
 from pybullet_swarm.experiment.summary import CIMethod, SummaryRow, format_table, summarize, write_summary
 
@@ -73,7 +85,7 @@ class Sweep:
     def __post_init__(self) -> None:
         from pybullet_swarm.experiment.scenario import parse_override
 
-        set_ = functools.partial(object.__setattr__, self)   # frozen: the fields are normalised once, here
+        set_ = functools.partial(object.__setattr__, self)  # frozen: the fields are normalised once, here
         set_("planners", _axis(self.planners, "--planners"))
         set_("avoidance", _axis(self.avoidance, "--avoidance"))
         seeds = tuple(range(self.seeds)) if isinstance(self.seeds, int) else tuple(self.seeds)
@@ -98,8 +110,11 @@ class Sweep:
                 raise ConfigError("appears twice", source="--grid", field=key)
             grid.append((key, values))
         set_("grid", tuple(grid))
-        pairs = self.overrides.items() if isinstance(self.overrides, Mapping) else (
-            parse_override(o) if isinstance(o, str) else tuple(o) for o in self.overrides)
+        pairs = (
+            self.overrides.items()
+            if isinstance(self.overrides, Mapping)
+            else (parse_override(o) if isinstance(o, str) else tuple(o) for o in self.overrides)
+        )
         overrides = []
         for key, value in pairs:
             _check_key(key, "--set")
@@ -109,19 +124,24 @@ class Sweep:
     @property
     def grid_keys(self) -> tuple[str, ...]:
         """The grid's key paths, in order."""
-        return tuple(k for k, _ in self.grid)   # type: ignore[misc]
+        return tuple(k for k, _ in self.grid)  # type: ignore[misc]
 
     def grid_points(self) -> list[tuple[tuple[str, Any], ...]]:
         """Every combination of grid values: ``((key, value), ...)`` (one empty point without a grid)."""
         keys = self.grid_keys
-        values = [v for _, v in self.grid]   # type: ignore[misc]
+        values = [v for _, v in self.grid]  # type: ignore[misc]
         return [tuple(zip(keys, combo)) for combo in itertools.product(*values)]
 
     def to_json(self) -> dict[str, Any]:
         """The sweep as plain data (for the manifest)."""
-        return {"scenario": str(self.scenario), "planners": list(self.planners), "avoidance": list(self.avoidance),
-                "grid": {k: list(v) for k, v in self.grid}, "seeds": list(self.seeds),  # type: ignore[misc]
-                "overrides": dict(self.overrides)}  # type: ignore[arg-type]
+        return {
+            "scenario": str(self.scenario),
+            "planners": list(self.planners),
+            "avoidance": list(self.avoidance),
+            "grid": {k: list(v) for k, v in self.grid},
+            "seeds": list(self.seeds),  # type: ignore[misc]
+            "overrides": dict(self.overrides),
+        }  # type: ignore[arg-type]
 
 
 def _axis(values: Sequence[str | None] | str | None, name: str) -> tuple[str | None, ...]:
@@ -182,20 +202,26 @@ def _file_data(sweep: Sweep) -> tuple[dict[str, Any], str]:
     return data, path.name
 
 
-def _configuration(raw: Mapping[str, Any], source: str, sweep: Sweep, planner: str | None, avoidance: str | None,
-                   point: tuple[tuple[str, Any], ...] = ()) -> Any:
+def _configuration(
+    raw: Mapping[str, Any],
+    source: str,
+    sweep: Sweep,
+    planner: str | None,
+    avoidance: str | None,
+    point: tuple[tuple[str, Any], ...] = (),
+) -> Any:
     """One configuration's scenario: the planner and avoidance choices, the sweep's overrides and the
     grid point applied to the file's data, then validated (``Scenario``)."""
     from pybullet_swarm.experiment.scenario import apply_choices, apply_overrides, build_scenario
 
     data = apply_choices(copy.deepcopy(dict(raw)), planner=planner, avoidance=avoidance, source=source)
-    data = apply_overrides(data, dict(sweep.overrides), source=source)   # type: ignore[arg-type]
+    data = apply_overrides(data, dict(sweep.overrides), source=source)  # type: ignore[arg-type]
     if point:
         data = apply_overrides(data, dict(point), source=source)
     return build_scenario(data, source=source)
 
 
-_CHOSEN = ("planner", "avoidance", "avoidance_params")   # scenario keys the planner/avoidance choices decide
+_CHOSEN = ("planner", "avoidance", "avoidance_params")  # scenario keys the planner/avoidance choices decide
 
 
 def base_scenario(sweep: Sweep) -> tuple[dict[str, Any], str]:
@@ -210,7 +236,7 @@ def _base_hash(data: Mapping[str, Any], sweep: Sweep) -> str:
     """Hash of what every run of a sweep shares: the resolved scenario without its seed and without
     what the planner and avoidance choices decide, plus the ``--set`` overrides of those."""
     shared = {k: v for k, v in data.items() if k != "seed" and k not in _CHOSEN}
-    chosen = {k: v for k, v in sweep.overrides if k.split(".")[0] in _CHOSEN}   # type: ignore[misc, str-unpack]
+    chosen = {k: v for k, v in sweep.overrides if k.split(".")[0] in _CHOSEN}  # type: ignore[misc, str-unpack]
     if chosen:
         shared["overrides"] = chosen
     return config_hash(shared)
@@ -259,32 +285,52 @@ def plan_sweep(sweep: Sweep, out: str | Path, *, plots: bool = False) -> Plan:
         for p, a in itertools.product(sweep.planners, sweep.avoidance):
             try:
                 scenario = _configuration(raw, source, sweep, p, a, point)
-                build_run(scenario)   # what a run refuses when it starts is refused before the sweep
+                build_run(scenario)  # what a run refuses when it starts is refused before the sweep
             except ConfigError as exc:
                 where = ", ".join(f"{k}={plain_cell(v)}" for k, v in point)
                 if exc.field == "planner.name" and p is not None:
                     raise ConfigError(exc.detail, source="--planners") from None
-                raise ConfigError(f"{exc.detail} (grid point {where})" if point else exc.detail,
-                                  source=exc.source or source, field=exc.field) from None
+                raise ConfigError(
+                    f"{exc.detail} (grid point {where})" if point else exc.detail,
+                    source=exc.source or source,
+                    field=exc.field,
+                ) from None
             if base is None and not point:
                 base = dict(scenario.data)
             configs.append((point, str(scenario.planner.name), scenario.avoidance, dict(scenario.data)))
     if base is None:
         base, _ = base_scenario(sweep)
     seen: set[str] = set()
-    for seed in sweep.seeds:   # type: ignore[union-attr]
+    for seed in sweep.seeds:  # type: ignore[union-attr]
         for point, planner, avoidance, data in configs:
-            run_data = {**data, "seed": seed}   # what the run's scenario.yaml holds
-            run_id = config_hash({"scenario": _without_seed(data), "planner": planner, "avoidance": avoidance,
-                                  "seed": seed})
-            if run_id in seen:     # two grid points that resolve to the same scenario
+            run_data = {**data, "seed": seed}  # what the run's scenario.yaml holds
+            run_id = config_hash(
+                {"scenario": _without_seed(data), "planner": planner, "avoidance": avoidance, "seed": seed}
+            )
+            if run_id in seen:  # two grid points that resolve to the same scenario
                 continue
             seen.add(run_id)
-            runs.append(RunSpec(run_id=run_id, planner=planner, avoidance=avoidance, seed=seed, grid=point,
-                                scenario_data=run_data, source=source, run_dir=str(out / "runs" / run_id),
-                                plots=plots))
-    return Plan(sweep=sweep, out=out, source=source, scenario_name=str(base.get("name", "scenario")),
-                base_hash=_base_hash(base, sweep), runs=tuple(runs))
+            runs.append(
+                RunSpec(
+                    run_id=run_id,
+                    planner=planner,
+                    avoidance=avoidance,
+                    seed=seed,
+                    grid=point,
+                    scenario_data=run_data,
+                    source=source,
+                    run_dir=str(out / "runs" / run_id),
+                    plots=plots,
+                )
+            )
+    return Plan(
+        sweep=sweep,
+        out=out,
+        source=source,
+        scenario_name=str(base.get("name", "scenario")),
+        base_hash=_base_hash(base, sweep),
+        runs=tuple(runs),
+    )
 
 
 # ------------------------------------------------------------------ manifest
@@ -297,7 +343,7 @@ def read_manifest(out: Path) -> dict[str, Any] | None:
         return None
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError) as exc:   # UnicodeDecodeError is a ValueError
+    except (OSError, ValueError, RecursionError) as exc:  # UnicodeDecodeError is a ValueError
         raise ConfigError(f"unreadable manifest ({' '.join(str(exc).split())[:120]})", source=str(path)) from None
     if not isinstance(data, dict) or not isinstance(data.get("runs"), dict):
         raise ConfigError("not a sweep manifest (no mapping of runs)", source=str(path))
@@ -311,17 +357,35 @@ def _merge_manifest(plan: Plan, old: dict[str, Any] | None) -> dict[str, Any]:
     """The new manifest: the old runs and grid keys, then this plan's (a wider sweep extends a directory)."""
     if old is not None and old.get("base_hash") != plan.base_hash:
         was = one_line(f"{old.get('scenario')} with --set {(old.get('sweep') or {}).get('overrides')}", 160)
-        raise ConfigError(f"holds a sweep of another scenario or other --set overrides ({was}); use another --out",
-                          source=str(plan.out))
+        raise ConfigError(
+            f"holds a sweep of another scenario or other --set overrides ({was}); use another --out",
+            source=str(plan.out),
+        )
     runs: dict[str, Any] = dict(old["runs"]) if old else {}
     for spec in plan.runs:
-        runs.setdefault(spec.run_id, {"planner": spec.planner, "avoidance": spec.avoidance, "seed": spec.seed,
-                                      "grid": {k: v for k, v in spec.grid}})
+        runs.setdefault(
+            spec.run_id,
+            {
+                "planner": spec.planner,
+                "avoidance": spec.avoidance,
+                "seed": spec.seed,
+                "grid": {k: v for k, v in spec.grid},
+            },
+        )
     grid_keys = list(dict.fromkeys([*(old or {}).get("grid_keys", []), *plan.sweep.grid_keys]))
     now = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-    return {"format": 1, "scenario": str(plan.sweep.scenario), "source": plan.source,
-            "scenario_name": plan.scenario_name, "base_hash": plan.base_hash, "sweep": plan.sweep.to_json(),
-            "grid_keys": grid_keys, "created": (old or {}).get("created", now), "updated": now, "runs": runs}
+    return {
+        "format": 1,
+        "scenario": str(plan.sweep.scenario),
+        "source": plan.source,
+        "scenario_name": plan.scenario_name,
+        "base_hash": plan.base_hash,
+        "sweep": plan.sweep.to_json(),
+        "grid_keys": grid_keys,
+        "created": (old or {}).get("created", now),
+        "updated": now,
+        "runs": runs,
+    }
 
 
 # ---------------------------------------------------------------- the sweep
@@ -360,10 +424,21 @@ class SweepResult:
         return format_table(self.summary, metrics)
 
 
-def run_sweep(sweep: Sweep, out: str | Path | None = None, *, executor: str = "local", workers: int | None = None,
-              address: str | None = None, plots: bool = False, figures: bool = True, retry_failed: bool = False,
-              ci: CIMethod | str = CIMethod.T, quiet: bool = True, worker: Worker | None = None,
-              retries: int = 2) -> SweepResult:
+def run_sweep(
+    sweep: Sweep,
+    out: str | Path | None = None,
+    *,
+    executor: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+    plots: bool = False,
+    figures: bool = True,
+    retry_failed: bool = False,
+    ci: CIMethod | str = CIMethod.T,
+    quiet: bool = True,
+    worker: Worker | None = None,
+    retries: int = 2,
+) -> SweepResult:
     """Run every run of a sweep that is not recorded yet, in parallel, then summarise.
 
     Rows are appended to ``runs.csv`` as runs finish; calling again with the same sweep and
@@ -391,13 +466,13 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, executor: str = "l
 
     t0 = time.perf_counter()
     if check_executor(executor, workers=workers, address=address) is ExecutorKind.LOCAL:
-        prestart()   # the workers' imports overlap with the planning below
+        prestart()  # the workers' imports overlap with the planning below
     out = Path(out) if out is not None else default_out(sweep)
     plan = plan_sweep(sweep, out, plots=plots)
     out = plan.out
     from pybullet_swarm.experiment.rundir import check_output_dir
 
-    check_output_dir(out)   # before any run: a directory that cannot be written is refused now
+    check_output_dir(out)  # before any run: a directory that cannot be written is refused now
     old = read_manifest(out) if out.is_dir() else None
     if old is None and out.is_dir() and any(p.name != ".lock" for p in out.iterdir()):
         raise ConfigError("exists and is not a sweep directory (no sweep.json); use another --out", source=str(out))
@@ -405,14 +480,14 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, executor: str = "l
     from pybullet_swarm.experiment.rundir import exclusive_directory, write_json
 
     with exclusive_directory(out, "sweep"):
-
         manifest = _merge_manifest(plan, old)
         write_json(out / MANIFEST, manifest)
         table = RunsTable(out / RUNS_CSV)
         ids = {s.run_id for s in plan.runs}
         if retry_failed:
-            failed = [r["run_id"] for r in table.rows if r.get("exit_status") == RunStatus.ERROR.value
-                      and r["run_id"] in ids]
+            failed = [
+                r["run_id"] for r in table.rows if r.get("exit_status") == RunStatus.ERROR.value and r["run_id"] in ids
+            ]
             if table.drop(failed):
                 table.save()
         n_recovered = _recover(plan, table)
@@ -421,15 +496,21 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, executor: str = "l
         n_skipped = len(plan.runs) - len(todo)
         if n_skipped:
             n_bad = sum(1 for s in plan.runs if (table.get(s.run_id) or {}).get("exit_status") == RunStatus.ERROR.value)
-            say(f"sweep: {n_skipped} of {len(plan.runs)} runs already finished, skipped"
+            say(
+                f"sweep: {n_skipped} of {len(plan.runs)} runs already finished, skipped"
                 + (f" ({n_bad} failed; --retry-failed runs them again)" if n_bad else "")
-                + (f"; {n_recovered} recovered from their run directories" if n_recovered else ""))
+                + (f"; {n_recovered} recovered from their run directories" if n_recovered else "")
+            )
         interrupted = False
         n_run = 0
         try:
             if todo:
-                with make_executor(executor, workers=workers, address=address, worker=worker, retries=retries,
-                                   quiet=quiet) as ex, _progress(len(todo), quiet) as bar:
+                with (
+                    make_executor(
+                        executor, workers=workers, address=address, worker=worker, retries=retries, quiet=quiet
+                    ) as ex,
+                    _progress(len(todo), quiet) as bar,
+                ):
                     for row in ex.imap_unordered(todo):
                         table.append(row)
                         n_run += 1
@@ -445,9 +526,19 @@ def run_sweep(sweep: Sweep, out: str | Path | None = None, *, executor: str = "l
         if figures and not interrupted and rows:
             files = draw_comparison(rows, _group_by(manifest), out / "plots")
     n_failed = sum(1 for s in plan.runs if (table.get(s.run_id) or {}).get("exit_status") == RunStatus.ERROR.value)
-    return SweepResult(out=out, rows=tuple(rows), summary=tuple(summary), n_planned=len(plan.runs),
-                       n_skipped=n_skipped, n_recovered=n_recovered, n_run=n_run, n_failed=n_failed,
-                       wall_time_s=time.perf_counter() - t0, files=tuple(files), interrupted=interrupted)
+    return SweepResult(
+        out=out,
+        rows=tuple(rows),
+        summary=tuple(summary),
+        n_planned=len(plan.runs),
+        n_skipped=n_skipped,
+        n_recovered=n_recovered,
+        n_run=n_run,
+        n_failed=n_failed,
+        wall_time_s=time.perf_counter() - t0,
+        files=tuple(files),
+        interrupted=interrupted,
+    )
 
 
 def _recover(plan: Plan, table: RunsTable) -> int:
@@ -458,7 +549,7 @@ def _recover(plan: Plan, table: RunsTable) -> int:
             try:
                 metrics = read_metrics(Path(spec.run_dir))
             except ConfigError:
-                continue    # unreadable: run it again
+                continue  # unreadable: run it again
             table.append(make_row(spec, metrics))
             n += 1
     return n
@@ -495,15 +586,16 @@ def load_sweep(out: str | Path) -> tuple[list[Row], tuple[str, ...]]:
         raise ConfigError("not a sweep directory (no runs.csv)", source=str(out))
     manifest = read_manifest(out)
     rows = RunsTable(out / RUNS_CSV).rows
-    if manifest is None:   # a runs.csv alone: the columns between seed and exit_status are grid keys
+    if manifest is None:  # a runs.csv alone: the columns between seed and exit_status are grid keys
         cols = list(rows[0]) if rows else []
-        grid = cols[cols.index("seed") + 1: cols.index("exit_status")] if {"seed", "exit_status"} <= set(cols) else []
+        grid = cols[cols.index("seed") + 1 : cols.index("exit_status")] if {"seed", "exit_status"} <= set(cols) else []
         return rows, ("planner", "avoidance", *grid)
     return _ordered(rows, manifest), _group_by(manifest)
 
 
-def draw_comparison(rows: Sequence[Row], group_by: Sequence[str], out_dir: Path,
-                    metrics: Sequence[str] | None = None) -> list[Path]:
+def draw_comparison(
+    rows: Sequence[Row], group_by: Sequence[str], out_dir: Path, metrics: Sequence[str] | None = None
+) -> list[Path]:
     """Draw the comparison figures of result rows: box plots per metric, completion time vs collisions.
 
     Args:
@@ -528,8 +620,7 @@ def _progress(total: int, quiet: bool) -> Iterator[Any]:
     """One progress bar (stderr) with ETA and the counts of finished and failed runs."""
     from tqdm import tqdm
 
-    bar = tqdm(total=total, unit="run", desc="sweep", disable=quiet, file=sys.stderr, dynamic_ncols=True,
-               smoothing=0.1)
+    bar = tqdm(total=total, unit="run", desc="sweep", disable=quiet, file=sys.stderr, dynamic_ncols=True, smoothing=0.1)
     counts = {"ok": 0, "failed": 0}
 
     class _Bar:

@@ -4,6 +4,7 @@
 ``pybullet-swarm sweep`` writes it at the end of a sweep that was not interrupted;
 ``pybullet-swarm report SWEEP_DIR`` writes it again.
 """
+
 from __future__ import annotations
 
 import csv
@@ -16,7 +17,7 @@ from pybullet_swarm.experiment.summary import HEADLINE_METRICS
 from pybullet_swarm.experiment.sweep import load_sweep, read_manifest
 from pybullet_swarm.plotting.report import SweepPage, sweep_report_html
 
-RUN_COLUMNS_SHOWN = ("completion_time_s", "sim_time_s", "collisions.total")   # outcomes in the runs table
+RUN_COLUMNS_SHOWN = ("completion_time_s", "sim_time_s", "collisions.total")  # outcomes in the runs table
 
 
 def _seed_text(seeds: Sequence[int]) -> str:
@@ -36,12 +37,15 @@ def sweep_page(sweep_dir: Path) -> SweepPage:
     def axis(values: Sequence[Any]) -> str:
         return ", ".join("the scenario's" if v is None else str(v) for v in values)
 
-    setup = [("scenario", str(spec.get("scenario", name))), ("planners", axis(spec.get("planners", []))),
-             ("avoidance", axis(spec.get("avoidance", []))),
-             ("grid", "; ".join(f"{k} = {v}" for k, v in (spec.get("grid") or {}).items()) or "-"),
-             ("seeds", _seed_text(spec.get("seeds", []))),
-             ("overrides", "; ".join(f"{k} = {v}" for k, v in (spec.get("overrides") or {}).items()) or "-"),
-             ("configuration columns", ", ".join(group_by))]
+    setup = [
+        ("scenario", str(spec.get("scenario", name))),
+        ("planners", axis(spec.get("planners", []))),
+        ("avoidance", axis(spec.get("avoidance", []))),
+        ("grid", "; ".join(f"{k} = {v}" for k, v in (spec.get("grid") or {}).items()) or "-"),
+        ("seeds", _seed_text(spec.get("seeds", []))),
+        ("overrides", "; ".join(f"{k} = {v}" for k, v in (spec.get("overrides") or {}).items()) or "-"),
+        ("configuration columns", ", ".join(group_by)),
+    ]
     statuses: dict[str, int] = {}
     for r in rows:
         statuses[str(r.get("exit_status"))] = statuses.get(str(r.get("exit_status")), 0) + 1
@@ -53,15 +57,23 @@ def sweep_page(sweep_dir: Path) -> SweepPage:
     runs = []
     for r in rows:
         where = Path(str(r.get("run_dir") or Path("runs") / str(r.get("run_id"))))
-        page = (where if where.is_absolute() else sweep_dir / where) / REPORT_NAME   # run_dir: relative to the sweep
+        page = (where if where.is_absolute() else sweep_dir / where) / REPORT_NAME  # run_dir: relative to the sweep
         try:
             link = page.resolve().relative_to(sweep_dir.resolve()).as_posix() if page.is_file() else None
         except ValueError:
             link = None
         runs.append({**{c: r.get(c) for c in columns}, "link": link})
-    return SweepPage(name=str(name), directory=str(sweep_dir.resolve()), setup=setup, statuses=statuses,
-                     summary=summary, metric_order=HEADLINE_METRICS, figures=plot_files(sweep_dir), run_columns=columns,
-                     runs=runs)
+    return SweepPage(
+        name=str(name),
+        directory=str(sweep_dir.resolve()),
+        setup=setup,
+        statuses=statuses,
+        summary=summary,
+        metric_order=HEADLINE_METRICS,
+        figures=plot_files(sweep_dir),
+        run_columns=columns,
+        runs=runs,
+    )
 
 
 def write_sweep_report(sweep_dir: Path | str) -> Path:

@@ -5,6 +5,7 @@ MP4 (H.264, yuv420p) is written through the ffmpeg binary shipped in the ``image
 wheel; when that is not importable the writer falls back to an animated GIF written with
 Pillow next to the requested path.
 """
+
 from __future__ import annotations
 
 import enum
@@ -26,8 +27,15 @@ from pybullet_swarm.world.camera import RENDER_FOV_DEG, Camera, camera_for_arena
 if TYPE_CHECKING:
     from pybullet_swarm.world.world import World
 
-__all__ = ["RENDER_FOV_DEG", "Camera", "VideoBackend", "VideoWriter", "camera_for_arena", "render_frame",
-           "video_backend"]
+__all__ = [
+    "RENDER_FOV_DEG",
+    "Camera",
+    "VideoBackend",
+    "VideoWriter",
+    "camera_for_arena",
+    "render_frame",
+    "video_backend",
+]
 
 GIF_MAX_FPS = 10.0  # frames per second kept by the GIF fallback
 GIF_COLORS = 64  # palette size of each GIF frame
@@ -50,6 +58,7 @@ def _ffmpeg_exe() -> str | None:
     """Path of imageio-ffmpeg's ffmpeg binary, or None when it is unavailable."""
     try:
         import imageio_ffmpeg
+
         return str(imageio_ffmpeg.get_ffmpeg_exe())
     except Exception:  # ImportError, or RuntimeError when no binary is found
         return None
@@ -67,8 +76,9 @@ def video_backend() -> VideoBackend:
 def render_frame(world: World, camera: Camera, size: tuple[int, int]) -> NDArray[np.uint8]:
     """Render an RGB frame (height, width, 3) uint8 of ``world`` seen by ``camera``; ``size`` is (width, height) px."""
     width, height = size
-    return world.render(int(width), int(height), target=camera.target, distance=camera.distance,
-                        yaw=camera.yaw, pitch=camera.pitch)
+    return world.render(
+        int(width), int(height), target=camera.target, distance=camera.distance, yaw=camera.yaw, pitch=camera.pitch
+    )
 
 
 # ----------------------------------------------------------------------------------- writer
@@ -79,8 +89,15 @@ class _Mp4Sink:
         import imageio_ffmpeg
 
         self._gen = imageio_ffmpeg.write_frames(
-            str(path), size, fps=fps, codec="libx264", pix_fmt_in="rgb24", pix_fmt_out="yuv420p",
-            quality=None, macro_block_size=2, ffmpeg_log_level="error",
+            str(path),
+            size,
+            fps=fps,
+            codec="libx264",
+            pix_fmt_in="rgb24",
+            pix_fmt_out="yuv420p",
+            quality=None,
+            macro_block_size=2,
+            ffmpeg_log_level="error",
             output_params=["-crf", str(MP4_CRF), "-preset", MP4_PRESET, "-movflags", "+faststart", "-f", "mp4"],
         )
         self._gen.send(None)  # starts ffmpeg
@@ -112,14 +129,23 @@ class _GifSink:
         from PIL import Image
 
         if self._seen % self._stride == 0:
-            self._frames.append(Image.fromarray(frame).quantize(GIF_COLORS, method=Image.Quantize.MEDIANCUT,
-                                                                dither=Image.Dither.NONE))
+            self._frames.append(
+                Image.fromarray(frame).quantize(GIF_COLORS, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+            )
         self._seen += 1
 
     def finish(self) -> None:
         first, *rest = self._frames
-        first.save(self._path, format="GIF", save_all=True, append_images=rest, duration=self._duration_ms,
-                   loop=0, optimize=False, disposal=1)
+        first.save(
+            self._path,
+            format="GIF",
+            save_all=True,
+            append_images=rest,
+            duration=self._duration_ms,
+            loop=0,
+            optimize=False,
+            disposal=1,
+        )
         self._frames.clear()
 
     def abort(self) -> None:
@@ -149,9 +175,16 @@ class VideoWriter:
         FileNotFoundError: the directory of ``path`` does not exist.
     """
 
-    def __init__(self, path: Path, *, fps: int = 20, size: tuple[int, int] = (480, 270),
-                 progress_total: int | None = None, quiet: bool = False,
-                 backend: VideoBackend | str | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        *,
+        fps: int = 20,
+        size: tuple[int, int] = (480, 270),
+        progress_total: int | None = None,
+        quiet: bool = False,
+        backend: VideoBackend | str | None = None,
+    ) -> None:
         if not (isinstance(fps, (int, np.integer)) and fps > 0):
             raise ValueError(f"fps: expected a positive integer, got {fps!r}")
         width, height = (int(v) for v in size)
@@ -167,12 +200,18 @@ class VideoWriter:
         self.fps = int(fps)
         self.size = (width, height)
         self.frames_written = 0
-        self._tmp = self.path.with_name(f".{self.path.stem}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
-                                        f"{self.path.suffix}")
+        self._tmp = self.path.with_name(f".{self.path.stem}.{os.getpid()}.{secrets.token_hex(4)}.tmp{self.path.suffix}")
         self._sink: _Mp4Sink | _GifSink | None = None  # opened with the first frame
         self._closed = False
-        self._bar = tqdm(total=progress_total, desc=self.path.name, unit="frame", file=sys.stderr,
-                         disable=quiet, dynamic_ncols=True, mininterval=1.0)
+        self._bar = tqdm(
+            total=progress_total,
+            desc=self.path.name,
+            unit="frame",
+            file=sys.stderr,
+            disable=quiet,
+            dynamic_ncols=True,
+            mininterval=1.0,
+        )
 
     def add(self, frame: NDArray[np.uint8]) -> None:
         """Append one RGB frame (height, width, 3) uint8."""
@@ -182,8 +221,11 @@ class VideoWriter:
         if frame.shape != (height, width, 3) or frame.dtype != np.uint8:
             raise ValueError(f"frame: expected ({height}, {width}, 3) uint8, got {frame.shape} {frame.dtype}")
         if self._sink is None:
-            self._sink = _Mp4Sink(self._tmp, self.size, self.fps) if self.backend is VideoBackend.MP4 \
+            self._sink = (
+                _Mp4Sink(self._tmp, self.size, self.fps)
+                if self.backend is VideoBackend.MP4
                 else _GifSink(self._tmp, self.fps)
+            )
         try:
             self._sink.add(frame)
         except BaseException:
@@ -226,8 +268,9 @@ class VideoWriter:
     def __enter__(self) -> VideoWriter:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
         if exc_type is not None:
             self._abort()
         elif not self._closed:

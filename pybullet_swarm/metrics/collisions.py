@@ -1,4 +1,5 @@
 """Collision counting from Bullet contacts: classified onset events and time in contact."""
+
 from __future__ import annotations
 
 import enum
@@ -33,7 +34,9 @@ class ContactTracker:
         debounce_s: minimum separation time before a new onset counts, s.
     """
 
-    def __init__(self, classify: Callable[[int, int], CollisionClass | None], dt: float, debounce_s: float = 0.1) -> None:
+    def __init__(
+        self, classify: Callable[[int, int], CollisionClass | None], dt: float, debounce_s: float = 0.1
+    ) -> None:
         self.classify = classify
         self.dt = float(dt)
         self.debounce_s = float(debounce_s)

@@ -5,6 +5,7 @@ The construction task (thesis sections 3.5.3 and 3.6) has agents carry boxes fro
 goal slots. Everything here reads plain arrays (positions, times, box layouts); nothing touches
 PyBullet or a live simulation.
 """
+
 from __future__ import annotations
 
 from collections.abc import Iterator
@@ -35,7 +36,7 @@ def _pairwise_chunks(p: NDArray[np.float64]) -> Iterator[tuple[int, NDArray[np.f
     step = max(1, _CHUNK_ELEMENTS // max(1, n * n))
     diag = np.arange(n)
     for s in range(0, m, step):
-        c = p[s:s + step]
+        c = p[s : s + step]
         d = np.linalg.norm(c[:, :, None, :] - c[:, None, :, :], axis=3)
         d[:, diag, diag] = np.inf
         yield s, d
@@ -64,7 +65,7 @@ def nearest_neighbour_distances(positions: ArrayLike) -> NDArray[np.float64]:
         return out
     if n <= BROADCAST_MAX_AGENTS:
         for s, d in _pairwise_chunks(p):
-            out[s:s + d.shape[0]] = d.min(axis=2)
+            out[s : s + d.shape[0]] = d.min(axis=2)
     else:
         for k in range(m):
             out[k] = _kdtree_nn(p[k])[1]
@@ -82,11 +83,11 @@ def _dense_proximity(p: NDArray[np.float64], threshold: float) -> tuple[int, int
     """Onsets, below-threshold pair-samples, min separation (m) and sum of nn distances (m) for small n."""
     n = p.shape[1]
     iu, ju = np.triu_indices(n, 1)
-    prev = np.zeros(iu.size, dtype=bool)        # nothing is below before the first sample
+    prev = np.zeros(iu.size, dtype=bool)  # nothing is below before the first sample
     onsets = below_count = 0
     min_sep, nn_sum = np.inf, 0.0
     for _, d in _pairwise_chunks(p):
-        pair = d[:, iu, ju]                      # (c, P) m
+        pair = d[:, iu, ju]  # (c, P) m
         below = pair < threshold
         onsets += int(np.count_nonzero(below[0] & ~prev))
         onsets += int(np.count_nonzero(below[1:] & ~below[:-1]))
@@ -105,7 +106,7 @@ def _kdtree_proximity(p: NDArray[np.float64], threshold: float) -> tuple[int, in
     min_sep, nn_sum = np.inf, 0.0
     for sample in p:
         tree, nn = _kdtree_nn(sample)
-        pairs = tree.query_pairs(threshold, output_type="ndarray")     # (q, 2), distance <= threshold
+        pairs = tree.query_pairs(threshold, output_type="ndarray")  # (q, 2), distance <= threshold
         if pairs.size:
             dist = np.linalg.norm(sample[pairs[:, 0]] - sample[pairs[:, 1]], axis=1)
             pairs = pairs[dist < threshold]
@@ -147,8 +148,12 @@ def proximity_metrics(t: ArrayLike, positions: ArrayLike, threshold: float) -> d
     if threshold <= 0:
         raise ValueError(f"threshold: must be positive, got {threshold}")
     if n < 2 or m == 0:
-        return {"proximity_violations": 0, "proximity_time_s": 0.0,
-                "min_separation_m": None, "mean_nn_distance_m": None}
+        return {
+            "proximity_violations": 0,
+            "proximity_time_s": 0.0,
+            "min_separation_m": None,
+            "mean_nn_distance_m": None,
+        }
     kernel = _dense_proximity if n <= BROADCAST_MAX_AGENTS else _kdtree_proximity
     onsets, below_count, min_sep, nn_sum = kernel(p, float(threshold))
     return {
@@ -192,8 +197,8 @@ def thesis_proximity_metrics(positions: ArrayLike, diameter: float) -> dict[str,
     m, n, _ = p.shape
     if m == 0 or n < 2:
         return {"thesis_collisions": 0, "thesis_collisions_per_agent": [0] * n, "nn_distance_diameters": None}
-    nn = nearest_neighbour_distances(p)                        # (m, n) m
-    below = nn < diameter                                      # (m, n)
+    nn = nearest_neighbour_distances(p)  # (m, n) m
+    below = nn < diameter  # (m, n)
     crossings = below[0].astype(np.int64) + np.count_nonzero(below[1:] & ~below[:-1], axis=0)
     return {
         "thesis_collisions": int(crossings.sum()),
@@ -236,7 +241,7 @@ def utility_of_space(xy: ArrayLike, arena_size: ArrayLike, cell: float = 0.1) ->
     pts = np.asarray(xy, dtype=float)
     pts = pts.reshape(-1, pts.shape[-1])[:, :2]
     pts = pts[np.all(np.isfinite(pts), axis=1)]
-    shape = np.maximum(1, np.ceil(size[:2] / cell - 1e-9)).astype(np.int64)   # (2,) cells per axis
+    shape = np.maximum(1, np.ceil(size[:2] / cell - 1e-9)).astype(np.int64)  # (2,) cells per axis
     # the small offset puts points on a cell boundary (0.3 / 0.1 = 2.9999...) into the upper cell
     idx = np.clip(np.floor(pts / cell + 1e-9).astype(np.int64), 0, shape - 1)
     visited = np.unique(idx[:, 0] * shape[1] + idx[:, 1]).size
@@ -260,12 +265,18 @@ def _empty_leg_cost(approach: NDArray[np.float64], returns: NDArray[np.float64],
     cost = np.vstack([approach + big, np.broadcast_to(returns, (b - k, b))])
     rows, cols = linear_sum_assignment(cost)
     from_agent = rows < n
-    return (float(approach[rows[from_agent], cols[from_agent]].sum()),
-            float(returns[cols[~from_agent]].sum()))
+    return (float(approach[rows[from_agent], cols[from_agent]].sum()), float(returns[cols[~from_agent]].sum()))
 
 
-def task_lower_bound(agent_starts: ArrayLike, boxes: ArrayLike, slots: ArrayLike, v_max: ArrayLike, *,
-                     grasp_height: float, n_agents: int | None = None) -> dict[str, Any]:
+def task_lower_bound(
+    agent_starts: ArrayLike,
+    boxes: ArrayLike,
+    slots: ArrayLike,
+    v_max: ArrayLike,
+    *,
+    grasp_height: float,
+    n_agents: int | None = None,
+) -> dict[str, Any]:
     """Analytic lower bound on the construction task's completion time, s.
 
     Flight model: each axis moves at no more than ``v_max[k]``, so going from p to q takes at least
@@ -329,19 +340,26 @@ def task_lower_bound(agent_starts: ArrayLike, boxes: ArrayLike, slots: ArrayLike
         starts = np.repeat(starts, n, axis=0)
     n_boxes = bx.shape[0]
     if n_boxes == 0:
-        return {"task_lower_bound_s": 0.0, "carry_s": 0.0, "approach_s": 0.0, "returns_s": 0.0,
-                "parallel_agents": 0, "work_bound_s": 0.0, "single_chain_s": 0.0}
+        return {
+            "task_lower_bound_s": 0.0,
+            "carry_s": 0.0,
+            "approach_s": 0.0,
+            "returns_s": 0.0,
+            "parallel_agents": 0,
+            "work_bound_s": 0.0,
+            "single_chain_s": 0.0,
+        }
 
     lift = np.array([0.0, 0.0, float(grasp_height)])
     pick, drop = bx + lift, sl + lift
-    carry_t = _travel_times(pick, drop, vm)                   # (B, S) s
-    approach_t = _travel_times(starts, pick, vm)              # (n, B) s
-    return_t = _travel_times(drop, pick, vm).min(axis=0)      # (B,) s, cheapest slot -> box b
+    carry_t = _travel_times(pick, drop, vm)  # (B, S) s
+    approach_t = _travel_times(starts, pick, vm)  # (n, B) s
+    return_t = _travel_times(drop, pick, vm).min(axis=0)  # (B,) s, cheapest slot -> box b
     rows, cols = linear_sum_assignment(carry_t)
     carry = float(carry_t[rows, cols].sum())
 
     best: tuple[float, int, float, float] | None = None
-    for k in range(min(n, n_boxes), 0, -1):                   # ties keep the largest k
+    for k in range(min(n, n_boxes), 0, -1):  # ties keep the largest k
         approach, returns = _empty_leg_cost(approach_t, return_t, k)
         bound = (carry + approach + returns) / k
         if best is None or bound < best[0] - 1e-12:
@@ -384,7 +402,7 @@ def box_to_goal_distance(box_positions: ArrayLike, slots: ArrayLike) -> NDArray[
     changed[1:] = np.any(bp[1:] != bp[:-1], axis=(1, 2))
     idx = np.flatnonzero(changed)
     for k in idx:
-        d = np.linalg.norm(bp[k][:, None, :] - sl[None, :, :], axis=2)     # (B, S) m
+        d = np.linalg.norm(bp[k][:, None, :] - sl[None, :, :], axis=2)  # (B, S) m
         rows, cols = linear_sum_assignment(d)
         out[k] = d[rows, cols].sum()
     # each unchanged sample takes the value of the last changed one before it

@@ -14,6 +14,7 @@ Consistency of a filter is judged by the normalised estimation error squared
 ``NEES = e^T P^-1 e``: for a consistent filter its average over ``N`` independent runs, times
 ``N``, is chi-square distributed with ``N d`` degrees of freedom (``d`` state components).
 """
+
 from __future__ import annotations
 
 import math
@@ -51,15 +52,20 @@ class ErrorAccumulator:
 
     def __init__(self, channels: int = 1) -> None:
         self.channels = channels
-        self.count = np.zeros(channels)             # samples (agent-instants)
-        self.sum_sq = np.zeros((channels, 3))       # m^2, per axis
-        self.sum_norm = np.zeros(channels)          # m
-        self.max_norm = np.zeros(channels)          # m
+        self.count = np.zeros(channels)  # samples (agent-instants)
+        self.sum_sq = np.zeros((channels, 3))  # m^2, per axis
+        self.sum_norm = np.zeros(channels)  # m
+        self.max_norm = np.zeros(channels)  # m
         self.heading_count = np.zeros(channels)
-        self.sum_heading = np.zeros(channels)       # rad
+        self.sum_heading = np.zeros(channels)  # rad
 
-    def add(self, estimate: NDArray[np.float64], truth: NDArray[np.float64],
-            est_yaw: NDArray[np.float64] | None = None, true_yaw: NDArray[np.float64] | None = None) -> None:
+    def add(
+        self,
+        estimate: NDArray[np.float64],
+        truth: NDArray[np.float64],
+        est_yaw: NDArray[np.float64] | None = None,
+        true_yaw: NDArray[np.float64] | None = None,
+    ) -> None:
         """Add errors of positions (channels, k, 3) m (or (k, 3) for one channel) against the truth
         (broadcastable), and optionally headings (channels, k) rad against ``true_yaw`` (k,)."""
         e = np.asarray(estimate, dtype=float) - truth
@@ -83,8 +89,14 @@ class ErrorAccumulator:
         ``max_error_m``, ``samples`` of one channel."""
         c = float(self.count[channel])
         if c == 0:
-            return {"rmse_m": None, "mean_error_m": None, "heading_error_rad": None, "rmse_axis_m": None,
-                    "max_error_m": None, "samples": 0}
+            return {
+                "rmse_m": None,
+                "mean_error_m": None,
+                "heading_error_rad": None,
+                "rmse_axis_m": None,
+                "max_error_m": None,
+                "samples": 0,
+            }
         hc = float(self.heading_count[channel])
         return {
             "rmse_m": math.sqrt(float(self.sum_sq[channel].sum()) / c),
@@ -111,17 +123,33 @@ class EstimationErrors:
         self.nees_sum = 0.0
         self.nees_count = 0
 
-    def add_fix(self, valid: NDArray[np.bool_], fixes: NDArray[np.float64], headings: NDArray[np.float64] | None,
-                true_positions: NDArray[np.float64], true_yaw: NDArray[np.float64]) -> None:
+    def add_fix(
+        self,
+        valid: NDArray[np.bool_],
+        fixes: NDArray[np.float64],
+        headings: NDArray[np.float64] | None,
+        true_positions: NDArray[np.float64],
+        true_yaw: NDArray[np.float64],
+    ) -> None:
         """Score the fixes (n, 3) m (and headings (n,) rad) of the agents marked ``valid`` (n,)."""
-        self.fix.add(fixes[valid], true_positions[valid], None if headings is None else headings[valid],
-                     true_yaw[valid])
+        self.fix.add(
+            fixes[valid], true_positions[valid], None if headings is None else headings[valid], true_yaw[valid]
+        )
 
-    def add_tick(self, kalman: NDArray[np.float64], kalman_yaw: NDArray[np.float64], velocity: NDArray[np.float64],
-                 tilt_error: NDArray[np.float64], position_variance: NDArray[np.float64],
-                 imu: NDArray[np.float64], imu_yaw: NDArray[np.float64], held_fix: NDArray[np.float64],
-                 true_positions: NDArray[np.float64], true_velocities: NDArray[np.float64],
-                 true_yaw: NDArray[np.float64]) -> None:
+    def add_tick(
+        self,
+        kalman: NDArray[np.float64],
+        kalman_yaw: NDArray[np.float64],
+        velocity: NDArray[np.float64],
+        tilt_error: NDArray[np.float64],
+        position_variance: NDArray[np.float64],
+        imu: NDArray[np.float64],
+        imu_yaw: NDArray[np.float64],
+        held_fix: NDArray[np.float64],
+        true_positions: NDArray[np.float64],
+        true_velocities: NDArray[np.float64],
+        true_yaw: NDArray[np.float64],
+    ) -> None:
         """Score one control tick.
 
         Args:
@@ -133,7 +161,7 @@ class EstimationErrors:
             held_fix: (n, 3) m, the last fix of each agent.
             true_positions, true_velocities, true_yaw: the truth, (n, 3) m, (n, 3) m/s, (n,) rad.
         """
-        est = np.stack([kalman, imu, held_fix, velocity])                   # (4, n, 3)
+        est = np.stack([kalman, imu, held_fix, velocity])  # (4, n, 3)
         truth = np.stack([true_positions, true_positions, true_positions, true_velocities])
         self.tick.add(est, truth, np.stack([kalman_yaw, imu_yaw]), true_yaw)
         self.tilt_sum += float(tilt_error.sum())
@@ -145,8 +173,11 @@ class EstimationErrors:
     def metrics(self, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         """The ``estimation`` entry of ``metrics.json``."""
         idx = {name: i for i, name in enumerate(self.TICK)}
-        out: dict[str, Any] = {"kalman": self.tick.summary(idx["kalman"]), "gps": self.fix.summary(0),
-                               "imu": self.tick.summary(idx["imu"])}
+        out: dict[str, Any] = {
+            "kalman": self.tick.summary(idx["kalman"]),
+            "gps": self.fix.summary(0),
+            "imu": self.tick.summary(idx["imu"]),
+        }
         out["gps"]["hold_rmse_m"] = self.tick.summary(idx["gps_hold"])["rmse_m"]
         out["kalman"]["velocity_rmse_m_s"] = self.tick.summary(idx["velocity"])["rmse_m"]
         out["kalman"]["tilt_error_rad"] = self.tilt_sum / self.tilt_count if self.tilt_count else None

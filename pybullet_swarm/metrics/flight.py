@@ -1,4 +1,5 @@
 """Flight metrics from recorded time series: path length, rotor energy, tracking error, tilt."""
+
 from __future__ import annotations
 
 from typing import Any
@@ -19,7 +20,7 @@ def path_lengths(positions: np.ndarray) -> np.ndarray:
 
 def rotor_energy(t: np.ndarray, rotor_speeds: np.ndarray, km: float) -> np.ndarray:
     """Mechanical energy (n,) J the rotors spent against drag: integral of km w^3 per rotor (trapezoid)."""
-    power = km * np.sum(np.asarray(rotor_speeds, dtype=float) ** 3, axis=2)   # (m, n) W
+    power = km * np.sum(np.asarray(rotor_speeds, dtype=float) ** 3, axis=2)  # (m, n) W
     if power.shape[0] < 2:
         return np.zeros(power.shape[1])
     return np.trapezoid(power, np.asarray(t, dtype=float), axis=0)

@@ -18,6 +18,7 @@ the Laplacian controller is), the same velocity metric ``v`` as above, and their
 
 Arrays: ``positions`` and ``velocities`` are (T, n, 3) m and m/s, one row per time sample.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -71,13 +72,14 @@ def migration_speed(velocities: ArrayLike, directions: ArrayLike, v_max: ArrayLi
         directions: (T, 3) or (3,) unit migration directions.
         v_max: (T,) or scalar m/s, the speed the metric is normalised by.
     """
-    vc = _series(velocities).mean(axis=1)                          # (T, 3) centroid velocity
+    vc = _series(velocities).mean(axis=1)  # (T, 3) centroid velocity
     u = np.broadcast_to(np.asarray(directions, dtype=float), vc.shape)
     return np.maximum(np.sum(vc * u, axis=1), 0.0) / np.asarray(v_max, dtype=float)
 
 
-def flocking_fitness(positions: ArrayLike, velocities: ArrayLike, directions: ArrayLike, v_max: ArrayLike,
-                     min_speed: float = MIN_SPEED) -> dict[str, NDArray[np.float64]]:
+def flocking_fitness(
+    positions: ArrayLike, velocities: ArrayLike, directions: ArrayLike, v_max: ArrayLike, min_speed: float = MIN_SPEED
+) -> dict[str, NDArray[np.float64]]:
     """Per time step ``o``, ``d``, ``v`` and ``fitness = o d v`` (each (T,)); see the module docstring."""
     o = orientation(velocities, min_speed)
     d = cohesion(positions)
@@ -99,8 +101,9 @@ def slot_errors(positions: ArrayLike, slots: ArrayLike) -> NDArray[np.float64]:
     return np.linalg.norm(rel_p - rel_s[None], axis=-1)
 
 
-def formation_fitness(positions: ArrayLike, velocities: ArrayLike, slots: ArrayLike, directions: ArrayLike,
-                      v_max: ArrayLike) -> dict[str, NDArray[np.float64]]:
+def formation_fitness(
+    positions: ArrayLike, velocities: ArrayLike, slots: ArrayLike, directions: ArrayLike, v_max: ArrayLike
+) -> dict[str, NDArray[np.float64]]:
     """Per time step ``error`` (mean slot error, m), ``distance`` = 1 / (1 + error), ``velocity`` and
     ``fitness`` = distance * velocity (each (T,))."""
     err = slot_errors(positions, slots).mean(axis=1)
@@ -109,8 +112,9 @@ def formation_fitness(positions: ArrayLike, velocities: ArrayLike, slots: ArrayL
     return {"error": err, "distance": dist, "velocity": vel, "fitness": dist * vel}
 
 
-def migration_directions(t: ArrayLike, centroids: ArrayLike, route: ArrayLike,
-                         pass_times: list[float | None] | ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def migration_directions(
+    t: ArrayLike, centroids: ArrayLike, route: ArrayLike, pass_times: list[float | None] | ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Migration direction and current waypoint at every sample.
 
     The current waypoint at time t is the first one not yet passed (passed ones have a pass
@@ -146,9 +150,16 @@ def time_average(t: ArrayLike, values: ArrayLike, t_end: float | None = None) ->
     return float(x[keep].mean()) if np.any(keep) else None
 
 
-def route_fitness_series(t: ArrayLike, positions: ArrayLike, velocities: ArrayLike, route: ArrayLike,
-                         pass_times: list[float | None] | ArrayLike, v_axis: ArrayLike,
-                         slots: ArrayLike | None = None, min_speed: float = MIN_SPEED) -> dict[str, Any]:
+def route_fitness_series(
+    t: ArrayLike,
+    positions: ArrayLike,
+    velocities: ArrayLike,
+    route: ArrayLike,
+    pass_times: list[float | None] | ArrayLike,
+    v_axis: ArrayLike,
+    slots: ArrayLike | None = None,
+    min_speed: float = MIN_SPEED,
+) -> dict[str, Any]:
     """Every per-step series of a route run: flocking (o, d, v, fitness) and, with slots, formation.
 
     Args:

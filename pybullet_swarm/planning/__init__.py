@@ -1,4 +1,5 @@
 """Planners (behind one protocol), the pheromone medium, local avoidance and ant colony optimisation."""
+
 from __future__ import annotations
 
 

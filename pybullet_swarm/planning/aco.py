@@ -18,6 +18,7 @@ come from a ``numpy.random.Generator`` drawn in Python, so a seed fixes the whol
 
 Distances are an (n, n) symmetric matrix in any length unit; tour lengths are in that unit.
 """
+
 from __future__ import annotations
 
 import math
@@ -81,27 +82,42 @@ class ACOParams(Params):
     (AS) or 1 / (n L_nn) (ACS), L_nn the nearest-neighbour tour length.
     """
 
-    variant: Variant = Field(Variant.ACS, strict=False, description="pheromone rules: as (Ant System) or acs "
-                                                                    "(Ant Colony System)")
+    variant: Variant = Field(
+        Variant.ACS, strict=False, description="pheromone rules: as (Ant System) or acs (Ant Colony System)"
+    )
     alpha: float = Field(1.0, ge=0.0, le=100.0, description="pheromone exponent A (the schedule's nominal value)")
-    beta: float = Field(2.0, ge=0.0, le=100.0,
-                        description="heuristic exponent B on 1 / distance (the schedule's nominal value)")
-    rho: float = Field(0.1, ge=0.0, le=1.0, description="evaporation fraction per iteration (ACS: also the weight of "
-                                                        "the best-so-far deposit)")
+    beta: float = Field(
+        2.0, ge=0.0, le=100.0, description="heuristic exponent B on 1 / distance (the schedule's nominal value)"
+    )
+    rho: float = Field(
+        0.1,
+        ge=0.0,
+        le=1.0,
+        description="evaporation fraction per iteration (ACS: also the weight of the best-so-far deposit)",
+    )
     ants: int = Field(10, ge=1, le=1000, description="ants per iteration")
     iterations: int = Field(500, ge=1, le=100_000, description="iterations of the colony")
-    q0: float = Field(0.9, ge=0.0, le=1.0,
-                      description="probability of taking the best-looking edge instead of sampling (0: as AS)")
+    q0: float = Field(
+        0.9, ge=0.0, le=1.0, description="probability of taking the best-looking edge instead of sampling (0: as AS)"
+    )
     xi: float = Field(0.1, ge=0.0, le=1.0, description="ACS local update rate (unused by AS)")
-    schedule: Schedule = Field(Schedule.CONSTANT, strict=False,
-                               description="alpha/beta over the iterations: constant, linear or linear-no-factor")
-    local_search: LocalSearch = Field(LocalSearch.TWO_OPT_OR_OPT, strict=False,
-                                      description="improvement of every ant's tour: none, 2opt or 2opt+oropt")
-    candidates: int | None = Field(15, ge=1, le=1000,
-                                   description="nearest-neighbour list ants choose from first (null: every city)")
+    schedule: Schedule = Field(
+        Schedule.CONSTANT,
+        strict=False,
+        description="alpha/beta over the iterations: constant, linear or linear-no-factor",
+    )
+    local_search: LocalSearch = Field(
+        LocalSearch.TWO_OPT_OR_OPT,
+        strict=False,
+        description="improvement of every ant's tour: none, 2opt or 2opt+oropt",
+    )
+    candidates: int | None = Field(
+        15, ge=1, le=1000, description="nearest-neighbour list ants choose from first (null: every city)"
+    )
     ls_neighbours: int = Field(20, ge=1, le=1000, description="nearest-neighbour lists that drive the local search")
-    tau0: float | None = Field(None, gt=0.0, le=1e30, description="initial pheromone (null: from the nearest-"
-                                                                  "neighbour tour)")
+    tau0: float | None = Field(
+        None, gt=0.0, le=1e30, description="initial pheromone (null: from the nearest-neighbour tour)"
+    )
 
 
 @dataclass(frozen=True)
@@ -159,8 +175,9 @@ def nearest_neighbour_lists(dist: ArrayLike, k: int) -> NDArray[np.int64]:
     return np.ascontiguousarray(np.argsort(d, axis=1, kind="stable")[:, :k], dtype=np.int64)
 
 
-def two_opt(dist: ArrayLike, tour: ArrayLike, *, neighbours: int | None = 20,
-            or_opt: bool = False) -> NDArray[np.int64]:
+def two_opt(
+    dist: ArrayLike, tour: ArrayLike, *, neighbours: int | None = 20, or_opt: bool = False
+) -> NDArray[np.int64]:
     """Improve ``tour`` to a 2-opt local optimum (and Or-opt optimum when ``or_opt``).
 
     Moves are searched from each city's nearest neighbours with don't-look bits, so the
@@ -188,8 +205,9 @@ def two_opt(dist: ArrayLike, tour: ArrayLike, *, neighbours: int | None = 20,
     return out
 
 
-def solve_tsp(dist: ArrayLike, params: ACOParams | None = None, *, seed: int | None = None,
-              rng: np.random.Generator | None = None) -> ACOResult:
+def solve_tsp(
+    dist: ArrayLike, params: ACOParams | None = None, *, seed: int | None = None, rng: np.random.Generator | None = None
+) -> ACOResult:
     """Search for a short closed tour through all cities with an ant colony.
 
     Args:
@@ -220,8 +238,7 @@ def solve_tsp(dist: ArrayLike, params: ACOParams | None = None, *, seed: int | N
 class _Colony:
     """State of one run: pheromone, heuristic, neighbour lists and the best tour so far."""
 
-    def __init__(self, dist: NDArray[np.float64], params: ACOParams,
-                 rng: np.random.Generator) -> None:
+    def __init__(self, dist: NDArray[np.float64], params: ACOParams, rng: np.random.Generator) -> None:
         n = dist.shape[0]
         self.dist, self.params, self.rng, self.n = dist, params, rng, n
         self.eps = _tolerance(dist)
@@ -264,12 +281,29 @@ class _Colony:
         starts = self.rng.integers(self.n, size=p.ants)
         draws = self.rng.random((2, p.ants, self.n))
         xi = p.xi if p.variant is Variant.ACS else 0.0
-        return _build_and_improve(self.dist, choice, self.tau, eta_pow, scale, alpha, self.cand,
-                                  self.use_candidates, p.q0, xi, self.tau0, starts, draws[0],
-                                  draws[1], self.ls_nn, self.ls_mode, self.eps)
+        return _build_and_improve(
+            self.dist,
+            choice,
+            self.tau,
+            eta_pow,
+            scale,
+            alpha,
+            self.cand,
+            self.use_candidates,
+            p.q0,
+            xi,
+            self.tau0,
+            starts,
+            draws[0],
+            draws[1],
+            self.ls_nn,
+            self.ls_mode,
+            self.eps,
+        )
 
-    def _update_pheromone(self, tours: NDArray[np.int64], lengths: NDArray[np.float64],
-                          best_tour: NDArray[np.int64], best_len: float) -> None:
+    def _update_pheromone(
+        self, tours: NDArray[np.int64], lengths: NDArray[np.float64], best_tour: NDArray[np.int64], best_len: float
+    ) -> None:
         """Evaporate and deposit: all ants (AS) or the best-so-far tour (ACS)."""
         rho = self.params.rho
         if self.params.variant is Variant.AS:
@@ -305,8 +339,7 @@ def _check_dist(dist: ArrayLike) -> NDArray[np.float64]:
 def _as_tour(tour: ArrayLike, n: int) -> NDArray[np.int64]:
     """Validated (n,) permutation of 0..n-1 as int64."""
     t = np.asarray(tour)
-    if t.shape != (n,) or not np.issubdtype(t.dtype, np.integer) or not np.array_equal(
-            np.sort(t), np.arange(n)):
+    if t.shape != (n,) or not np.issubdtype(t.dtype, np.integer) or not np.array_equal(np.sort(t), np.arange(n)):
         raise ValueError(f"tour: expected a permutation of 0..{n - 1}")
     return t.astype(np.int64)
 
@@ -360,8 +393,9 @@ def _deposit(tau: np.ndarray, tours: np.ndarray, amounts: np.ndarray) -> None:
 
 
 @numba.njit(cache=True)
-def _build_and_improve(dist, choice, tau, eta_pow, scale, alpha, cand, use_cand, q0, xi, tau0,
-                       starts, u_rule, u_pick, ls_nn, ls_mode, eps):  # pragma: no cover - numba
+def _build_and_improve(
+    dist, choice, tau, eta_pow, scale, alpha, cand, use_cand, q0, xi, tau0, starts, u_rule, u_pick, ls_nn, ls_mode, eps
+):  # pragma: no cover - numba
     """Construct one tour per ant, improve it, and return (tours (ants, n), lengths (ants,))."""
     ants = starts.shape[0]
     n = dist.shape[0]
@@ -369,8 +403,23 @@ def _build_and_improve(dist, choice, tau, eta_pow, scale, alpha, cand, use_cand,
     lengths = np.empty(ants)
     for a in range(ants):
         tour = tours[a]
-        _construct(tour, choice, tau, eta_pow, scale, alpha, cand, use_cand, q0, xi, tau0,
-                   starts[a], u_rule[a], u_pick[a], dist)
+        _construct(
+            tour,
+            choice,
+            tau,
+            eta_pow,
+            scale,
+            alpha,
+            cand,
+            use_cand,
+            q0,
+            xi,
+            tau0,
+            starts[a],
+            u_rule[a],
+            u_pick[a],
+            dist,
+        )
         if ls_mode > 0:
             _local_search(dist, tour, ls_nn, ls_mode, eps)
         total = 0.0
@@ -381,8 +430,9 @@ def _build_and_improve(dist, choice, tau, eta_pow, scale, alpha, cand, use_cand,
 
 
 @numba.njit(cache=True)
-def _construct(tour, choice, tau, eta_pow, scale, alpha, cand, use_cand, q0, xi, tau0, start,
-               u_rule, u_pick, dist):  # pragma: no cover - numba
+def _construct(
+    tour, choice, tau, eta_pow, scale, alpha, cand, use_cand, q0, xi, tau0, start, u_rule, u_pick, dist
+):  # pragma: no cover - numba
     """Fill ``tour`` by the (pseudo-)random proportional rule; ACS local update when xi > 0."""
     n = tour.shape[0]
     visited = np.zeros(n, dtype=np.bool_)
@@ -394,8 +444,7 @@ def _construct(tour, choice, tau, eta_pow, scale, alpha, cand, use_cand, q0, xi,
         if use_cand:
             j = _pick(choice[i], cand[i], visited, q0, u_rule[step], u_pick[step])
         if j < 0:  # no candidate lists, or all candidates visited: then take the best city
-            j = _pick_any(choice[i], dist[i], visited, 1.0 if use_cand else q0, u_rule[step],
-                          u_pick[step])
+            j = _pick_any(choice[i], dist[i], visited, 1.0 if use_cand else q0, u_rule[step], u_pick[step])
         tour[step] = j
         visited[j] = True
         if xi > 0.0:

@@ -23,6 +23,7 @@ Safe altitude. Horizontal flight happens at or above ``safe_altitude``: a move w
 end lies lower (take-off from the ground, a low point) first climbs vertically, crosses, then
 descends vertically. These via points are part of the plan, its cost and its published paths.
 """
+
 from __future__ import annotations
 
 import enum
@@ -37,21 +38,21 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.aco import ACOParams, solve_tsp
 from pybullet_swarm.planning.base import Command, TaskInfo, TourPlan, WorldView
 
-VIA = -1    # waypoint tag: a climb/descent point, not an inspection point
-HOME = -2   # waypoint tag: the agent's home point
+VIA = -1  # waypoint tag: a climb/descent point, not an inspection point
+HOME = -2  # waypoint tag: the agent's home point
 
 
 class Metric(enum.Enum):
     """What the colony and the split minimise."""
 
-    TIME = "time"       # rest-to-rest flight time under the per-axis limits, s
-    LENGTH = "length"   # Euclidean length, m
+    TIME = "time"  # rest-to-rest flight time under the per-axis limits, s
+    LENGTH = "length"  # Euclidean length, m
 
 
 class Split(enum.Enum):
     """How the tour is shared among the agents."""
 
-    CONTIGUOUS = "contiguous"   # k contiguous legs of one closed tour
+    CONTIGUOUS = "contiguous"  # k contiguous legs of one closed tour
 
 
 def axis_time(x: NDArray[np.float64], v_max: float, a_max: float) -> NDArray[np.float64]:
@@ -64,7 +65,7 @@ def axis_time(x: NDArray[np.float64], v_max: float, a_max: float) -> NDArray[np.
         return x / v_max
     if not np.isfinite(v_max):
         return 2.0 * np.sqrt(x / a_max)
-    knee = v_max * v_max / a_max   # m, shortest distance that reaches v_max
+    knee = v_max * v_max / a_max  # m, shortest distance that reaches v_max
     return np.where(x >= knee, x / v_max + v_max / a_max, 2.0 * np.sqrt(x / a_max))
 
 
@@ -78,13 +79,14 @@ class CostModel:
         a_max: (3,) m/s^2 per-axis acceleration limit (inf or None: none).
     """
 
-    def __init__(self, metric: Metric, safe_altitude: float, v_max: NDArray[np.float64],
-                 a_max: NDArray[np.float64] | None) -> None:
+    def __init__(
+        self, metric: Metric, safe_altitude: float, v_max: NDArray[np.float64], a_max: NDArray[np.float64] | None
+    ) -> None:
         self.v = np.broadcast_to(np.asarray(v_max, dtype=float), (3,)).copy()
         self.a = np.full(3, np.inf) if a_max is None else np.broadcast_to(np.asarray(a_max, dtype=float), (3,)).copy()
         self.time_defined = bool(np.all(np.isfinite(self.v) | np.isfinite(self.a)))
         if metric is Metric.TIME and not self.time_defined:
-            metric = Metric.LENGTH   # no limits: flight time is not defined by the shaper
+            metric = Metric.LENGTH  # no limits: flight time is not defined by the shaper
         self.metric = metric
         self.h = float(safe_altitude)
 
@@ -96,7 +98,9 @@ class CostModel:
         t = [axis_time(d[..., k], self.v[k], self.a[k]) for k in range(3)]
         return np.maximum(np.maximum(t[0], t[1]), t[2])
 
-    def _raised(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def _raised(
+        self, a: NDArray[np.float64], b: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Via points (..., 3) above a and b: at the safe altitude when a move must climb first."""
         horizontal = np.linalg.norm(b[..., :2] - a[..., :2], axis=-1) > 1e-9
         a2, b2 = a.copy(), b.copy()
@@ -110,7 +114,9 @@ class CostModel:
         a2, b2 = self._raised(a, b)
         return self.segment(a2 - a, metric) + self.segment(b2 - a2, metric) + self.segment(b - b2, metric)
 
-    def matrix(self, p: NDArray[np.float64], q: NDArray[np.float64], metric: Metric | None = None) -> NDArray[np.float64]:
+    def matrix(
+        self, p: NDArray[np.float64], q: NDArray[np.float64], metric: Metric | None = None
+    ) -> NDArray[np.float64]:
         """(len(p), len(q)) costs of moves from each of p (P, 3) to each of q (Q, 3) m."""
         return self.move(p[:, None, :], q[None, :, :], metric)
 
@@ -120,9 +126,9 @@ class CostModel:
         a2, b2 = self._raised(a, b)
         out = []
         if np.linalg.norm(a2 - a) > 1e-9:
-            out.append(a2)   # climb above a
+            out.append(a2)  # climb above a
         if np.linalg.norm(b2 - b) > 1e-9:
-            out.append(b2)   # cross above b, then descend
+            out.append(b2)  # cross above b, then descend
         return [*out, b]
 
 
@@ -137,7 +143,7 @@ def bottleneck_assignment(cost: NDArray[np.float64]) -> tuple[NDArray[np.int64],
     """
     values = np.unique(cost)
     lo, hi = 0, len(values) - 1
-    while lo < hi:   # smallest threshold that still admits a perfect matching
+    while lo < hi:  # smallest threshold that still admits a perfect matching
         mid = (lo + hi) // 2
         over = cost > values[mid]
         r, c = linear_sum_assignment(over)
@@ -157,12 +163,18 @@ def bottleneck_assignment(cost: NDArray[np.float64]) -> tuple[NDArray[np.int64],
 class _LegCosts:
     """Costs of contiguous pieces of a closed tour for each agent (prefix sums on the tour)."""
 
-    def __init__(self, tour: NDArray[np.int64], point_cost: NDArray[np.float64], approach: NDArray[np.float64],
-                 home: NDArray[np.float64], idle: NDArray[np.float64]) -> None:
+    def __init__(
+        self,
+        tour: NDArray[np.int64],
+        point_cost: NDArray[np.float64],
+        approach: NDArray[np.float64],
+        home: NDArray[np.float64],
+        idle: NDArray[np.float64],
+    ) -> None:
         self.W = len(tour)
-        self.tour2 = np.concatenate([tour, tour]).astype(np.int64)     # unrolled twice
+        self.tour2 = np.concatenate([tour, tour]).astype(np.int64)  # unrolled twice
         edges = point_cost[self.tour2[:-1], self.tour2[1:]]
-        self.prefix = np.concatenate([[0.0], np.cumsum(edges)])         # cost from position 0 to t
+        self.prefix = np.concatenate([[0.0], np.cumsum(edges)])  # cost from position 0 to t
         self.approach, self.home, self.idle = approach, home, idle
 
     def matrix(self, cuts: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
@@ -196,15 +208,22 @@ def _equal_cuts(W: int, k: int, start: int, prefix: NDArray[np.float64] | None) 
         sizes = np.full(k, W // k)
         sizes[: W % k] += 1
         return start + np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    seg = prefix[start: start + W] - prefix[start]
+    seg = prefix[start : start + W] - prefix[start]
     goals = seg[-1] * np.arange(1, k) / k
     inner = np.searchsorted(seg, goals, side="left")
     return np.concatenate([[start], start + np.maximum.accumulate(np.clip(inner, 0, W))]).astype(np.int64)
 
 
-def split_tour(tour: NDArray[np.int64], point_cost: NDArray[np.float64], approach: NDArray[np.float64],
-               home: NDArray[np.float64] | None = None, idle: NDArray[np.float64] | None = None,
-               *, restarts: int = 4, max_moves: int = 10_000) -> tuple[list[NDArray[np.int64]], float]:
+def split_tour(
+    tour: NDArray[np.int64],
+    point_cost: NDArray[np.float64],
+    approach: NDArray[np.float64],
+    home: NDArray[np.float64] | None = None,
+    idle: NDArray[np.float64] | None = None,
+    *,
+    restarts: int = 4,
+    max_moves: int = 10_000,
+) -> tuple[list[NDArray[np.int64]], float]:
     """Cut a closed tour into one contiguous leg per agent, balancing the agents' costs.
 
     An agent's cost is its approach from its start to the first point of its leg, the leg itself,
@@ -255,7 +274,7 @@ def split_tour(tour: NDArray[np.int64], point_cost: NDArray[np.float64], approac
                     lows = np.concatenate([[c[-1] - W], c[:-1]])
                     if np.any(c > ends) or np.any(c < lows):
                         continue
-                    c -= W * (c[0] // W)   # keep the first cut in [0, W)
+                    c -= W * (c[0] // W)  # keep the first cut in [0, W)
                     s = score(c)
                     if s[0] < cur[0] - eps or (s[0] <= cur[0] + eps and s[1] < cur[1] - eps):
                         cuts, cur, moved = c, s, True
@@ -269,7 +288,7 @@ def split_tour(tour: NDArray[np.int64], point_cost: NDArray[np.float64], approac
     out = []
     for i in range(k):
         j = cols[i]
-        seq = legs.tour2[best_cuts[j]: ends[j]].copy()
+        seq = legs.tour2[best_cuts[j] : ends[j]].copy()
         out.append(seq[::-1].copy() if backwards[i, j] else seq)
     return out, worst
 
@@ -278,15 +297,21 @@ class AcoTourParams(ACOParams):
     """Parameters of the ``aco_tour`` planner: the tour's cost and split, and the colony's settings
     (those of :class:`~pybullet_swarm.planning.aco.ACOParams`)."""
 
-    metric: Metric = Field(Metric.TIME, strict=False,
-                           description="what the colony and the split minimise: time (rest-to-rest flight time "
-                                       "under the per-axis limits) or length (Euclidean)")
-    split: Split = Field(Split.CONTIGUOUS, strict=False,
-                         description="how agents share the tour: contiguous (one leg of the tour each)")
-    safe_altitude: float = Field(0.3, ge=0.0, le=1e4,
-                                 description="m, horizontal moves happen at or above it (take-off climbs to it first)")
-    via_tolerance: float = Field(0.05, ge=1e-6, le=10.0,
-                                 description="m, distance at which a climb/descent point counts as reached")
+    metric: Metric = Field(
+        Metric.TIME,
+        strict=False,
+        description="what the colony and the split minimise: time (rest-to-rest flight time "
+        "under the per-axis limits) or length (Euclidean)",
+    )
+    split: Split = Field(
+        Split.CONTIGUOUS, strict=False, description="how agents share the tour: contiguous (one leg of the tour each)"
+    )
+    safe_altitude: float = Field(
+        0.3, ge=0.0, le=1e4, description="m, horizontal moves happen at or above it (take-off climbs to it first)"
+    )
+    via_tolerance: float = Field(
+        0.05, ge=1e-6, le=10.0, description="m, distance at which a climb/descent point counts as reached"
+    )
 
 
 class AcoTour:
@@ -314,21 +339,21 @@ class AcoTour:
         if len(pts) == 0:
             raise ConfigError("the aco_tour planner needs points to visit (TaskInfo.route is empty)", field="task")
         self.n = n
-        self.points = pts                                           # (W, 3) m
-        self.radius = float(info.extra.get("visit_radius", 0.1))    # m
-        self.plan: TourPlan | None = None                           # published once the legs are cut
-        self.points_done = np.zeros(len(pts), dtype=bool)           # what the task counts as visited
+        self.points = pts  # (W, 3) m
+        self.radius = float(info.extra.get("visit_radius", 0.1))  # m
+        self.plan: TourPlan | None = None  # published once the legs are cut
+        self.points_done = np.zeros(len(pts), dtype=bool)  # what the task counts as visited
         self.return_home = bool(info.extra.get("return_home", False))
-        self.homes = info.extra.get("homes")                        # (n, 3) m or None
+        self.homes = info.extra.get("homes")  # (n, 3) m or None
         self.costs = CostModel(self.metric, self.safe_altitude, info.v_max, info.extra.get("a_max"))
-        self.point_cost = self.costs.matrix(pts, pts)              # (W, W)
+        self.point_cost = self.costs.matrix(pts, pts)  # (W, W)
         self.result = solve_tsp(self.point_cost, self.aco, rng=rng)
-        self.tour = self.result.tour                                # (W,) closed tour
-        self.starts: NDArray[np.float64] | None = None              # (n, 3) m, positions at the first tick
+        self.tour = self.result.tour  # (W,) closed tour
+        self.starts: NDArray[np.float64] | None = None  # (n, 3) m, positions at the first tick
         self.legs: list[NDArray[np.int64]] | None = None
-        self.route: list[list[tuple[NDArray[np.float64], int]]] = []   # per agent: (position, tag) to fly
+        self.route: list[list[tuple[NDArray[np.float64], int]]] = []  # per agent: (position, tag) to fly
         self.cursor = np.zeros(n, dtype=np.int64)
-        self.done = np.zeros(len(pts), dtype=bool)                  # points this planner saw reached
+        self.done = np.zeros(len(pts), dtype=bool)  # points this planner saw reached
         self.planned_makespan: float | None = None
 
     # ---------------------------------------------------------------- planning
@@ -340,23 +365,25 @@ class AcoTour:
         homes = None
         if self.return_home:
             homes = np.asarray(self.homes if self.homes is not None else starts, dtype=float).reshape(self.n, 3)
-            home = self.costs.matrix(homes, self.points)              # symmetric: point -> home
+            home = self.costs.matrix(homes, self.points)  # symmetric: point -> home
             idle = self.costs.move(starts, homes)
         self.legs, _ = split_tour(self.tour, self.point_cost, approach, home, idle)
         self.route = [self._route(starts[i], self.legs[i], None if homes is None else homes[i]) for i in range(self.n)]
         paths = [np.vstack([starts[i], *[p for p, _ in self.route[i]]]) for i in range(self.n)]
         if self.costs.time_defined:
-            self.planned_makespan = max(float(self.costs.segment(np.diff(p, axis=0), Metric.TIME).sum())
-                                        for p in paths)
-        self.plan = TourPlan(np.asarray(self.tour, dtype=np.int64).reshape(-1),
-                             tuple(np.asarray(leg, dtype=np.int64).reshape(-1) for leg in self.legs),
-                             tuple(np.asarray(p, dtype=float).reshape(-1, 3) for p in paths),
-                             None if self.planned_makespan is None else float(self.planned_makespan),
-                             self.costs.metric.value)
+            self.planned_makespan = max(float(self.costs.segment(np.diff(p, axis=0), Metric.TIME).sum()) for p in paths)
+        self.plan = TourPlan(
+            np.asarray(self.tour, dtype=np.int64).reshape(-1),
+            tuple(np.asarray(leg, dtype=np.int64).reshape(-1) for leg in self.legs),
+            tuple(np.asarray(p, dtype=float).reshape(-1, 3) for p in paths),
+            None if self.planned_makespan is None else float(self.planned_makespan),
+            self.costs.metric.value,
+        )
         return self.legs
 
-    def _route(self, start: NDArray[np.float64], leg: NDArray[np.int64],
-               home: NDArray[np.float64] | None) -> list[tuple[NDArray[np.float64], int]]:
+    def _route(
+        self, start: NDArray[np.float64], leg: NDArray[np.int64], home: NDArray[np.float64] | None
+    ) -> list[tuple[NDArray[np.float64], int]]:
         """Positions to fly through (3,) m with their tags: point index, VIA or HOME."""
         out: list[tuple[NDArray[np.float64], int]] = []
         here = start
@@ -372,7 +399,7 @@ class AcoTour:
     # ------------------------------------------------------------------ flying
     def _reached(self, tag: int, target: NDArray[np.float64], p: NDArray[np.float64]) -> bool:
         if tag == HOME:
-            return False   # hold it; the task judges completion
+            return False  # hold it; the task judges completion
         if tag == VIA:
             return bool(np.linalg.norm(p - target) <= self.via_tolerance)
         counted = bool(self.points_done[tag])
@@ -397,7 +424,6 @@ class AcoTour:
             self.plan_legs(self.starts)
         return [self._command(i, view.positions[i], self.starts[i]) for i in range(self.n)]
 
-
     def artefacts(self) -> dict[str, Any]:
         """The published plan (``tour_plan``: legs, paths, planned time), once the legs are cut."""
         return {} if self.plan is None else {"tour_plan": self.plan}
@@ -405,5 +431,10 @@ class AcoTour:
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402
 
-register_planner("aco_tour", AcoTour, "centralised: ant colony orders the tour points, k agents fly contiguous "
-                 "legs of it", ("tour",), default_for=("tour",))
+register_planner(
+    "aco_tour",
+    AcoTour,
+    "centralised: ant colony orders the tour points, k agents fly contiguous legs of it",
+    ("tour",),
+    default_for=("tour",),
+)

@@ -5,6 +5,7 @@ sensing radius, task objects within its view radius, elapsed time) and the share
 medium, nothing else. A centralised planner (a baseline) declares ``centralized = True`` and
 receives a ``WorldView`` with everything; the type it receives is what enforces the difference.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -28,9 +29,9 @@ class Action(enum.IntEnum):
 class CommandKind(enum.IntEnum):
     """How a command's vector is meant."""
 
-    POSITION = 0   # fly to this position, m
-    VELOCITY = 1   # fly with this velocity, m/s
-    HOLD = 2       # keep the current reference
+    POSITION = 0  # fly to this position, m
+    VELOCITY = 1  # fly with this velocity, m/s
+    HOLD = 2  # keep the current reference
 
 
 def view_distance(rel: NDArray[np.float64], norm: str) -> NDArray[np.float64]:
@@ -237,8 +238,17 @@ class WorldView:
     @staticmethod
     def of(perception: Perception, task: TaskView) -> WorldView:
         """The view of a centralised planner from the swarm's ``Perception`` and the task's view."""
-        return WorldView(task.time_s, perception.positions, perception.velocities, task.carrying, task.objects,
-                         task.object_state, task.slot_filled, task.slot_open, task)
+        return WorldView(
+            task.time_s,
+            perception.positions,
+            perception.velocities,
+            task.carrying,
+            task.objects,
+            task.object_state,
+            task.slot_filled,
+            task.slot_open,
+            task,
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -332,7 +342,7 @@ class Planner(Protocol):
     """A decentralised planner: one instance per agent, local information only."""
 
     name: ClassVar[str]
-    centralized: ClassVar[bool]   # False
+    centralized: ClassVar[bool]  # False
 
     def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Start a run as agent ``agent_id`` with its own random generator."""
@@ -346,7 +356,7 @@ class CentralPlanner(Protocol):
     """A centralised planner (a baseline): one instance for the swarm, full information."""
 
     name: ClassVar[str]
-    centralized: ClassVar[bool]   # True
+    centralized: ClassVar[bool]  # True
 
     def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Start a run for ``n`` agents."""

@@ -59,6 +59,7 @@ the rule also
 Velocities are scaled down, direction kept, to the per-axis limits. An agent the layer does not
 take over keeps its planner's command untouched.
 """
+
 from __future__ import annotations
 
 import math
@@ -105,8 +106,6 @@ def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
-
-
 class BraitenbergParams(Params):
     """Parameters of the braitenberg layer (scenario ``avoidance_params``).
 
@@ -115,49 +114,74 @@ class BraitenbergParams(Params):
     """
 
     weight_lateral: float = Field(3.0, ge=0.0, le=100.0, description="sideways push per unit of summed activation")
-    weight_forward: float = Field(2.0, ge=0.0, le=100.0,
-                                  description="braking (ahead) or pushing (behind) per unit of summed activation")
+    weight_forward: float = Field(
+        2.0, ge=0.0, le=100.0, description="braking (ahead) or pushing (behind) per unit of summed activation"
+    )
     on_threshold: float = Field(0.3, ge=0.0, le=1.0, description="activation above which the layer takes over")
-    off_threshold: float = Field(0.15, ge=0.0, le=1.0,
-                                 description="the layer hands back when every watched activation is below this "
-                                             "(<= on_threshold)")
-    watch_deg: float = Field(100.0, ge=0.0, le=180.0,
-                             description="deg, rays within this bearing of the heading are watched for the thresholds")
-    front_deg: float = Field(50.0, ge=0.0, le=180.0,
-                             description="deg, the cone in which a symmetric obstacle is looked for")
-    symmetry_threshold: float = Field(0.3, ge=0.0, le=1.0,
-                                      description="front activation above which a symmetric reading is corrected")
-    symmetry_ratio: float = Field(0.25, ge=0.0, le=10.0,
-                                  description="a lateral sum below this fraction of the front activation is symmetric")
-    symmetry_step: float = Field(0.25, ge=0.0, le=10.0, description="growth of the symmetry correction per planner tick")
+    off_threshold: float = Field(
+        0.15,
+        ge=0.0,
+        le=1.0,
+        description="the layer hands back when every watched activation is below this (<= on_threshold)",
+    )
+    watch_deg: float = Field(
+        100.0,
+        ge=0.0,
+        le=180.0,
+        description="deg, rays within this bearing of the heading are watched for the thresholds",
+    )
+    front_deg: float = Field(
+        50.0, ge=0.0, le=180.0, description="deg, the cone in which a symmetric obstacle is looked for"
+    )
+    symmetry_threshold: float = Field(
+        0.3, ge=0.0, le=1.0, description="front activation above which a symmetric reading is corrected"
+    )
+    symmetry_ratio: float = Field(
+        0.25, ge=0.0, le=10.0, description="a lateral sum below this fraction of the front activation is symmetric"
+    )
+    symmetry_step: float = Field(
+        0.25, ge=0.0, le=10.0, description="growth of the symmetry correction per planner tick"
+    )
     symmetry_max: float = Field(1.0, ge=0.0, le=10.0, description="cap of the symmetry correction")
     max_reverse: float = Field(0.3, ge=0.0, le=10.0, description="fastest backing away along the heading")
-    arrive_time: float = Field(0.5, gt=0.0, le=60.0,
-                               description="s, a POSITION command's preferred velocity is (target - p) / arrive_time")
-    reaction_time: float = Field(0.3, ge=0.0, le=10.0,
-                                 description="s, readings are shortened by the distance flown in this time at the "
-                                             "closing speed and the braking distance (0: raw readings)")
+    arrive_time: float = Field(
+        0.5, gt=0.0, le=60.0, description="s, a POSITION command's preferred velocity is (target - p) / arrive_time"
+    )
+    reaction_time: float = Field(
+        0.3,
+        ge=0.0,
+        le=10.0,
+        description="s, readings are shortened by the distance flown in this time at the "
+        "closing speed and the braking distance (0: raw readings)",
+    )
     memory_s: float = Field(2.0, ge=0.0, le=60.0, description="s, an obstacle echo is remembered this long (0: none)")
-    clear_width: float = Field(0.02, ge=0.0, le=1.0,
-                               description="m, a remembered point is dropped when a ray passes freely this close")
-    neighbour_margin: float = Field(0.05, ge=0.0, le=1.0,
-                                    description="m, an echo this close to a sensed neighbour's airframe is that "
-                                                "neighbour")
-    neighbour_range_m: float = Field(0.2, ge=0.0, le=100.0,
-                                     description="m, range over which a neighbour's echo weighs (0: ignored)")
+    clear_width: float = Field(
+        0.02, ge=0.0, le=1.0, description="m, a remembered point is dropped when a ray passes freely this close"
+    )
+    neighbour_margin: float = Field(
+        0.05, ge=0.0, le=1.0, description="m, an echo this close to a sensed neighbour's airframe is that neighbour"
+    )
+    neighbour_range_m: float = Field(
+        0.2, ge=0.0, le=100.0, description="m, range over which a neighbour's echo weighs (0: ignored)"
+    )
 
     @pydantic.model_validator(mode="after")
     def _hysteresis(self) -> BraitenbergParams:
         if self.off_threshold > self.on_threshold:
-            raise ParamRuleError("off_threshold", f"must be <= on_threshold ({self.on_threshold:g}), "
-                                                  f"got {self.off_threshold:g}")
+            raise ParamRuleError(
+                "off_threshold", f"must be <= on_threshold ({self.on_threshold:g}), got {self.off_threshold:g}"
+            )
         return self
 
     def check_for(self, context: PlanContext) -> None:
         """Refuse a memory of echoes larger than the memory budget."""
         ticks = math.ceil(self.memory_s * context.planner_hz - 1e-9)
-        check_memory("memory_s", 17.0 * context.n_agents * ticks * context.range_rays, context.memory_budget,
-                     f"a memory of {ticks} ticks of {context.range_rays} echoes for {context.n_agents} agents")
+        check_memory(
+            "memory_s",
+            17.0 * context.n_agents * ticks * context.range_rays,
+            context.memory_budget,
+            f"a memory of {ticks} ticks of {context.range_rays} echoes for {context.n_agents} agents",
+        )
 
 
 class Braitenberg:
@@ -175,9 +199,18 @@ class Braitenberg:
         dt: s, planner period (ticks of the memory).
     """
 
-    def __init__(self, params: BraitenbergParams, angles: NDArray[np.float64], range_m: float,
-                 v_max: NDArray[np.float64] | None, n: int, *, offset: float = 0.0, decel: float = 1.0,
-                 dt: float = 0.1) -> None:
+    def __init__(
+        self,
+        params: BraitenbergParams,
+        angles: NDArray[np.float64],
+        range_m: float,
+        v_max: NDArray[np.float64] | None,
+        n: int,
+        *,
+        offset: float = 0.0,
+        decel: float = 1.0,
+        dt: float = 0.1,
+    ) -> None:
         self.params = params
         self.angles = np.asarray(angles, dtype=float).reshape(-1)
         self.range_m = float(range_m)
@@ -186,19 +219,26 @@ class Braitenberg:
         self.n = int(n)
         self.offset = float(offset)
         self.decel = float(decel)
-        self.heading = np.zeros(self.n)               # rad, last heading of each agent
-        self.active = np.zeros(self.n, dtype=bool)    # taking over from the planner
-        self.correction = np.zeros(self.n)            # units of the limit, push to the right
+        self.heading = np.zeros(self.n)  # rad, last heading of each agent
+        self.active = np.zeros(self.n, dtype=bool)  # taking over from the planner
+        self.correction = np.zeros(self.n)  # units of the limit, push to the right
         r = self.angles.size
         self.memory_ticks = int(math.ceil(params.memory_s / dt - 1e-9)) if params.memory_s > 0 else 0
-        self.memory = np.zeros((self.n, self.memory_ticks * r, 2))                 # (n, M, 2) m, world xy
-        self.remembered = np.zeros((self.n, self.memory_ticks * r), dtype=bool)    # (n, M)
+        self.memory = np.zeros((self.n, self.memory_ticks * r, 2))  # (n, M, 2) m, world xy
+        self.remembered = np.zeros((self.n, self.memory_ticks * r), dtype=bool)  # (n, M)
         self._tick = 0
 
-    def step(self, ranges: NDArray[np.float64], yaws: NDArray[np.float64], velocities: NDArray[np.float64],
-             preferred: NDArray[np.float64], *, positions: NDArray[np.float64] | None = None,
-             neighbour_positions: NDArray[np.float64] | None = None,
-             neighbour_velocities: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    def step(
+        self,
+        ranges: NDArray[np.float64],
+        yaws: NDArray[np.float64],
+        velocities: NDArray[np.float64],
+        preferred: NDArray[np.float64],
+        *,
+        positions: NDArray[np.float64] | None = None,
+        neighbour_positions: NDArray[np.float64] | None = None,
+        neighbour_velocities: NDArray[np.float64] | None = None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """One planner tick for every agent.
 
         Args:
@@ -217,14 +257,23 @@ class Braitenberg:
         pref = np.asarray(preferred, dtype=float)
         vel = np.asarray(velocities, dtype=float)
         yaws = np.asarray(yaws, dtype=float).reshape(self.n)
-        a, bearing, closing = self._activations(np.asarray(ranges, dtype=float).reshape(self.n, -1), yaws, vel,
-                                                positions, neighbour_positions, neighbour_velocities)
+        a, bearing, closing = self._activations(
+            np.asarray(ranges, dtype=float).reshape(self.n, -1),
+            yaws,
+            vel,
+            positions,
+            neighbour_positions,
+            neighbour_velocities,
+        )
         sp = np.hypot(pref[:, 0], pref[:, 1])
         sv = np.hypot(vel[:, 0], vel[:, 1])
-        self.heading = np.where(sp > 1e-3, np.arctan2(pref[:, 1], pref[:, 0]),
-                                np.where(sv > 0.05, np.arctan2(vel[:, 1], vel[:, 0]), self.heading))
+        self.heading = np.where(
+            sp > 1e-3,
+            np.arctan2(pref[:, 1], pref[:, 0]),
+            np.where(sv > 0.05, np.arctan2(vel[:, 1], vel[:, 0]), self.heading),
+        )
         phi = _wrap(bearing - self.heading[:, None])
-        lat = np.sum(a * lateral_weight(phi), axis=1)                                       # (n,)
+        lat = np.sum(a * lateral_weight(phi), axis=1)  # (n,)
         lon = np.sum(a * forward_weight(phi), axis=1)
         # an echo the agent is closing on is watched wherever it is: pushed sideways, or still drifting
         # against its heading, an agent must not be handed back while it flies into something behind
@@ -233,13 +282,14 @@ class Braitenberg:
         self.active = np.where(watched > p.on_threshold, True, np.where(watched < p.off_threshold, False, self.active))
         front = np.where(np.abs(phi) <= math.radians(p.front_deg), a, 0.0).max(axis=1, initial=0.0)
         symmetric = (front > p.symmetry_threshold) & (np.abs(lat) < p.symmetry_ratio * front)
-        self.correction = np.where(symmetric, np.minimum(self.correction + p.symmetry_step, p.symmetry_max),
-                                   0.5 * self.correction)
+        self.correction = np.where(
+            symmetric, np.minimum(self.correction + p.symmetry_step, p.symmetry_max), 0.5 * self.correction
+        )
         h = np.column_stack([np.cos(self.heading), np.sin(self.heading), np.zeros(self.n)])
         left = np.column_stack([-np.sin(self.heading), np.cos(self.heading), np.zeros(self.n)])
         side = self.v_h * (p.weight_lateral * lat - self.correction)
         along = np.sum(pref * h, axis=1)
-        floor = np.minimum(0.0, -p.max_reverse * self.v_h - along)   # braking may not throw it backwards
+        floor = np.minimum(0.0, -p.max_reverse * self.v_h - along)  # braking may not throw it backwards
         ahead = np.maximum(self.v_h * p.weight_forward * lon, floor)
         out = pref + ahead[:, None] * h + side[:, None] * left
         if self.v_max is not None:
@@ -248,22 +298,27 @@ class Braitenberg:
             out *= ratio[:, None]
         return out, self.active.copy()
 
-    def _activations(self, ranges: NDArray[np.float64], yaws: NDArray[np.float64], vel: NDArray[np.float64],
-                     positions: NDArray[np.float64] | None, nb_pos: NDArray[np.float64] | None,
-                     nb_vel: NDArray[np.float64] | None) -> tuple[NDArray[np.float64], NDArray[np.float64],
-                                                                 NDArray[np.float64]]:
+    def _activations(
+        self,
+        ranges: NDArray[np.float64],
+        yaws: NDArray[np.float64],
+        vel: NDArray[np.float64],
+        positions: NDArray[np.float64] | None,
+        nb_pos: NDArray[np.float64] | None,
+        nb_vel: NDArray[np.float64] | None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Activation (n, r) of each ray's sector, the world bearing (n, r) rad it comes from and the
         speed (n, r) m/s at which the agent closes on it."""
         n, r = ranges.shape
-        world = yaws[:, None] + self.angles[None, :]                                       # (n, r) rad
-        dirs = np.stack([np.cos(world), np.sin(world)], axis=2)                            # (n, r, 2)
+        world = yaws[:, None] + self.angles[None, :]  # (n, r) rad
+        dirs = np.stack([np.cos(world), np.sin(world)], axis=2)  # (n, r, 2)
         hit = ranges < self.range_m - 1e-9
-        closing = np.sum(vel[:, None, :2] * dirs, axis=2)                                  # (n, r) m/s
-        scale = np.full((n, r), self.range_m)                                              # m, range the echo weighs over
+        closing = np.sum(vel[:, None, :2] * dirs, axis=2)  # (n, r) m/s
+        scale = np.full((n, r), self.range_m)  # m, range the echo weighs over
         if positions is None:
             return self._activation(ranges, closing, scale, hit), world, closing
         pos = np.asarray(positions, dtype=float).reshape(n, 3)[:, :2]
-        points = pos[:, None, :] + (self.offset + ranges)[:, :, None] * dirs               # (n, r, 2) m
+        points = pos[:, None, :] + (self.offset + ranges)[:, :, None] * dirs  # (n, r, 2) m
         mate, mate_vel = self._explaining_neighbour(points, hit, nb_pos, nb_vel)
         closing = np.where(mate, np.sum((vel[:, None, :2] - mate_vel) * dirs, axis=2), closing)
         scale = np.where(mate, self.params.neighbour_range_m, scale)
@@ -281,7 +336,7 @@ class Braitenberg:
         if len(a_all) == 1:
             return a_all[0], world, closing
         a, b, c, sec = (np.concatenate(x, axis=1) for x in (a_all, b_all, c_all, s_all))
-        cand = np.where(sec[:, None, :] == np.arange(r)[None, :, None], a[:, None, :], -1.0)   # (n, r, P)
+        cand = np.where(sec[:, None, :] == np.arange(r)[None, :, None], a[:, None, :], -1.0)  # (n, r, P)
         k = np.argmax(cand, axis=2)
         best = np.take_along_axis(cand, k[..., None], axis=2)[..., 0]
         pick = lambda x: np.take_along_axis(np.broadcast_to(x[:, None, :], cand.shape), k[..., None], axis=2)[..., 0]  # noqa: E731
@@ -292,15 +347,23 @@ class Braitenberg:
         body = _wrap(bearing - yaws[:, None])
         return np.argmin(np.abs(_wrap(body[:, :, None] - self.angles[None, None, :])), axis=2)
 
-    def _neighbours(self, pos: NDArray[np.float64], yaws: NDArray[np.float64], vel: NDArray[np.float64],
-                    nb_pos: NDArray[np.float64], nb_vel: NDArray[np.float64] | None
-                    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    def _neighbours(
+        self,
+        pos: NDArray[np.float64],
+        yaws: NDArray[np.float64],
+        vel: NDArray[np.float64],
+        nb_pos: NDArray[np.float64],
+        nb_vel: NDArray[np.float64] | None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
         """Activation (n, k), world bearing (n, k) rad, closing speed (n, k) m/s and nearest ray (n, k) of
         each sensed neighbour's airframe (radius: the rays' offset), as an echo that cannot slip between rays."""
         n = pos.shape[0]
         q = np.asarray(nb_pos, dtype=float).reshape(n, -1, 3)[:, :, :2]
-        qv = (np.zeros_like(q) if nb_vel is None
-              else np.nan_to_num(np.asarray(nb_vel, dtype=float).reshape(n, -1, 3)[:, :, :2]))
+        qv = (
+            np.zeros_like(q)
+            if nb_vel is None
+            else np.nan_to_num(np.asarray(nb_vel, dtype=float).reshape(n, -1, 3)[:, :, :2])
+        )
         known = ~np.isnan(q[:, :, 0])
         rel = np.nan_to_num(q - pos[:, None, :], nan=1e9)
         dist = np.linalg.norm(rel, axis=2)
@@ -311,43 +374,51 @@ class Braitenberg:
         bearing = np.arctan2(rel[:, :, 1], rel[:, :, 0])
         return self._activation(free, closing, scale, known), bearing, closing, self._sector(bearing, yaws)
 
-    def _activation(self, free: NDArray[np.float64], closing: NDArray[np.float64], scale: NDArray[np.float64],
-                    hit: NDArray[np.bool_]) -> NDArray[np.float64]:
+    def _activation(
+        self,
+        free: NDArray[np.float64],
+        closing: NDArray[np.float64],
+        scale: NDArray[np.float64],
+        hit: NDArray[np.bool_],
+    ) -> NDArray[np.float64]:
         """Activation (...) of echoes at free distance (...) m closing at (...) m/s, weighing over scale (...) m."""
         left = free - stopping_distance(closing, self.params.reaction_time, self.decel)
         with np.errstate(divide="ignore", invalid="ignore"):
             a = np.where(scale > 0.0, 1.0 - left / scale, 0.0)
         return np.where(hit, np.clip(a, 0.0, 1.0), 0.0)
 
-    def _explaining_neighbour(self, points: NDArray[np.float64], hit: NDArray[np.bool_],
-                              nb_pos: NDArray[np.float64] | None,
-                              nb_vel: NDArray[np.float64] | None) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+    def _explaining_neighbour(
+        self,
+        points: NDArray[np.float64],
+        hit: NDArray[np.bool_],
+        nb_pos: NDArray[np.float64] | None,
+        nb_vel: NDArray[np.float64] | None,
+    ) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
         """Which echoes (n, r) a sensed neighbour explains, and that neighbour's velocity (n, r, 2) m/s."""
         n, r = hit.shape
         if nb_pos is None or np.asarray(nb_pos).size == 0:
             return np.zeros((n, r), dtype=bool), np.zeros((n, r, 2))
-        q = np.asarray(nb_pos, dtype=float).reshape(n, -1, 3)[:, :, :2]                  # (n, k, 2)
-        qv = (np.zeros_like(q) if nb_vel is None
-              else np.asarray(nb_vel, dtype=float).reshape(n, -1, 3)[:, :, :2])
-        d = np.linalg.norm(points[:, :, None, :] - q[:, None, :, :], axis=3)               # (n, r, k) m
+        q = np.asarray(nb_pos, dtype=float).reshape(n, -1, 3)[:, :, :2]  # (n, k, 2)
+        qv = np.zeros_like(q) if nb_vel is None else np.asarray(nb_vel, dtype=float).reshape(n, -1, 3)[:, :, :2]
+        d = np.linalg.norm(points[:, :, None, :] - q[:, None, :, :], axis=3)  # (n, r, k) m
         d = np.where(np.isnan(d), np.inf, d)
         j = np.argmin(d, axis=2)
         near = np.take_along_axis(d, j[..., None], axis=2)[..., 0] <= self.offset + self.params.neighbour_margin
-        mv = np.take_along_axis(qv, j[..., None], axis=1)                                   # (n, r, 2)
+        mv = np.take_along_axis(qv, j[..., None], axis=1)  # (n, r, 2)
         return hit & near, np.nan_to_num(mv)
 
     def _forget_crossed(self, pos: NDArray[np.float64], dirs: NDArray[np.float64], ranges: NDArray[np.float64]) -> None:
         """Drop remembered points a ray now passes freely through (it saw beyond them)."""
-        rel = self.memory - pos[:, None, :]                                                # (n, M, 2)
-        along = np.einsum("nmi,nri->nmr", rel, dirs) - self.offset                          # (n, M, r) m
+        rel = self.memory - pos[:, None, :]  # (n, M, 2)
+        along = np.einsum("nmi,nri->nmr", rel, dirs) - self.offset  # (n, M, r) m
         across = np.abs(rel[:, :, None, 0] * dirs[:, None, :, 1] - rel[:, :, None, 1] * dirs[:, None, :, 0])
         margin = 2.0 * self.params.clear_width
         crossed = (across < self.params.clear_width) & (along >= 0.0) & (along < ranges[:, None, :] - margin)
         self.remembered &= ~np.any(crossed, axis=2)
 
-    def _remembered(self, pos: NDArray[np.float64], yaws: NDArray[np.float64],
-                    vel: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
-                                                       NDArray[np.int64]]:
+    def _remembered(
+        self, pos: NDArray[np.float64], yaws: NDArray[np.float64], vel: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
         """Activation (n, M), world bearing (n, M) rad, closing speed (n, M) m/s and nearest ray (n, M)
         of the remembered points."""
         rel = self.memory - pos[:, None, :]
@@ -391,8 +462,16 @@ class BraitenbergLayer:
             raise ValueError("the braitenberg layer needs range sensors (sensing.range)")
         self.v_max = setup.v_max
         acc = setup.a_max
-        self.rule = Braitenberg(self.params, setup.range_angles, setup.range_m, self.v_max, setup.n,
-                                offset=setup.range_offset, decel=float(min(acc[0], acc[1])), dt=setup.planner_dt)
+        self.rule = Braitenberg(
+            self.params,
+            setup.range_angles,
+            setup.range_m,
+            self.v_max,
+            setup.n,
+            offset=setup.range_offset,
+            decel=float(min(acc[0], acc[1])),
+            dt=setup.planner_dt,
+        )
         self.n = setup.n
         self._ticks = 0
         self._active_ticks = 0
@@ -414,18 +493,21 @@ class BraitenbergLayer:
         kinds = np.fromiter((int(c.kind) for c in commands), dtype=np.int64, count=n)
         vectors = np.array([c.vector for c in commands], dtype=float).reshape(n, 3)
         pref = preferred_velocities(kinds, vectors, pos, arrive_time=self.params.arrive_time, v_max=None)
-        if self.v_max is not None:   # scaled, not clipped per axis: the heading is where the planner points
+        if self.v_max is not None:  # scaled, not clipped per axis: the heading is where the planner points
             with np.errstate(divide="ignore", invalid="ignore"):
                 ratio = np.where(np.abs(pref) > self.v_max, self.v_max / np.abs(pref), 1.0).min(axis=1)
             pref *= ratio[:, None]
         before = self.rule.active.copy()
-        v, active = self.rule.step(ranges, yaws, vel, pref, positions=pos, neighbour_positions=nb_pos,
-                                   neighbour_velocities=nb_vel)
+        v, active = self.rule.step(
+            ranges, yaws, vel, pref, positions=pos, neighbour_positions=nb_pos, neighbour_velocities=nb_vel
+        )
         self._ticks += 1
         self._active_ticks += int(np.count_nonzero(active))
         self._switches += int(np.count_nonzero(active != before))
-        return [Command(CommandKind.VELOCITY, v[i].copy(), c.yaw, c.action) if active[i] else c
-                for i, c in enumerate(commands)]
+        return [
+            Command(CommandKind.VELOCITY, v[i].copy(), c.yaw, c.action) if active[i] else c
+            for i, c in enumerate(commands)
+        ]
 
     def metrics(self) -> dict[str, Any]:
         """Counters of the run (merged into metrics.json)."""
@@ -437,5 +519,9 @@ class BraitenbergLayer:
 
 from pybullet_swarm.planning.registry import register_avoidance  # noqa: E402
 
-register_avoidance("braitenberg", BraitenbergLayer, "Braitenberg avoidance on each agent's own range sensors "
-                   "(weighted readings onto the velocity, threshold with hysteresis, symmetry correction)")
+register_avoidance(
+    "braitenberg",
+    BraitenbergLayer,
+    "Braitenberg avoidance on each agent's own range sensors "
+    "(weighted readings onto the velocity, threshold with hysteresis, symmetry correction)",
+)

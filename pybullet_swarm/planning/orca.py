@@ -98,6 +98,7 @@ Design decisions (numbers are ``OrcaParams`` defaults):
 Public pieces: ``orca_plane`` (one half-space), ``solve_velocity`` (one LP), ``orca_velocities``
 (all agents, plain arrays), ``OrcaLayer`` (the ``--avoidance orca`` layer).
 """
+
 from __future__ import annotations
 
 import enum
@@ -116,26 +117,26 @@ from pybullet_swarm.planning.params import Params
 from pybullet_swarm.types import Perception
 
 #: flags returned per agent by ``orca_velocities``
-FLAG_INFEASIBLE = 1   # the ORCA planes had no common velocity: least-violating velocity used
-FLAG_BIASED = 2       # stalled by a neighbour ahead: the sideways bias was applied
-FLAG_FREE = 4         # the commanded velocity satisfies every plane: nothing was changed
-FLAG_CLIMB = 8        # took a pair's whole share of a vertical way out (climbing over, see below)
+FLAG_INFEASIBLE = 1  # the ORCA planes had no common velocity: least-violating velocity used
+FLAG_BIASED = 2  # stalled by a neighbour ahead: the sideways bias was applied
+FLAG_FREE = 4  # the commanded velocity satisfies every plane: nothing was changed
+FLAG_CLIMB = 8  # took a pair's whole share of a vertical way out (climbing over, see below)
 
-_EPS = 1e-14          # squared length below which two unit normals count as parallel
-_TOL = 1e-12          # m/s, a velocity this far outside a plane still satisfies it
+_EPS = 1e-14  # squared length below which two unit normals count as parallel
+_TOL = 1e-12  # m/s, a velocity this far outside a plane still satisfies it
 
 # indices of the scalar settings passed to the kernels in one array
 _C_MARGIN, _C_LAG, _C_INV_TAU, _C_INV_REC, _C_RESP, _C_WZ, _C_MAX_SPEED, _C_TAU, _C_BIAS, _C_STUCK, _C_CLIMB = range(11)
 
 _VERTICAL_COS2 = 0.5  # squared cosine: a direction (a way out, a descent) within 45 deg of vertical counts as vertical
-_LEVEL = 0.02         # m/s, an agent climbing or sinking slower than this is in level flight
+_LEVEL = 0.02  # m/s, an agent climbing or sinking slower than this is in level flight
 
 
 class Shape(enum.Enum):
     """How agents are modelled for avoidance."""
 
-    BOX = "box"         # attitude-aware bounding boxes of airframe and load (exact VO of boxes)
-    SPHERE = "sphere"   # enclosing spheres (the classic ORCA model)
+    BOX = "box"  # attitude-aware bounding boxes of airframe and load (exact VO of boxes)
+    SPHERE = "sphere"  # enclosing spheres (the classic ORCA model)
 
 
 # ----------------------------------------------------------------------------- vector helpers
@@ -198,8 +199,9 @@ def _right_of(d: tuple[float, float, float]) -> tuple[float, float, float]:
 
 # ----------------------------------------------------------------------------- velocity obstacles
 @numba.njit(cache=True)
-def _sphere_u(p: tuple[float, float, float], v: tuple[float, float, float], R: float, inv_tau: float,
-              inv_rec: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+def _sphere_u(
+    p: tuple[float, float, float], v: tuple[float, float, float], R: float, inv_tau: float, inv_rec: float
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Outward normal n and change u of relative velocity ``v`` for two spheres (combined radius R m).
 
     ``p`` m is the second agent's position relative to the first, ``v`` m/s the first's velocity
@@ -208,7 +210,7 @@ def _sphere_u(p: tuple[float, float, float], v: tuple[float, float, float], R: f
     d2 = _dot(p, p)
     R2 = R * R
     if d2 > R2:
-        w = _add(v, p, -inv_tau)          # from the centre of the cut-off sphere to v
+        w = _add(v, p, -inv_tau)  # from the centre of the cut-off sphere to v
         w2 = _dot(w, w)
         wp = _dot(w, p)
         if wp < 0.0 and wp * wp > R2 * w2:
@@ -228,7 +230,7 @@ def _sphere_u(p: tuple[float, float, float], v: tuple[float, float, float], R: f
         vv = math.sqrt(_dot(v, v))
         if crn > 1e-12 * d * vv and crn > 1e-300:
             e = _scale(_add(v, p, -b / d2), d / crn)
-        else:                                          # v on the line of centres: keep right
+        else:  # v on the line of centres: keep right
             e = _right_of(ph)
         n = _add(_scale(ph, -R / d), e, leg / d)
         return n, _scale(n, (R * b - leg * crn) / d2)
@@ -245,8 +247,14 @@ def _sphere_u(p: tuple[float, float, float], v: tuple[float, float, float], R: f
 
 
 @numba.njit(cache=True)
-def _box_u(c: tuple[float, float, float], H: tuple[float, float, float], v: tuple[float, float, float],
-           inv_tau: float, inv_rec: float, wz: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+def _box_u(
+    c: tuple[float, float, float],
+    H: tuple[float, float, float],
+    v: tuple[float, float, float],
+    inv_tau: float,
+    inv_rec: float,
+    wz: float,
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Outward normal n and change u of relative velocity ``v`` for two axis-aligned boxes.
 
     ``c`` m is the centre of the second box relative to the first, ``H`` m the half extents of
@@ -283,17 +291,17 @@ def _box_u(c: tuple[float, float, float], H: tuple[float, float, float], v: tupl
     rg = np.zeros((7, 3))
     rh = np.zeros(7)
     for k in range(3):
-        ra[2 * k] = c[k] - H[k]          # s (c - H) <= v_k
+        ra[2 * k] = c[k] - H[k]  # s (c - H) <= v_k
         rg[2 * k, k] = 1.0
-        ra[2 * k + 1] = -(c[k] + H[k])   # -s (c + H) <= -v_k
+        ra[2 * k + 1] = -(c[k] + H[k])  # -s (c + H) <= -v_k
         rg[2 * k + 1, k] = -1.0
-    ra[6] = -1.0                         # -s <= -1/tau
+    ra[6] = -1.0  # -s <= -1/tau
     rh[6] = -inv_tau
     best = 1e300
     best_f = 0.0
     bn = (0.0, 0.0, 0.0)
     iw = 1.0 / wz
-    FN = np.empty((24, 3))               # the VO's planes, for the projection of an outside v
+    FN = np.empty((24, 3))  # the VO's planes, for the projection of an outside v
     FP = np.empty((24, 3))
     nf = 0
     for p in range(7):
@@ -304,7 +312,7 @@ def _box_u(c: tuple[float, float, float], H: tuple[float, float, float], v: tupl
             if q < 0:
                 if ra[p] != 0.0:
                     continue
-                n = gp                   # a row without s: g . v + h >= 0 itself
+                n = gp  # a row without s: g . v + h >= 0 itself
                 f = _dot(gp, v) + rh[p]
             else:
                 if ra[q] <= 0.0 or ra[p] == 0.0:
@@ -317,13 +325,13 @@ def _box_u(c: tuple[float, float, float], H: tuple[float, float, float], v: tupl
             if nw < 1e-12:
                 continue
             _set_row(FN, nf, _scale(n, 1.0 / nn))
-            _set_row(FP, nf, _add(v, n, -f / (nn * nn)))     # the point of the plane nearest v
+            _set_row(FP, nf, _add(v, n, -f / (nn * nn)))  # the point of the plane nearest v
             nf += 1
             if f / nw < best:
                 best = f / nw
                 best_f = f / nn
                 bn = _scale(n, 1.0 / nn)
-    out = _scale(bn, -1.0)               # outward: the direction in which F decreases
+    out = _scale(bn, -1.0)  # outward: the direction in which F decreases
     if best_f < 0.0:
         # outside: the point of the VO polytope closest to v, by the incremental LP
         fail, w = _lp3(FN, FP, nf, 1e3, v, False)
@@ -336,16 +344,27 @@ def _box_u(c: tuple[float, float, float], H: tuple[float, float, float], v: tupl
 
 
 @numba.njit(cache=True)
-def _pair_u(a: int, b: int, pos: NDArray[np.float64], vel: NDArray[np.float64], radius: NDArray[np.float64],
-            centre: NDArray[np.float64], half: NDArray[np.float64], boxes: bool,
-            cfg: NDArray[np.float64]) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+def _pair_u(
+    a: int,
+    b: int,
+    pos: NDArray[np.float64],
+    vel: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    cfg: NDArray[np.float64],
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """(n, u) of agent a against agent b; agent b uses (-n, -u)."""
     v = _add(_row(vel, a), _row(vel, b), -1.0)
     m2, lag = 2.0 * cfg[_C_MARGIN], cfg[_C_LAG]
     if boxes:
         c = _add(_add(_row(pos, b), _row(centre, b), 1.0), _add(_row(pos, a), _row(centre, a), 1.0), -1.0)
-        H = (half[a, 0] + half[b, 0] + m2 + lag * abs(v[0]), half[a, 1] + half[b, 1] + m2 + lag * abs(v[1]),
-             half[a, 2] + half[b, 2] + m2 + lag * abs(v[2]))
+        H = (
+            half[a, 0] + half[b, 0] + m2 + lag * abs(v[0]),
+            half[a, 1] + half[b, 1] + m2 + lag * abs(v[1]),
+            half[a, 2] + half[b, 2] + m2 + lag * abs(v[2]),
+        )
         return _box_u(c, H, v, cfg[_C_INV_TAU], cfg[_C_INV_REC], cfg[_C_WZ])
     p = _add(_row(pos, b), _row(pos, a), -1.0)
     R = radius[a] + radius[b] + m2 + lag * math.sqrt(_dot(v, v))
@@ -354,9 +373,16 @@ def _pair_u(a: int, b: int, pos: NDArray[np.float64], vel: NDArray[np.float64], 
 
 # ----------------------------------------------------------------------------- incremental LP
 @numba.njit(cache=True)
-def _lp1(N: NDArray[np.float64], P: NDArray[np.float64], count: int, d: tuple[float, float, float],
-         q: tuple[float, float, float], radius: float, opt: tuple[float, float, float],
-         dir_opt: bool) -> tuple[bool, tuple[float, float, float]]:
+def _lp1(
+    N: NDArray[np.float64],
+    P: NDArray[np.float64],
+    count: int,
+    d: tuple[float, float, float],
+    q: tuple[float, float, float],
+    radius: float,
+    opt: tuple[float, float, float],
+    dir_opt: bool,
+) -> tuple[bool, tuple[float, float, float]]:
     """Best point on the line q + t d within the sphere and planes [0, count)."""
     dq = _dot(q, d)
     disc = dq * dq + radius * radius - _dot(q, q)
@@ -369,7 +395,7 @@ def _lp1(N: NDArray[np.float64], P: NDArray[np.float64], count: int, d: tuple[fl
         n = _row(N, i)
         num = _dot(_add(_row(P, i), q, -1.0), n)
         den = _dot(d, n)
-        if den * den <= _EPS:       # line parallel to plane i: all in or all out
+        if den * den <= _EPS:  # line parallel to plane i: all in or all out
             if num > _TOL:
                 return False, q
             continue
@@ -388,8 +414,14 @@ def _lp1(N: NDArray[np.float64], P: NDArray[np.float64], count: int, d: tuple[fl
 
 
 @numba.njit(cache=True)
-def _lp2(N: NDArray[np.float64], P: NDArray[np.float64], k: int, radius: float, opt: tuple[float, float, float],
-         dir_opt: bool) -> tuple[bool, tuple[float, float, float]]:
+def _lp2(
+    N: NDArray[np.float64],
+    P: NDArray[np.float64],
+    k: int,
+    radius: float,
+    opt: tuple[float, float, float],
+    dir_opt: bool,
+) -> tuple[bool, tuple[float, float, float]]:
     """Best point on plane k within the sphere and planes [0, k)."""
     n = _row(N, k)
     pk = _row(P, k)
@@ -397,7 +429,7 @@ def _lp2(N: NDArray[np.float64], P: NDArray[np.float64], k: int, radius: float, 
     r2 = radius * radius
     if dist * dist > r2:
         return False, opt
-    disc_r2 = r2 - dist * dist          # squared radius of the sphere's section by the plane
+    disc_r2 = r2 - dist * dist  # squared radius of the sphere's section by the plane
     centre = _scale(n, dist)
     if dir_opt:
         proj = _add(opt, n, -_dot(opt, n))
@@ -414,10 +446,10 @@ def _lp2(N: NDArray[np.float64], P: NDArray[np.float64], k: int, radius: float, 
         if _dot(ni, _add(pi, res, -1.0)) > _TOL:
             cr = _cross(ni, n)
             c2 = _dot(cr, cr)
-            if c2 <= _EPS:              # parallel and plane i excludes plane k entirely
+            if c2 <= _EPS:  # parallel and plane i excludes plane k entirely
                 return False, res
             d = _scale(cr, 1.0 / math.sqrt(c2))
-            ln = _cross(d, n)           # in plane k, perpendicular to the intersection line
+            ln = _cross(d, n)  # in plane k, perpendicular to the intersection line
             q = _add(pk, ln, _dot(_add(pi, pk, -1.0), ni) / _dot(ln, ni))
             ok, res = _lp1(N, P, i, d, q, radius, opt, dir_opt)
             if not ok:
@@ -426,8 +458,14 @@ def _lp2(N: NDArray[np.float64], P: NDArray[np.float64], k: int, radius: float, 
 
 
 @numba.njit(cache=True)
-def _lp3(N: NDArray[np.float64], P: NDArray[np.float64], m: int, radius: float, opt: tuple[float, float, float],
-         dir_opt: bool) -> tuple[int, tuple[float, float, float]]:
+def _lp3(
+    N: NDArray[np.float64],
+    P: NDArray[np.float64],
+    m: int,
+    radius: float,
+    opt: tuple[float, float, float],
+    dir_opt: bool,
+) -> tuple[int, tuple[float, float, float]]:
     """Velocity closest to ``opt`` (or farthest along unit ``opt`` with ``dir_opt``) in the sphere and planes [0, m).
 
     Returns (index of the first plane that made the problem infeasible or m, velocity).
@@ -448,9 +486,17 @@ def _lp3(N: NDArray[np.float64], P: NDArray[np.float64], m: int, radius: float, 
 
 
 @numba.njit(cache=True)
-def _lp4(N: NDArray[np.float64], P: NDArray[np.float64], m: int, begin: int, n_hard: int, radius: float,
-         res: tuple[float, float, float], SN: NDArray[np.float64],
-         SP: NDArray[np.float64]) -> tuple[float, float, float]:
+def _lp4(
+    N: NDArray[np.float64],
+    P: NDArray[np.float64],
+    m: int,
+    begin: int,
+    n_hard: int,
+    radius: float,
+    res: tuple[float, float, float],
+    SN: NDArray[np.float64],
+    SP: NDArray[np.float64],
+) -> tuple[float, float, float]:
     """Velocity minimising the largest violation of the soft planes [n_hard, m), keeping the hard ones.
 
     For each plane i that is violated more than the current worst, the 3-D problem "go as far as
@@ -473,7 +519,7 @@ def _lp4(N: NDArray[np.float64], P: NDArray[np.float64], m: int, begin: int, n_h
                     continue
                 cr = _cross(nj, ni)
                 if _dot(cr, cr) <= _EPS:
-                    if _dot(ni, nj) > 0.0:     # same direction: never the worse of the two
+                    if _dot(ni, nj) > 0.0:  # same direction: never the worse of the two
                         continue
                     pt = _scale(_add(pi, pj, 1.0), 0.5)
                 else:
@@ -484,16 +530,23 @@ def _lp4(N: NDArray[np.float64], P: NDArray[np.float64], m: int, begin: int, n_h
                 _set_row(SP, k, pt)
                 k += 1
             fail, new = _lp3(SN, SP, k, radius, ni, True)
-            if fail >= k:               # (failure "should not happen"; keep the previous velocity)
+            if fail >= k:  # (failure "should not happen"; keep the previous velocity)
                 res = new
             worst = _dot(ni, _add(pi, res, -1.0))
     return res
 
 
 @numba.njit(cache=True)
-def _solve(N: NDArray[np.float64], P: NDArray[np.float64], m: int, n_hard: int, radius: float,
-           pref: tuple[float, float, float], SN: NDArray[np.float64],
-           SP: NDArray[np.float64]) -> tuple[bool, tuple[float, float, float]]:
+def _solve(
+    N: NDArray[np.float64],
+    P: NDArray[np.float64],
+    m: int,
+    n_hard: int,
+    radius: float,
+    pref: tuple[float, float, float],
+    SN: NDArray[np.float64],
+    SP: NDArray[np.float64],
+) -> tuple[bool, tuple[float, float, float]]:
     """Solve one agent's LP; returns (feasible, velocity)."""
     fail, res = _lp3(N, P, m, radius, pref, False)
     if fail >= m:
@@ -515,8 +568,9 @@ def _solve(N: NDArray[np.float64], P: NDArray[np.float64], m: int, n_hard: int, 
 
 
 @numba.njit(cache=True)
-def _bound_planes(lo: NDArray[np.float64], hi: NDArray[np.float64], i: int, N: NDArray[np.float64],
-                  P: NDArray[np.float64]) -> int:
+def _bound_planes(
+    lo: NDArray[np.float64], hi: NDArray[np.float64], i: int, N: NDArray[np.float64], P: NDArray[np.float64]
+) -> int:
     """Write the half-spaces lo[i, k] <= v_k <= hi[i, k] (finite ones) into N, P; returns their count."""
     k = 0
     for a in range(3):
@@ -532,10 +586,20 @@ def _bound_planes(lo: NDArray[np.float64], hi: NDArray[np.float64], i: int, N: N
 
 
 @numba.njit(cache=True)
-def _agent_planes(i: int, pos: NDArray[np.float64], vel: NDArray[np.float64], radius: NDArray[np.float64],
-                  centre: NDArray[np.float64], half: NDArray[np.float64], boxes: bool, nbr: NDArray[np.int64],
-                  cfg: NDArray[np.float64], N: NDArray[np.float64], P: NDArray[np.float64],
-                  k: int) -> tuple[int, bool]:
+def _agent_planes(
+    i: int,
+    pos: NDArray[np.float64],
+    vel: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    nbr: NDArray[np.int64],
+    cfg: NDArray[np.float64],
+    N: NDArray[np.float64],
+    P: NDArray[np.float64],
+    k: int,
+) -> tuple[int, bool]:
     """Append agent i's ORCA planes (one per neighbour in row i of ``nbr``) after row k; returns the new
     count and whether agent i climbs over a neighbour (takes a pair's whole share).
 
@@ -571,9 +635,18 @@ def _agent_planes(i: int, pos: NDArray[np.float64], vel: NDArray[np.float64], ra
 
 
 @numba.njit(cache=True)
-def _overlap(pa: tuple[float, float, float], pb: tuple[float, float, float], ra: float, rb: float,
-             ca: tuple[float, float, float], cb: tuple[float, float, float], ha: tuple[float, float, float],
-             hb: tuple[float, float, float], boxes: bool, grow: float) -> bool:
+def _overlap(
+    pa: tuple[float, float, float],
+    pb: tuple[float, float, float],
+    ra: float,
+    rb: float,
+    ca: tuple[float, float, float],
+    cb: tuple[float, float, float],
+    ha: tuple[float, float, float],
+    hb: tuple[float, float, float],
+    boxes: bool,
+    grow: float,
+) -> bool:
     """True when shape a at pa and shape b at pb come closer than ``grow`` m."""
     if boxes:
         for k in range(3):
@@ -585,10 +658,20 @@ def _overlap(pa: tuple[float, float, float], pb: tuple[float, float, float], ra:
 
 
 @numba.njit(cache=True)
-def _stalled_by(i: int, pos: NDArray[np.float64], pref: tuple[float, float, float], sp: float,
-                radius: NDArray[np.float64], centre: NDArray[np.float64], half: NDArray[np.float64], boxes: bool,
-                nbr: NDArray[np.int64], goal: NDArray[np.float64], has_goal: bool,
-                cfg: NDArray[np.float64]) -> tuple[int, bool]:
+def _stalled_by(
+    i: int,
+    pos: NDArray[np.float64],
+    pref: tuple[float, float, float],
+    sp: float,
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    nbr: NDArray[np.int64],
+    goal: NDArray[np.float64],
+    has_goal: bool,
+    cfg: NDArray[np.float64],
+) -> tuple[int, bool]:
     """The nearest neighbour ahead (reachable over the horizon) that is in the way and does not sit
     on the goal, or -1; and True instead when, descending straight down, the agent first meets a
     neighbour below that sits on its goal: that one can only leave upwards, through this agent."""
@@ -596,7 +679,7 @@ def _stalled_by(i: int, pos: NDArray[np.float64], pref: tuple[float, float, floa
     pi = _row(pos, i)
     dh = _scale(pref, 1.0 / sp)
     m2 = 2.0 * cfg[_C_MARGIN]
-    for c in range(nbr.shape[1]):           # nearest first
+    for c in range(nbr.shape[1]):  # nearest first
         j = nbr[i, c]
         if j < 0 or j >= n or j == i:
             continue
@@ -604,14 +687,34 @@ def _stalled_by(i: int, pos: NDArray[np.float64], pref: tuple[float, float, floa
         if _dot(rel, dh) <= 0.0:
             continue
         pj = _row(pos, j)
-        if not _overlap(pi, pj, radius[i], radius[j], _row(centre, i), _row(centre, j), _row(half, i),
-                        _row(half, j), boxes, m2 + sp * cfg[_C_TAU]):
+        if not _overlap(
+            pi,
+            pj,
+            radius[i],
+            radius[j],
+            _row(centre, i),
+            _row(centre, j),
+            _row(half, i),
+            _row(half, j),
+            boxes,
+            m2 + sp * cfg[_C_TAU],
+        ):
             continue
-        if has_goal and _overlap(_row(goal, i), pj, radius[i], radius[j], _row(centre, i), _row(centre, j),
-                                 _row(half, i), _row(half, j), boxes, m2):
+        if has_goal and _overlap(
+            _row(goal, i),
+            pj,
+            radius[i],
+            radius[j],
+            _row(centre, i),
+            _row(centre, j),
+            _row(half, i),
+            _row(half, j),
+            boxes,
+            m2,
+        ):
             if dh[2] < 0.0 and dh[2] * dh[2] > _VERTICAL_COS2 and rel[2] < 0.0:
-                return -1, True         # over the goal's occupant: make way upwards
-            continue                    # the neighbour occupies the goal: wait, do not circle it
+                return -1, True  # over the goal's occupant: make way upwards
+            continue  # the neighbour occupies the goal: wait, do not circle it
         return j, False
     return -1, False
 
@@ -626,15 +729,15 @@ def _sidestep(d: tuple[float, float, float], rel: tuple[float, float, float]) ->
     Both agents of a pair see mirrored numbers and so pick opposite sides.
     """
     h2 = d[0] * d[0] + d[1] * d[1]
-    if h2 > 1e-6:                               # across the horizontal direction of travel
+    if h2 > 1e-6:  # across the horizontal direction of travel
         hl = math.sqrt(h2)
-        across = (-d[1] / hl, d[0] / hl, 0.0)   # left of d
+        across = (-d[1] / hl, d[0] / hl, 0.0)  # left of d
         side = _dot(rel, across)
         rh = math.sqrt(rel[0] * rel[0] + rel[1] * rel[1])
         if 0.01 < abs(side) < 0.5 * rh:
             return _scale(across, -1.0 if side > 0.0 else 1.0)
         return _right_of(d)
-    r2 = rel[0] * rel[0] + rel[1] * rel[1]      # vertical travel: horizontally away
+    r2 = rel[0] * rel[0] + rel[1] * rel[1]  # vertical travel: horizontally away
     if r2 > 1e-4:
         rl = math.sqrt(r2)
         return (-rel[0] / rl, -rel[1] / rl, 0.0)
@@ -642,11 +745,24 @@ def _sidestep(d: tuple[float, float, float], rel: tuple[float, float, float]) ->
 
 
 @numba.njit(cache=True)
-def _orca_batch(pos: NDArray[np.float64], vel: NDArray[np.float64], pref: NDArray[np.float64],
-                v_cmd: NDArray[np.float64], radius: NDArray[np.float64], centre: NDArray[np.float64],
-                half: NDArray[np.float64], boxes: bool, nbr: NDArray[np.int64], goal: NDArray[np.float64],
-                has_goal: NDArray[np.bool_], lo: NDArray[np.float64], hi: NDArray[np.float64],
-                cfg: NDArray[np.float64], out: NDArray[np.float64], flags: NDArray[np.int64]) -> None:
+def _orca_batch(
+    pos: NDArray[np.float64],
+    vel: NDArray[np.float64],
+    pref: NDArray[np.float64],
+    v_cmd: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    nbr: NDArray[np.int64],
+    goal: NDArray[np.float64],
+    has_goal: NDArray[np.bool_],
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+    cfg: NDArray[np.float64],
+    out: NDArray[np.float64],
+    flags: NDArray[np.int64],
+) -> None:
     """Safe velocities of all agents (see ``orca_velocities``)."""
     n = pos.shape[0]
     m_max = nbr.shape[1] + 6
@@ -666,7 +782,7 @@ def _orca_batch(pos: NDArray[np.float64], vel: NDArray[np.float64], pref: NDArra
             if _dot(_row(N, k), _add(_row(P, k), vc, -1.0)) > _TOL:
                 free = False
                 break
-        if free:                              # nothing to avoid: the planner's command stands
+        if free:  # nothing to avoid: the planner's command stands
             _set_row(out, i, vc)
             flags[i] = FLAG_FREE | up
             continue
@@ -681,7 +797,7 @@ def _orca_batch(pos: NDArray[np.float64], vel: NDArray[np.float64], pref: NDArra
                 f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
             elif j >= 0:
                 if climb_past and pos[i, 2] > pos[j, 2]:
-                    side = (0.0, 0.0, 1.0)      # above the one in the way: over it
+                    side = (0.0, 0.0, 1.0)  # above the one in the way: over it
                 else:
                     side = _sidestep(_scale(pr, 1.0 / sp), _add(_row(pos, j), _row(pos, i), -1.0))
                 feasible, res = _solve(N, P, m, n_hard, max_speed, _add(pr, side, right_bias * sp), SN, SP)
@@ -696,9 +812,18 @@ def _orca_batch(pos: NDArray[np.float64], vel: NDArray[np.float64], pref: NDArra
 
 
 @numba.njit(cache=True)
-def _clear_paths(pos: NDArray[np.float64], goal: NDArray[np.float64], centre: NDArray[np.float64],
-                 half: NDArray[np.float64], vel: NDArray[np.float64], nbr: NDArray[np.int64],
-                 candidate: NDArray[np.bool_], margin: float, lookahead: float, out: NDArray[np.bool_]) -> None:
+def _clear_paths(
+    pos: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    vel: NDArray[np.float64],
+    nbr: NDArray[np.int64],
+    candidate: NDArray[np.bool_],
+    margin: float,
+    lookahead: float,
+    out: NDArray[np.bool_],
+) -> None:
     """For each candidate, True when the box it sweeps to its goal stays ``margin`` clear of every
     neighbour's box swept along the neighbour's velocity over ``lookahead`` s."""
     n = pos.shape[0]
@@ -747,10 +872,18 @@ def _sphere_radius(vm: NDArray[np.float64], max_speed: float | None) -> float:
     return 1.0
 
 
-def orca_plane(rel_position: NDArray[np.float64], rel_velocity: NDArray[np.float64], velocity: NDArray[np.float64],
-               *, time_horizon: float, recovery_time: float, combined_radius: float | None = None,
-               half_extents: NDArray[np.float64] | None = None, vertical_cost: float = 1.0,
-               responsibility: float = 0.5) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def orca_plane(
+    rel_position: NDArray[np.float64],
+    rel_velocity: NDArray[np.float64],
+    velocity: NDArray[np.float64],
+    *,
+    time_horizon: float,
+    recovery_time: float,
+    combined_radius: float | None = None,
+    half_extents: NDArray[np.float64] | None = None,
+    vertical_cost: float = 1.0,
+    responsibility: float = 0.5,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """One ORCA half-space ``{v : normal . (v - point) >= 0}`` of an agent against one neighbour.
 
     Give either ``combined_radius`` (spheres) or ``half_extents`` (boxes).
@@ -779,9 +912,14 @@ def orca_plane(rel_position: NDArray[np.float64], rel_velocity: NDArray[np.float
     return np.array(n), np.asarray(velocity, dtype=float).reshape(3) + responsibility * np.array(u)
 
 
-def solve_velocity(normals: NDArray[np.float64], points: NDArray[np.float64], preferred: NDArray[np.float64],
-                   *, v_max: NDArray[np.float64] | None = None,
-                   max_speed: float | None = None) -> tuple[NDArray[np.float64], bool]:
+def solve_velocity(
+    normals: NDArray[np.float64],
+    points: NDArray[np.float64],
+    preferred: NDArray[np.float64],
+    *,
+    v_max: NDArray[np.float64] | None = None,
+    max_speed: float | None = None,
+) -> tuple[NDArray[np.float64], bool]:
     """Velocity closest to ``preferred`` inside the half-spaces, the per-axis box and the speed sphere.
 
     Args:
@@ -801,10 +939,18 @@ def solve_velocity(normals: NDArray[np.float64], points: NDArray[np.float64], pr
     m = normals.shape[0] + 6
     N, P = np.empty((m, 3)), np.empty((m, 3))
     n_hard = _bound_planes(-vm[None, :], vm[None, :], 0, N, P)
-    N[n_hard:n_hard + len(normals)] = normals
-    P[n_hard:n_hard + len(normals)] = points
-    feasible, res = _solve(N, P, n_hard + len(normals), n_hard, _sphere_radius(vm, max_speed), _vec3(preferred),
-                           np.empty((m, 3)), np.empty((m, 3)))
+    N[n_hard : n_hard + len(normals)] = normals
+    P[n_hard : n_hard + len(normals)] = points
+    feasible, res = _solve(
+        N,
+        P,
+        n_hard + len(normals),
+        n_hard,
+        _sphere_radius(vm, max_speed),
+        _vec3(preferred),
+        np.empty((m, 3)),
+        np.empty((m, 3)),
+    )
     return np.array(res), bool(feasible)
 
 
@@ -828,14 +974,22 @@ def neighbour_table(positions: NDArray[np.float64], sensing_radius: float, max_n
     return idx
 
 
-def orca_velocities(positions: NDArray[np.float64], velocities: NDArray[np.float64],
-                    preferred: NDArray[np.float64], *, params: OrcaParams, sensing_radius: float,
-                    v_max: NDArray[np.float64] | None, radii: NDArray[np.float64] | None = None,
-                    boxes: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-                    goals: NDArray[np.float64] | None = None, has_goal: NDArray[np.bool_] | None = None,
-                    bounds: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-                    commanded: NDArray[np.float64] | None = None,
-                    neighbours: NDArray[np.int64] | None = None) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def orca_velocities(
+    positions: NDArray[np.float64],
+    velocities: NDArray[np.float64],
+    preferred: NDArray[np.float64],
+    *,
+    params: OrcaParams,
+    sensing_radius: float,
+    v_max: NDArray[np.float64] | None,
+    radii: NDArray[np.float64] | None = None,
+    boxes: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    goals: NDArray[np.float64] | None = None,
+    has_goal: NDArray[np.bool_] | None = None,
+    bounds: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    commanded: NDArray[np.float64] | None = None,
+    neighbours: NDArray[np.int64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Collision-avoiding velocities of all agents from sensed state (one compiled call).
 
     Args:
@@ -887,19 +1041,53 @@ def orca_velocities(positions: NDArray[np.float64], velocities: NDArray[np.float
     pref = np.ascontiguousarray(preferred, dtype=float)
     v_cmd = pref if commanded is None else np.ascontiguousarray(commanded, dtype=float)
     p = params
-    cfg = np.array([p.margin, p.lag_margin_s, 1.0 / p.time_horizon, 1.0 / p.recovery_time, p.responsibility,
-                    p.vertical_cost, _sphere_radius(vm, p.max_speed), p.time_horizon, p.right_bias, p.stuck_fraction,
-                    1.0 if p.climb_over else 0.0])
+    cfg = np.array(
+        [
+            p.margin,
+            p.lag_margin_s,
+            1.0 / p.time_horizon,
+            1.0 / p.recovery_time,
+            p.responsibility,
+            p.vertical_cost,
+            _sphere_radius(vm, p.max_speed),
+            p.time_horizon,
+            p.right_bias,
+            p.stuck_fraction,
+            1.0 if p.climb_over else 0.0,
+        ]
+    )
     out = np.empty((n, 3))
     flags = np.zeros(n, dtype=np.int64)
-    _orca_batch(pos, np.ascontiguousarray(velocities, dtype=float), pref, v_cmd, radius, centre, half, use_boxes,
-                np.ascontiguousarray(neighbours, dtype=np.int64), goals, has_goal, lo, hi, cfg, out, flags)
+    _orca_batch(
+        pos,
+        np.ascontiguousarray(velocities, dtype=float),
+        pref,
+        v_cmd,
+        radius,
+        centre,
+        half,
+        use_boxes,
+        np.ascontiguousarray(neighbours, dtype=np.int64),
+        goals,
+        has_goal,
+        lo,
+        hi,
+        cfg,
+        out,
+        flags,
+    )
     return out, flags
 
 
-def preferred_velocities(kinds: NDArray[np.int64], vectors: NDArray[np.float64], positions: NDArray[np.float64], *,
-                         arrive_time: float, v_max: NDArray[np.float64] | None,
-                         max_speed: float | None = None) -> NDArray[np.float64]:
+def preferred_velocities(
+    kinds: NDArray[np.int64],
+    vectors: NDArray[np.float64],
+    positions: NDArray[np.float64],
+    *,
+    arrive_time: float,
+    v_max: NDArray[np.float64] | None,
+    max_speed: float | None = None,
+) -> NDArray[np.float64]:
     """Preferred velocity of each agent from its command (what avoidance stays closest to).
 
     A POSITION target e away is approached at ``e / arrive_time`` per axis, clipped to the
@@ -934,9 +1122,15 @@ def preferred_velocities(kinds: NDArray[np.int64], vectors: NDArray[np.float64],
     return pref
 
 
-def commanded_velocities(kinds: NDArray[np.int64], vectors: NDArray[np.float64], positions: NDArray[np.float64],
-                         *, v_max: NDArray[np.float64] | None, a_max: NDArray[np.float64],
-                         dt: float) -> NDArray[np.float64]:
+def commanded_velocities(
+    kinds: NDArray[np.int64],
+    vectors: NDArray[np.float64],
+    positions: NDArray[np.float64],
+    *,
+    v_max: NDArray[np.float64] | None,
+    a_max: NDArray[np.float64],
+    dt: float,
+) -> NDArray[np.float64]:
     """Velocity (n, 3) m/s each command would give its agent through the reference shaper.
 
     Position mode of the shaper: per axis the velocity limit, braking at ``a_max``
@@ -964,10 +1158,17 @@ def commanded_velocities(kinds: NDArray[np.int64], vectors: NDArray[np.float64],
     return out
 
 
-def velocity_bounds(positions: NDArray[np.float64], intended: NDArray[np.float64], v_max: NDArray[np.float64] | None,
-                    *, floor_height: float, time_horizon: float, goals: NDArray[np.float64] | None = None,
-                    has_goal: NDArray[np.bool_] | None = None,
-                    column: float = 0.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def velocity_bounds(
+    positions: NDArray[np.float64],
+    intended: NDArray[np.float64],
+    v_max: NDArray[np.float64] | None,
+    *,
+    floor_height: float,
+    time_horizon: float,
+    goals: NDArray[np.float64] | None = None,
+    has_goal: NDArray[np.bool_] | None = None,
+    column: float = 0.0,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Hard per-axis bounds (lower (n, 3), upper (n, 3)) m/s of the velocity avoidance may give each agent.
 
     ORCA knows neither the ground nor what stands on it. So it may push an agent down only above
@@ -999,8 +1200,13 @@ def velocity_bounds(positions: NDArray[np.float64], intended: NDArray[np.float64
     return lo, hi
 
 
-def bounding_boxes(quaternions: NDArray[np.float64], half_extent: NDArray[np.float64], carrying: NDArray[np.bool_],
-                   box_size: float, box_drop: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def bounding_boxes(
+    quaternions: NDArray[np.float64],
+    half_extent: NDArray[np.float64],
+    carrying: NDArray[np.bool_],
+    box_size: float,
+    box_drop: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """World-axis bounding boxes of airframes (and hanging boxes) from sensed attitudes.
 
     Args:
@@ -1025,10 +1231,10 @@ def bounding_boxes(quaternions: NDArray[np.float64], half_extent: NDArray[np.flo
     R[:, 2, 1] = 2 * (y * z + x * w)
     R[:, 2, 2] = 1 - 2 * (x * x + y * y)
     absR = np.abs(R)
-    half = absR @ half_extent                                   # (n, 3)
+    half = absR @ half_extent  # (n, 3)
     lo, hi = -half, half.copy()
     if np.any(carrying):
-        c = -box_drop * R[:, :, 2]                               # box centre offset, world frame
+        c = -box_drop * R[:, :, 2]  # box centre offset, world frame
         hb = absR @ np.full(3, 0.5 * box_size)
         lo = np.where(carrying[:, None], np.minimum(lo, c - hb), lo)
         hi = np.where(carrying[:, None], np.maximum(hi, c + hb), hi)
@@ -1039,45 +1245,76 @@ def bounding_boxes(quaternions: NDArray[np.float64], half_extent: NDArray[np.flo
 class OrcaParams(Params):
     """Parameters of the ORCA layer (scenario field ``avoidance_params``); see the module notes."""
 
-    shape: Shape = Field(Shape.BOX, strict=False,
-                         description="box (attitude-aware bounding boxes of airframe and load) or sphere")
+    shape: Shape = Field(
+        Shape.BOX, strict=False, description="box (attitude-aware bounding boxes of airframe and load) or sphere"
+    )
     time_horizon: float = Field(1.5, gt=0.0, le=60.0, description="s, collisions predicted later than this are ignored")
-    safety_margin: float | None = Field(None, ge=0.0, le=1.0,
-                                        description="m, added on every side of each shape (null: 0.015 for boxes, "
-                                                    "0.03 for spheres)")
-    lag_margin_s: float = Field(0.4, ge=0.0, le=10.0,
-                                description="s, a pair's shapes also grow by this times their closing speed")
-    vertical_cost: float = Field(0.75, gt=0.0, le=100.0,
-                                 description="boxes: weight of a vertical change of velocity against a horizontal one "
-                                             "(< 1 favours passing over)")
+    safety_margin: float | None = Field(
+        None,
+        ge=0.0,
+        le=1.0,
+        description="m, added on every side of each shape (null: 0.015 for boxes, 0.03 for spheres)",
+    )
+    lag_margin_s: float = Field(
+        0.4, ge=0.0, le=10.0, description="s, a pair's shapes also grow by this times their closing speed"
+    )
+    vertical_cost: float = Field(
+        0.75,
+        gt=0.0,
+        le=100.0,
+        description="boxes: weight of a vertical change of velocity against a horizontal one "
+        "(< 1 favours passing over)",
+    )
     max_neighbours: int = Field(10, ge=1, le=100, description="the nearest this many sensed neighbours give planes")
     recovery_time: float = Field(0.5, gt=0.0, le=60.0, description="s, shapes that already overlap separate over this")
-    responsibility: float = Field(0.5, gt=0.0, le=1.0,
-                                  description="share of each pair's avoidance an agent takes (0.5: reciprocal)")
-    arrive_time: float = Field(0.5, gt=0.0, le=60.0,
-                               description="s, POSITION targets are approached at distance / arrive_time per axis")
-    capture_radius: float = Field(0.05, ge=0.0, le=10.0,
-                                  description="m, within this of a POSITION/HOLD target the command passes through "
-                                              "when the clearance test holds")
+    responsibility: float = Field(
+        0.5, gt=0.0, le=1.0, description="share of each pair's avoidance an agent takes (0.5: reciprocal)"
+    )
+    arrive_time: float = Field(
+        0.5, gt=0.0, le=60.0, description="s, POSITION targets are approached at distance / arrive_time per axis"
+    )
+    capture_radius: float = Field(
+        0.05,
+        ge=0.0,
+        le=10.0,
+        description="m, within this of a POSITION/HOLD target the command passes through when the clearance test holds",
+    )
     clearance_margin: float = Field(0.02, ge=0.0, le=1.0, description="m, box clearance the passthrough requires")
-    clearance_lookahead: float = Field(0.3, ge=0.0, le=10.0,
-                                       description="s, a neighbour's box is swept along its velocity for this long")
+    clearance_lookahead: float = Field(
+        0.3, ge=0.0, le=10.0, description="s, a neighbour's box is swept along its velocity for this long"
+    )
     floor_height: float = Field(0.5, ge=0.0, le=100.0, description="m, below this avoidance never pushes an agent down")
-    column_radius: float = Field(0.03, ge=0.0, le=10.0,
-                                 description="m, below floor_height an agent this close to its target (horizontally) "
-                                             "is never moved sideways (0: off)")
-    right_bias: float = Field(0.5, ge=0.0, le=10.0,
-                              description="fraction of the preferred speed added sideways to a stalled agent")
-    stuck_fraction: float = Field(0.25, ge=0.0, lt=1.0,
-                                  description="progress below this fraction of the preferred speed counts as stalled")
-    max_speed: float | None = Field(None, gt=0.0, le=100.0,
-                                    description="m/s, radius of the speed sphere (null: the corner of the velocity-"
-                                                "limit box, or 1 m/s without limits)")
-    uncertainty_sigmas: float = Field(2.0, ge=0.0, le=10.0,
-                                      description="flying on estimates, shapes grow by this many standard deviations "
-                                                  "of a pair's relative position error")
-    climb_over: bool = Field(True, description="the upper agent of a pair takes the whole of a vertical way out when "
-                                               "the lower one flies level")
+    column_radius: float = Field(
+        0.03,
+        ge=0.0,
+        le=10.0,
+        description="m, below floor_height an agent this close to its target (horizontally) "
+        "is never moved sideways (0: off)",
+    )
+    right_bias: float = Field(
+        0.5, ge=0.0, le=10.0, description="fraction of the preferred speed added sideways to a stalled agent"
+    )
+    stuck_fraction: float = Field(
+        0.25, ge=0.0, lt=1.0, description="progress below this fraction of the preferred speed counts as stalled"
+    )
+    max_speed: float | None = Field(
+        None,
+        gt=0.0,
+        le=100.0,
+        description="m/s, radius of the speed sphere (null: the corner of the velocity-"
+        "limit box, or 1 m/s without limits)",
+    )
+    uncertainty_sigmas: float = Field(
+        2.0,
+        ge=0.0,
+        le=10.0,
+        description="flying on estimates, shapes grow by this many standard deviations "
+        "of a pair's relative position error",
+    )
+    climb_over: bool = Field(
+        True,
+        description="the upper agent of a pair takes the whole of a vertical way out when the lower one flies level",
+    )
 
     @property
     def margin(self) -> float:
@@ -1094,11 +1331,21 @@ def _warm_up() -> None:
     z3 = np.zeros((2, 3))
     nbr = neighbour_table(pos, 1.0, 4)
     for shape in Shape:
-        orca_velocities(pos, z3, z3, params=OrcaParams(shape=shape), sensing_radius=1.0, v_max=np.full(3, 1.0),
-                        radii=np.full(2, 0.1), boxes=(z3, np.full((2, 3), 0.05)), bounds=(z3 - 1.0, z3 + 1.0),
-                        neighbours=nbr)
-    _clear_paths(pos, pos, z3, np.full((2, 3), 0.05), z3, nbr, np.ones(2, dtype=np.bool_), 0.0, 0.0,
-                 np.zeros(2, dtype=np.bool_))
+        orca_velocities(
+            pos,
+            z3,
+            z3,
+            params=OrcaParams(shape=shape),
+            sensing_radius=1.0,
+            v_max=np.full(3, 1.0),
+            radii=np.full(2, 0.1),
+            boxes=(z3, np.full((2, 3), 0.05)),
+            bounds=(z3 - 1.0, z3 + 1.0),
+            neighbours=nbr,
+        )
+    _clear_paths(
+        pos, pos, z3, np.full((2, 3), 0.05), z3, nbr, np.ones(2, dtype=np.bool_), 0.0, 0.0, np.zeros(2, dtype=np.bool_)
+    )
 
 
 class OrcaLayer:
@@ -1120,22 +1367,23 @@ class OrcaLayer:
     def __init__(self, setup: AvoidanceSetup, params: OrcaParams | None = None) -> None:
         self.params = params if params is not None else OrcaParams()
         info = setup.info
-        std = float(info.extra.get("position_std", 0.0))      # m, per-axis, flying on estimates
+        std = float(info.extra.get("position_std", 0.0))  # m, per-axis, flying on estimates
         if std > 0.0:
             grow = self.params.uncertainty_sigmas * math.sqrt(2.0) * std / 2.0
             self.params = self.params.model_copy(update={"safety_margin": self.params.margin + grow})
         self.n = setup.n
-        self.v_max = setup.v_max                                # (3,) m/s or None
-        self.a_max = setup.a_max                                # (3,) m/s^2
-        self.control_dt = setup.control_dt                      # s, the shaper's tick
+        self.v_max = setup.v_max  # (3,) m/s or None
+        self.a_max = setup.a_max  # (3,) m/s^2
+        self.control_dt = setup.control_dt  # s, the shaper's tick
         self.sensing_radius = setup.sensing_radius
-        self.r_agent = float(setup.agent_radius)                # m, airframe enclosing radius
-        self.half_extent = 0.5 * np.asarray(setup.collision_size, dtype=float)   # (3,) m
-        self.box_size = float(info.box_size)                    # m, 0 when the task has no boxes
-        self.box_drop = float(info.grasp_height)                # m, box centre below agent
+        self.r_agent = float(setup.agent_radius)  # m, airframe enclosing radius
+        self.half_extent = 0.5 * np.asarray(setup.collision_size, dtype=float)  # (3,) m
+        self.box_size = float(info.box_size)  # m, 0 when the task has no boxes
+        self.box_drop = float(info.grasp_height)  # m, box centre below agent
         # sphere around the agent centre enclosing airframe and hanging box
-        self.r_carry = max(self.r_agent, math.hypot(math.sqrt(2.0) * 0.5 * self.box_size,
-                                                    self.box_drop + 0.5 * self.box_size))
+        self.r_carry = max(
+            self.r_agent, math.hypot(math.sqrt(2.0) * 0.5 * self.box_size, self.box_drop + 0.5 * self.box_size)
+        )
         _warm_up()
         self._ticks = 0
         self._agent_ticks = 0
@@ -1151,7 +1399,7 @@ class OrcaLayer:
         t0 = time.perf_counter()
         p = self.params
         n = self.n
-        pos = np.ascontiguousarray(perception.positions)     # sensed (estimated) own states
+        pos = np.ascontiguousarray(perception.positions)  # sensed (estimated) own states
         vel = np.ascontiguousarray(perception.velocities)
         carrying = task.carrying >= 0
         kinds = np.fromiter((int(cmd.kind) for cmd in commands), dtype=np.int64, count=n)
@@ -1160,29 +1408,54 @@ class OrcaLayer:
         has_goal = (kinds == int(CommandKind.POSITION)) | hold
         goals = np.where(has_goal[:, None], vectors, pos)
         goals[hold] = pos[hold]
-        pref = preferred_velocities(kinds, vectors, pos, arrive_time=p.arrive_time, v_max=self.v_max,
-                                    max_speed=p.max_speed)
+        pref = preferred_velocities(
+            kinds, vectors, pos, arrive_time=p.arrive_time, v_max=self.v_max, max_speed=p.max_speed
+        )
         v_cmd = commanded_velocities(kinds, vectors, pos, v_max=self.v_max, a_max=self.a_max, dt=self.control_dt)
         nbr = perception.nearest_table(p.max_neighbours)
-        centre, half = bounding_boxes(np.ascontiguousarray(perception.quaternions), self.half_extent, carrying,
-                                      self.box_size, self.box_drop)
+        centre, half = bounding_boxes(
+            np.ascontiguousarray(perception.quaternions), self.half_extent, carrying, self.box_size, self.box_drop
+        )
         radii = np.where(carrying, self.r_carry, self.r_agent)
         # bounds around what the command itself asks for (per axis it covers the preferred velocity)
-        bounds = velocity_bounds(pos, v_cmd, self.v_max, floor_height=p.floor_height, time_horizon=p.time_horizon,
-                                 goals=goals, has_goal=has_goal, column=p.column_radius)
+        bounds = velocity_bounds(
+            pos,
+            v_cmd,
+            self.v_max,
+            floor_height=p.floor_height,
+            time_horizon=p.time_horizon,
+            goals=goals,
+            has_goal=has_goal,
+            column=p.column_radius,
+        )
         # the overshoots of the airframes after a turn are not motion ORCA should answer
         v_opt = vel if self.v_max is None else np.clip(vel, -self.v_max, self.v_max)
-        safe, flags = orca_velocities(pos, v_opt, pref, params=p, sensing_radius=self.sensing_radius,
-                                      v_max=self.v_max, radii=radii, boxes=(centre, half), goals=goals,
-                                      has_goal=has_goal, bounds=bounds, commanded=v_cmd, neighbours=nbr)
+        safe, flags = orca_velocities(
+            pos,
+            v_opt,
+            pref,
+            params=p,
+            sensing_radius=self.sensing_radius,
+            v_max=self.v_max,
+            radii=radii,
+            boxes=(centre, half),
+            goals=goals,
+            has_goal=has_goal,
+            bounds=bounds,
+            commanded=v_cmd,
+            neighbours=nbr,
+        )
         near = has_goal & (np.linalg.norm(goals - pos, axis=1) <= p.capture_radius)
         passthrough = np.zeros(n, dtype=np.bool_)
         if near.any():
-            _clear_paths(pos, goals, centre, half, vel, nbr, near, p.clearance_margin, p.clearance_lookahead,
-                         passthrough)
+            _clear_paths(
+                pos, goals, centre, half, vel, nbr, near, p.clearance_margin, p.clearance_lookahead, passthrough
+            )
         keep = passthrough | ((flags & FLAG_FREE) != 0)
-        out = [cmd if keep[i] else Command(CommandKind.VELOCITY, safe[i].copy(), cmd.yaw, cmd.action)
-               for i, cmd in enumerate(commands)]
+        out = [
+            cmd if keep[i] else Command(CommandKind.VELOCITY, safe[i].copy(), cmd.yaw, cmd.action)
+            for i, cmd in enumerate(commands)
+        ]
         dt = time.perf_counter() - t0
         self._ticks += 1
         self._agent_ticks += n
@@ -1210,6 +1483,10 @@ class OrcaLayer:
 
 from pybullet_swarm.planning.registry import register_avoidance  # noqa: E402
 
-register_avoidance("orca", OrcaLayer, "optimal reciprocal collision avoidance in 3-D on every planner's commands "
-                   "(sensed neighbours, attitude-aware boxes or spheres, velocity limits, exact positioning at "
-                   "targets)")
+register_avoidance(
+    "orca",
+    OrcaLayer,
+    "optimal reciprocal collision avoidance in 3-D on every planner's commands "
+    "(sensed neighbours, attitude-aware boxes or spheres, velocity limits, exact positioning at "
+    "targets)",
+)

@@ -17,6 +17,7 @@ thesis preset with neighbour claims switched back on). A preset is refused at lo
 that has none. The validated model holds ``preset`` and every value, so a resolved scenario
 names both (and reproduces the run: its explicit values equal the preset's).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -39,7 +40,7 @@ scenario passes the configured budget (``pybullet_swarm.memory.memory_budget``) 
 class Preset(str, enum.Enum):
     """Named sets of parameter values (a model's ``preset`` field)."""
 
-    THESIS = "thesis"   # the thesis's algorithms as its chapters and appendix code write them: every extension off
+    THESIS = "thesis"  # the thesis's algorithms as its chapters and appendix code write them: every extension off
 
 
 class Params(pydantic.BaseModel):
@@ -91,8 +92,11 @@ def extensions(model: type[Params], preset: Preset | str = Preset.THESIS) -> dic
     (plain data), in the model's field order. For the thesis preset: the model's extensions of the thesis."""
     chosen = preset_values(model, preset)
     default = model().model_dump(mode="json")
-    return {k: (chosen[k], default[k]) for k in model.model_fields
-            if k != "preset" and k in model.PRESETS.get(Preset(preset), {}) and chosen[k] != default[k]}
+    return {
+        k: (chosen[k], default[k])
+        for k in model.model_fields
+        if k != "preset" and k in model.PRESETS.get(Preset(preset), {}) and chosen[k] != default[k]
+    }
 
 
 class NoParams(Params):
@@ -135,8 +139,11 @@ class PlanContext:
 def check_memory(field: str, needed: float, budget: int, what: str) -> None:
     """Refuse (``ParamRuleError`` on ``field``) when ``needed`` bytes exceed ``budget``."""
     if needed > budget:
-        raise ParamRuleError(field, f"{what} would need about {format_bytes(needed)}, above the memory budget of "
-                                    f"{format_bytes(budget)} (set {ENV_VAR} to allow more)")
+        raise ParamRuleError(
+            field,
+            f"{what} would need about {format_bytes(needed)}, above the memory budget of "
+            f"{format_bytes(budget)} (set {ENV_VAR} to allow more)",
+        )
 
 
 # ------------------------------------------------------------------ description
@@ -190,13 +197,13 @@ def describe(model: type[pydantic.BaseModel]) -> list[ParamInfo]:
     out = []
     for name, f in model.model_fields.items():
         default = f.get_default(call_default_factory=True)
-        out.append(field_info(name, f.annotation, f.metadata, default=_plain(default),
-                              description=f.description or ""))
+        out.append(field_info(name, f.annotation, f.metadata, default=_plain(default), description=f.description or ""))
     return out
 
 
-def field_info(name: str, annotation: Any, metadata: list[Any], *, default: Any = None,
-               description: str = "") -> ParamInfo:
+def field_info(
+    name: str, annotation: Any, metadata: list[Any], *, default: Any = None, description: str = ""
+) -> ParamInfo:
     """A ``ParamInfo`` from a field's annotation and its constraint metadata (``Ge``, ``Lt`` ...).
 
     Constraints inside ``Annotated`` members of a union (``float | list[float]``) are read from
@@ -204,8 +211,15 @@ def field_info(name: str, annotation: Any, metadata: list[Any], *, default: Any 
     """
     kind, inner = _numeric(annotation)
     bounds = _bounds([*metadata, *inner]) if kind else {}
-    return ParamInfo(name=name, type=type_text(annotation), default=default, description=description,
-                     numeric=kind is not None, integer=kind is int, **bounds)
+    return ParamInfo(
+        name=name,
+        type=type_text(annotation),
+        default=default,
+        description=description,
+        numeric=kind is not None,
+        integer=kind is int,
+        **bounds,
+    )
 
 
 def _numeric(annotation: Any) -> tuple[type | None, list[Any]]:
@@ -280,5 +294,18 @@ def _plain(value: Any) -> Any:
     return value
 
 
-__all__ = ["MEMORY_BUDGET_BYTES", "NoParams", "ParamInfo", "ParamRuleError", "Params", "PlanContext", "Preset",
-           "check_memory", "describe", "extensions", "field_info", "preset_values", "type_text"]
+__all__ = [
+    "MEMORY_BUDGET_BYTES",
+    "NoParams",
+    "ParamInfo",
+    "ParamRuleError",
+    "Params",
+    "PlanContext",
+    "Preset",
+    "check_memory",
+    "describe",
+    "extensions",
+    "field_info",
+    "preset_values",
+    "type_text",
+]

@@ -11,6 +11,7 @@ once per planner tick, after every agent has planned: agents of one tick all rea
 so the order in which the simulation asks them does not matter. Each cell remembers which agent
 marked it last (its "source"), so an agent can tell its own scent from the others'.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -31,8 +32,8 @@ FADED = 1e-9
 class DepositRule(enum.Enum):
     """How a deposit combines with the value already in a cell."""
 
-    ADD = "add"   # amplify: value += amount
-    SET = "set"   # overwrite: value = amount (the thesis's rule)
+    ADD = "add"  # amplify: value += amount
+    SET = "set"  # overwrite: value = amount (the thesis's rule)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,8 +81,15 @@ class PheromoneGrid:
         time_s: s, time stepped so far.
     """
 
-    def __init__(self, arena_size: ArrayLike, layers: Sequence[LayerSpec], *, cell: float = 0.1,
-                 height: float = 1.0, snapshot_s: float = 1.0) -> None:
+    def __init__(
+        self,
+        arena_size: ArrayLike,
+        layers: Sequence[LayerSpec],
+        *,
+        cell: float = 0.1,
+        height: float = 1.0,
+        snapshot_s: float = 1.0,
+    ) -> None:
         size = np.asarray(arena_size, dtype=float).ravel()
         if size.size < 2 or not np.all(np.isfinite(size[:2])) or np.any(size[:2] <= 0):
             raise ValueError(f"arena_size: expected two positive lengths, got {size.tolist()}")
@@ -97,11 +105,11 @@ class PheromoneGrid:
         if len(set(names)) != len(names):
             raise ValueError(f"layers: names must be unique, got {names}")
         self.cell = float(cell)
-        self.extent = np.array([size[0], size[1], float(height)])                   # (3,) m
+        self.extent = np.array([size[0], size[1], float(height)])  # (3,) m
         # the small offset keeps 3.0 / 0.1 = 29.999... from adding a sliver cell
-        self.shape = tuple(int(k) for k in np.maximum(1, np.ceil(self.extent / self.cell - 1e-9)))   # (nx, ny, nz)
+        self.shape = tuple(int(k) for k in np.maximum(1, np.ceil(self.extent / self.cell - 1e-9)))  # (nx, ny, nz)
         self.specs = {spec.name: spec for spec in layers}
-        self.values = {name: np.zeros(self.shape) for name in names}                 # value per cell
+        self.values = {name: np.zeros(self.shape) for name in names}  # value per cell
         self.sources = {name: np.full(self.shape, NO_SOURCE, dtype=np.int64) for name in names}
         self.deposits = {name: 0 for name in names}
         self.tallies: dict[str, int] = {}
@@ -111,7 +119,7 @@ class PheromoneGrid:
         self._next_snapshot = 0.0
         self.snapshot_t: list[float] = []
         self.snapshots: dict[str, list[NDArray[np.float32]]] = {name: [] for name in names}
-        self.mass: dict[str, list[float]] = {name: [] for name in names}   # sum of |values| per snapshot
+        self.mass: dict[str, list[float]] = {name: [] for name in names}  # sum of |values| per snapshot
         self.marked: dict[str, list[int]] = {name: [] for name in names}
 
     # ------------------------------------------------------------- geometry
@@ -166,13 +174,21 @@ class PheromoneGrid:
 
     def sample(self, layer: str, p: ArrayLike, *, exclude_source: int | None = None) -> float:
         """Value of the cell holding position ``p`` (3,) m."""
-        return float(self.values_at(layer, np.reshape(np.asarray(p, dtype=float), (1, 3)),
-                                    exclude_source=exclude_source)[0])
+        return float(
+            self.values_at(layer, np.reshape(np.asarray(p, dtype=float), (1, 3)), exclude_source=exclude_source)[0]
+        )
 
-    def strongest(self, layer: str, sign: int = +1, *, near: ArrayLike | None = None,
-                  distance_scale: float | None = None,
-                  rng: np.random.Generator | None = None, by_column: bool = False,
-                  first_by: tuple[int, ...] | None = None) -> NDArray[np.float64] | None:
+    def strongest(
+        self,
+        layer: str,
+        sign: int = +1,
+        *,
+        near: ArrayLike | None = None,
+        distance_scale: float | None = None,
+        rng: np.random.Generator | None = None,
+        by_column: bool = False,
+        first_by: tuple[int, ...] | None = None,
+    ) -> NDArray[np.float64] | None:
         """Centre (3,) m of the cell with the strongest value of the given sign, or None when no cell has one.
 
         Args:
@@ -200,8 +216,10 @@ class PheromoneGrid:
             return None
         if distance_scale is not None and near is not None:
             cand = np.flatnonzero(v > 0.0)
-            d = np.linalg.norm(self.centre(np.stack(np.unravel_index(cand, self.shape), axis=1))
-                               - np.asarray(near, dtype=float), axis=1)
+            d = np.linalg.norm(
+                self.centre(np.stack(np.unravel_index(cand, self.shape), axis=1)) - np.asarray(near, dtype=float),
+                axis=1,
+            )
             score = v[cand] / (1.0 + d / distance_scale)
             cand = cand[score >= score.max() - 1e-12]
         else:
@@ -227,8 +245,9 @@ class PheromoneGrid:
         return np.take_along_axis(v, k[:, :, None], axis=2)[:, :, 0]
 
     # ------------------------------------------------------------- writing
-    def deposit(self, layer: str, p: ArrayLike, amount: float, *, rule: DepositRule = DepositRule.ADD,
-                source: int = NO_SOURCE) -> None:
+    def deposit(
+        self, layer: str, p: ArrayLike, amount: float, *, rule: DepositRule = DepositRule.ADD, source: int = NO_SOURCE
+    ) -> None:
         """Queue a mark in the cell holding ``p`` (3,) m; it takes effect at the next ``step``.
 
         With ``DepositRule.SET`` several marks of one tick in the same cell resolve to the one of
@@ -254,7 +273,7 @@ class PheromoneGrid:
                 v *= math.exp(-spec.evaporation * dt)
             if spec.fatigue > 0.0:
                 np.copysign(np.maximum(np.abs(v) - spec.fatigue * dt, 0.0), v, out=v)
-                v[np.abs(v) < FADED] = 0.0   # 2 - 10 x 0.2 is not exactly 0 in floating point
+                v[np.abs(v) < FADED] = 0.0  # 2 - 10 x 0.2 is not exactly 0 in floating point
             if spec.evaporation > 0.0 or spec.fatigue > 0.0:
                 self.sources[name][v == 0.0] = NO_SOURCE
         self._apply_pending()
@@ -276,7 +295,7 @@ class PheromoneGrid:
             amount = np.array([d[2] for d in mine])
             source = np.array([d[4] for d in mine], dtype=np.int64)
             is_set = np.array([d[3] is DepositRule.SET for d in mine])
-            v, src = self.values[name].ravel(), self.sources[name].ravel()   # views
+            v, src = self.values[name].ravel(), self.sources[name].ravel()  # views
             if is_set.any():
                 f, a, s = flat[is_set], amount[is_set], source[is_set]
                 # per cell the SET of largest magnitude wins (the last one on a tie): sort, keep each cell's last
@@ -303,8 +322,12 @@ class PheromoneGrid:
         """Per layer: cells marked now, extreme values, number of deposits; and the planners' tallies."""
         out: dict[str, Any] = {}
         for name, v in self.values.items():
-            out[name] = {"cells_marked": int(np.count_nonzero(v)), "max": float(v.max()), "min": float(v.min()),
-                         "deposits": self.deposits[name]}
+            out[name] = {
+                "cells_marked": int(np.count_nonzero(v)),
+                "max": float(v.max()),
+                "min": float(v.min()),
+                "deposits": self.deposits[name],
+            }
         out["tallies"] = dict(sorted(self.tallies.items()))
         return {"pheromone": out}
 
@@ -312,13 +335,17 @@ class PheromoneGrid:
         """Everything ``write`` saves, by name: the grid geometry, each layer's values and sources,
         and the horizontal snapshots ``<layer>_history`` (k, nx, ny) at ``snapshot_t`` (k,) s."""
         out: dict[str, NDArray[Any]] = {
-            "cell": np.array(self.cell), "extent": self.extent.copy(), "time_s": np.array(self.time_s),
-            "layers": np.array(self.layer_names), "snapshot_t": np.array(self.snapshot_t)}
+            "cell": np.array(self.cell),
+            "extent": self.extent.copy(),
+            "time_s": np.array(self.time_s),
+            "layers": np.array(self.layer_names),
+            "snapshot_t": np.array(self.snapshot_t),
+        }
         for name in self.specs:
             out[name] = self.values[name].copy()
             out[f"{name}_source"] = self.sources[name].copy()
             hist = self.snapshots[name]
-            out[f"{name}_history"] = (np.stack(hist) if hist else np.zeros((0, *self.shape[:2]), dtype=np.float32))
+            out[f"{name}_history"] = np.stack(hist) if hist else np.zeros((0, *self.shape[:2]), dtype=np.float32)
             out[f"{name}_marked"] = np.array(self.marked[name], dtype=np.int64)
             out[f"{name}_mass"] = np.array(self.mass[name], dtype=float)
         return out

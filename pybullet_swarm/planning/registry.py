@@ -6,6 +6,7 @@ plug-in's parameter model (a ``planning.params.Params`` subclass): the scenario 
 ``planner.params`` and ``avoidance_params`` against it at load, and the plug-in is built from
 the validated instance: ``factory(params)`` for a planner, ``factory(sim, params)`` for a layer.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -17,16 +18,16 @@ from pybullet_swarm.planning.params import NoParams, Params
 class PlannerEntry(NamedTuple):
     """A registered planner."""
 
-    factory: Callable[..., Any]    # factory(params) -> planner
+    factory: Callable[..., Any]  # factory(params) -> planner
     description: str
-    tasks: tuple[str, ...]         # task kinds it solves
-    params: type[Params]           # its parameter model
+    tasks: tuple[str, ...]  # task kinds it solves
+    params: type[Params]  # its parameter model
 
 
 class AvoidanceEntry(NamedTuple):
     """A registered avoidance layer (``factory`` None: no layer)."""
 
-    factory: Callable[..., Any] | None   # factory(sim, params) -> layer
+    factory: Callable[..., Any] | None  # factory(sim, params) -> layer
     description: str
     params: type[Params]
 
@@ -47,8 +48,15 @@ def _model(factory: Callable[..., Any] | None, params: type[Params] | None, name
     return model
 
 
-def register_planner(name: str, factory: Callable[..., Any], description: str, tasks: tuple[str, ...],
-                     *, default_for: tuple[str, ...] = (), params: type[Params] | None = None) -> None:
+def register_planner(
+    name: str,
+    factory: Callable[..., Any],
+    description: str,
+    tasks: tuple[str, ...],
+    *,
+    default_for: tuple[str, ...] = (),
+    params: type[Params] | None = None,
+) -> None:
     """Make a planner available by name (to ``--planner`` and ``pybullet-swarm list``).
 
     Args:
@@ -66,8 +74,9 @@ def register_planner(name: str, factory: Callable[..., Any], description: str, t
         DEFAULT_PLANNER[kind] = name
 
 
-def register_avoidance(name: str, factory: Callable[..., Any], description: str, *,
-                       params: type[Params] | None = None) -> None:
+def register_avoidance(
+    name: str, factory: Callable[..., Any], description: str, *, params: type[Params] | None = None
+) -> None:
     """Make a local avoidance layer available by name (to ``--avoidance``); ``factory(sim, params)``
     gets a validated instance of ``params`` (default: ``factory.Params``)."""
     AVOIDANCE_LAYERS[name] = AvoidanceEntry(factory, description, _model(factory, params, name))

@@ -21,6 +21,7 @@ centroid of itself and its sensed neighbours is within ``switch_radius`` (defaul
 quarters of the task's ``pass_radius``) of the current waypoint, so that the task (judging the
 swarm's centroid against ``pass_radius``) has counted it when the flock turns.
 """
+
 from __future__ import annotations
 
 import math
@@ -55,8 +56,9 @@ def cohesion(position: NDArray[np.float64], neighbours: NDArray[np.float64]) -> 
     return p.mean(axis=0) - np.asarray(position, dtype=float) if len(p) else np.zeros(3)
 
 
-def migration(position: NDArray[np.float64], waypoint: NDArray[np.float64], speed: float, *,
-              slow_radius: float = 0.0) -> NDArray[np.float64]:
+def migration(
+    position: NDArray[np.float64], waypoint: NDArray[np.float64], speed: float, *, slow_radius: float = 0.0
+) -> NDArray[np.float64]:
     """Migratory urge (3,) m/s: ``speed`` along the horizontal direction to ``waypoint`` (3,) m,
     scaled by distance / ``slow_radius`` within ``slow_radius`` (0: never slows)."""
     d = np.asarray(waypoint, dtype=float) - np.asarray(position, dtype=float)
@@ -89,22 +91,30 @@ Altitude = Annotated[float, Field(gt=0.0, le=1e4)]
 class ReynoldsParams(Params):
     """Parameters of the ``reynolds`` planner (scenario ``planner.params``)."""
 
-    radius: float = Field(1.0, gt=0.0, le=1e4,
-                          description="m, neighbourhood radius of separation, alignment and cohesion")
+    radius: float = Field(
+        1.0, gt=0.0, le=1e4, description="m, neighbourhood radius of separation, alignment and cohesion"
+    )
     separation_radius: float = Field(0.6, ge=0.0, le=1e4, description="m, only neighbours closer than this repel")
     w_separation: float = Field(0.15, ge=0.0, le=100.0, description="m^2/s, separation weight")
     w_alignment: float = Field(0.5, ge=0.0, le=100.0, description="alignment weight (dimensionless)")
     w_cohesion: float = Field(0.2, ge=0.0, le=100.0, description="1/s, cohesion weight")
-    migration_speed: float | None = Field(None, ge=0.0, le=100.0,
-                                          description="m/s, speed of the migratory urge (null: 0.8 x the horizontal "
-                                                      "limit)")
+    migration_speed: float | None = Field(
+        None, ge=0.0, le=100.0, description="m/s, speed of the migratory urge (null: 0.8 x the horizontal limit)"
+    )
     altitude_band: Annotated[list[Altitude], Field(min_length=2, max_length=2)] = Field(
-        default_factory=lambda: [0.8, 1.2], description="[lo, hi] m, the flock flies between these altitudes")
+        default_factory=lambda: [0.8, 1.2], description="[lo, hi] m, the flock flies between these altitudes"
+    )
     altitude_gain: float = Field(1.0, ge=0.0, le=100.0, description="1/s, pull back into the altitude band")
-    switch_radius: float | None = Field(None, gt=0.0, le=1e4,
-                                        description="m, move on to the next waypoint when the local centroid is this "
-                                                    "close (null: 0.75 x the task's pass_radius)")
-    slow_radius: float = Field(0.5, ge=0.0, le=1e4, description="m, slow down within this distance of the last waypoint")
+    switch_radius: float | None = Field(
+        None,
+        gt=0.0,
+        le=1e4,
+        description="m, move on to the next waypoint when the local centroid is this "
+        "close (null: 0.75 x the task's pass_radius)",
+    )
+    slow_radius: float = Field(
+        0.5, ge=0.0, le=1e4, description="m, slow down within this distance of the last waypoint"
+    )
 
     @pydantic.model_validator(mode="after")
     def _band(self) -> ReynoldsParams:
@@ -166,10 +176,11 @@ class ReynoldsPlanner:
         """Start a run as agent ``agent_id``."""
         p = self.params
         self.agent_id = agent_id
-        self.v_max = np.where(np.isfinite(info.v_max), info.v_max, 1e9)   # (3,) m/s
+        self.v_max = np.where(np.isfinite(info.v_max), info.v_max, 1e9)  # (3,) m/s
         v_h = float(min(info.v_max[0], info.v_max[1]))
-        self.migration_speed = p.migration_speed if p.migration_speed is not None else (
-            0.8 * v_h if math.isfinite(v_h) else 0.5)
+        self.migration_speed = (
+            p.migration_speed if p.migration_speed is not None else (0.8 * v_h if math.isfinite(v_h) else 0.5)
+        )
         self.route = RouteFollower(info.route, switch_radius_from(info, p.switch_radius))
 
     def velocity(self, obs: Observation) -> NDArray[np.float64]:
@@ -181,7 +192,7 @@ class ReynoldsPlanner:
         nb_p, nb_v = obs.neighbour_positions[near], obs.neighbour_velocities[near]
         v = np.zeros(3)
         v[2] = altitude_hold(float(pos[2]), (p.altitude_band[0], p.altitude_band[1]), p.altitude_gain)
-        if pos[2] < 0.5 * p.altitude_band[0]:   # taking off: climb first
+        if pos[2] < 0.5 * p.altitude_band[0]:  # taking off: climb first
             return scale_to_limits(v, self.v_max)
         v += p.w_separation * separation(pos, nb_p, p.separation_radius)
         v += p.w_alignment * alignment(vel, nb_v)
@@ -199,6 +210,11 @@ class ReynoldsPlanner:
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402
 
-register_planner("reynolds", ReynoldsPlanner, "decentralised Reynolds flocking (separation, alignment, cohesion "
-                 "within a neighbourhood radius) with a migratory urge along the route, in an altitude band",
-                 ("route",), default_for=("route",))
+register_planner(
+    "reynolds",
+    ReynoldsPlanner,
+    "decentralised Reynolds flocking (separation, alignment, cohesion "
+    "within a neighbourhood radius) with a migratory urge along the route, in an altitude band",
+    ("route",),
+    default_for=("route",),
+)

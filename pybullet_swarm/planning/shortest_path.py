@@ -37,6 +37,7 @@ straight descent and the wait for an open slot are needs of this platform's phys
 thesis's passed through each other and through the structure), as is everything above about
 flying on estimates (the thesis's agents knew their positions); they stay under the preset.
 """
+
 from __future__ import annotations
 
 import enum
@@ -75,17 +76,23 @@ class ShortestPathParams(Params):
     """Parameters of the ``shortest_path`` baseline (scenario ``planner.params``); see the module's
     docstring for the extensions and ``preset: thesis``."""
 
-    preset: Preset | None = Field(None, strict=False,
-                                  description="thesis: every extension off, as the thesis's chapter 3.5 describes "
-                                              "the baseline (explicit values still win)")
+    preset: Preset | None = Field(
+        None,
+        strict=False,
+        description="thesis: every extension off, as the thesis's chapter 3.5 describes "
+        "the baseline (explicit values still win)",
+    )
 
-    arrive_tol: float = Field(0.01, gt=0.0, le=1.0,
-                              description="m, horizontal distance at which a waypoint counts as reached")
+    arrive_tol: float = Field(
+        0.01, gt=0.0, le=1.0, description="m, horizontal distance at which a waypoint counts as reached"
+    )
     release_clearance: float = Field(0.004, ge=0.0, le=0.5, description="m, how far above its slot a box is let go")
-    altitude_step: float = Field(0.2, ge=0.0, le=10.0,
-                                 description="m, agent i cruises at search_height + i * altitude_step")
-    release_tol: float = Field(0.005, gt=0.0, le=0.5,
-                               description="m, per-axis error of a held box within which it is let go on estimates")
+    altitude_step: float = Field(
+        0.2, ge=0.0, le=10.0, description="m, agent i cruises at search_height + i * altitude_step"
+    )
+    release_tol: float = Field(
+        0.005, gt=0.0, le=0.5, description="m, per-axis error of a held box within which it is let go on estimates"
+    )
     retry_slots: bool = Field(True, description="serve again a slot whose box came to rest off it [false]")
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.THESIS: {"altitude_step": 0.0, "retry_slots": False}}
@@ -114,7 +121,7 @@ class ShortestPath:
         self.info = info
         self.n = n
         base = float(info.extra.get("search_height", 0.45))
-        self.hs = base + self.altitude_step * np.arange(n)   # m, cruise altitude of each agent
+        self.hs = base + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
         self.gh = info.grasp_height
         slots = info.slots
         self.order = list(np.lexsort((slots[:, 1], slots[:, 0], np.round(slots[:, 2], 6))))
@@ -122,14 +129,14 @@ class ShortestPath:
         self.box = np.full(n, -1, dtype=np.int64)
         self.slot = np.full(n, -1, dtype=np.int64)
         self.next_slot = 0
-        self.home: np.ndarray | None = None   # m, start positions (parking spots)
-        self.offset = np.tile([0.0, 0.0, -info.grasp_height], (n, 1))   # m, held box relative to agent
+        self.home: np.ndarray | None = None  # m, start positions (parking spots)
+        self.offset = np.tile([0.0, 0.0, -info.grasp_height], (n, 1))  # m, held box relative to agent
         self.attach = float(info.extra.get("attach_threshold", 0.02))
-        sigma = float(info.extra.get("position_std", 0.0))   # m, per-axis std of the agents' own estimates
+        sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agents' own estimates
         self.estimated = sigma > 0.0
-        self.clearance = max(self.release_clearance, CLEARANCE_SIGMAS * sigma)   # m
-        self.correction = np.zeros((n, 3))    # m, servo correction of each carrier's target
-        self.within_since = np.full(n, np.nan)   # s, since when each held box is within release_tol
+        self.clearance = max(self.release_clearance, CLEARANCE_SIGMAS * sigma)  # m
+        self.correction = np.zeros((n, 3))  # m, servo correction of each carrier's target
+        self.within_since = np.full(n, np.nan)  # s, since when each held box is within release_tol
         self.last_box = np.full((n, 3), np.nan)  # m, held box position at the previous tick
 
     def _assign(self, i: int, view: WorldView) -> None:
@@ -147,7 +154,7 @@ class ShortestPath:
             return
         s = self.order[k if k >= 0 else self.next_slot]
         loose = [b for b in free if self.params.retry_slots and self._in_slot(view.box_positions[b], s)]
-        if loose:              # the box lying in the slot goes first: nothing is set down onto it
+        if loose:  # the box lying in the slot goes first: nothing is set down onto it
             self.box[i] = loose[0]
         else:
             p = view.positions[i]
@@ -195,11 +202,11 @@ class ShortestPath:
         if ph == Phase.IDLE:
             self._assign(i, view)
             ph = Phase(self.phase[i])
-        if ph == Phase.DONE:   # nothing left to carry: park above the start, out of the others' way
+        if ph == Phase.DONE:  # nothing left to carry: park above the start, out of the others' way
             return self._cruise(i, p, np.array([self.home[i, 0], self.home[i, 1], self.h]))
         b, s = self.box[i], self.slot[i]
         if ph == Phase.TO_BOX:
-            if view.box_state[b] != 0:           # someone took or placed it meanwhile: choose again
+            if view.box_state[b] != 0:  # someone took or placed it meanwhile: choose again
                 self.phase[i] = Phase.IDLE
                 self.box[i] = -1
                 return Command.goto([p[0], p[1], self.h])
@@ -215,7 +222,7 @@ class ShortestPath:
             act = Action.GRASP if np.linalg.norm(p - grasp) <= 0.6 * self.attach else Action.NONE
             return Command.goto(grasp, act)
         if ph == Phase.LIFT:
-            if view.carrying[i] != b:            # lost the box: start over
+            if view.carrying[i] != b:  # lost the box: start over
                 self.phase[i] = Phase.IDLE
                 self.box[i] = -1
                 self.next_slot = min(self.next_slot, self.order.index(s))
@@ -272,7 +279,7 @@ class ShortestPath:
         box = view.box_positions[b]
         still = bool(np.all(np.isfinite(self.last_box[i]))) and np.linalg.norm(box - self.last_box[i]) < 0.002
         self.last_box[i] = box
-        if np.linalg.norm(p - (target + self.correction[i])) < 0.02 and still:   # arrived: servo the box
+        if np.linalg.norm(p - (target + self.correction[i])) < 0.02 and still:  # arrived: servo the box
             self.correction[i] = np.clip(self.correction[i] - SERVO_GAIN * err, -SERVO_LIMIT, SERVO_LIMIT)
         if not (ok and still):
             self.within_since[i] = np.nan
@@ -294,5 +301,10 @@ class ShortestPath:
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402
 
-register_planner("shortest_path", ShortestPath, "centralised baseline: boxes in structure order, straight lines at "
-                 "a cruise altitude, other agents ignored", ("construction",), default_for=("construction",))
+register_planner(
+    "shortest_path",
+    ShortestPath,
+    "centralised baseline: boxes in structure order, straight lines at a cruise altitude, other agents ignored",
+    ("construction",),
+    default_for=("construction",),
+)

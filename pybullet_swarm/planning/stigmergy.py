@@ -124,6 +124,7 @@ the preset follows:
   bottom slots are out of the task's view. So under the bare preset no box is ever placed (the
   thesis's agents flew through the structure); ``wide_view: true`` on top of it builds.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -145,8 +146,8 @@ from pybullet_swarm.planning.pheromone_grid import DepositRule, LayerSpec, Phero
 class Layer(str, enum.Enum):
     """Pheromone layers of the stigmergy planners."""
 
-    TASK = "task"           # thesis layer 1: +1 box found, -1 box placed, 0.2 trail; never fades by default
-    PRESENCE = "presence"   # thesis layer 2 (layered variant): where the agents are; fades in about 1 s
+    TASK = "task"  # thesis layer 1: +1 box found, -1 box placed, 0.2 trail; never fades by default
+    PRESENCE = "presence"  # thesis layer 2 (layered variant): where the agents are; fades in about 1 s
 
 
 class Phase(enum.IntEnum):
@@ -207,16 +208,17 @@ class Phase(enum.IntEnum):
 
 
 #: phases in which an agent travels (searching, heading for an object, or back up to its altitude)
-TRAVELLING = frozenset({Phase.SEEK_BOX, Phase.SEEK_GOAL, Phase.TO_BOX, Phase.TO_SLOT, Phase.RECLIMB_BOX,
-                        Phase.RECLIMB_SLOT})
+TRAVELLING = frozenset(
+    {Phase.SEEK_BOX, Phase.SEEK_GOAL, Phase.TO_BOX, Phase.TO_SLOT, Phase.RECLIMB_BOX, Phase.RECLIMB_SLOT}
+)
 
 
 class TieBreak(str, enum.Enum):
     """Which of several equally strong pheromone cells an agent heads for."""
 
-    RANDOM = "random"     # any, drawn with the agent's own generator (spreads the agents out)
-    NEAREST = "nearest"   # the nearest to the agent
-    FIRST = "first"       # the first in the thesis's grid order (MATLAB's max over pheromones(:), appendix A)
+    RANDOM = "random"  # any, drawn with the agent's own generator (spreads the agents out)
+    NEAREST = "nearest"  # the nearest to the agent
+    FIRST = "first"  # the first in the thesis's grid order (MATLAB's max over pheromones(:), appendix A)
 
 
 #: axes (x, y, z of the arena) from most to least significant in the thesis's grid order: its grid is
@@ -227,9 +229,9 @@ THESIS_GRID_ORDER = (1, 2, 0)
 class Strategy(enum.IntEnum):
     """How the next search point is chosen (appendix A, column 6 of the agent data)."""
 
-    RANDOM = 0      # anywhere in the arena
-    PHEROMONE = 1   # the strongest pheromone of the wanted sign
-    LOCAL = 2       # near the agent
+    RANDOM = 0  # anywhere in the arena
+    PHEROMONE = 1  # the strongest pheromone of the wanted sign
+    LOCAL = 2  # near the agent
 
 
 ALTITUDE_TOL = 0.03
@@ -266,8 +268,6 @@ def _field_error(name: str, message: str) -> ConfigError:
     return ConfigError(message, field=f"planner.params.{name}")
 
 
-
-
 class StigmergyParams(Params):
     """Parameters of the 3-D stigmergy planner (defaults: thesis Tables 5.1 and 5.2, plus our extensions).
 
@@ -278,87 +278,148 @@ class StigmergyParams(Params):
     all off (the module's docstring has the table).
     """
 
-    preset: Preset | None = Field(None, strict=False,
-                                  description="thesis: every extension off, as the thesis's chapters and appendix "
-                                              "code write the algorithm (explicit values still win)")
+    preset: Preset | None = Field(
+        None,
+        strict=False,
+        description="thesis: every extension off, as the thesis's chapters and appendix "
+        "code write the algorithm (explicit values still win)",
+    )
 
-    cell_size: float = Field(0.1, ge=0.01, le=1.0,
-                             description="m, edge of a pheromone cell (thesis: 10 cm, a 30 x 10 x 10 grid)")
+    cell_size: float = Field(
+        0.1, ge=0.01, le=1.0, description="m, edge of a pheromone cell (thesis: 10 cm, a 30 x 10 x 10 grid)"
+    )
     grid_height: float = Field(1.0, gt=0.0, le=20.0, description="m, top of the pheromone grid")
     box_pheromone: float = Field(1.0, gt=0.0, le=1e3, description="value set in the agent's cell when it grasps a box")
-    goal_pheromone: float = Field(-1.0, ge=-1e3, lt=0.0,
-                                  description="value set in the agent's cell when it places a box")
-    trail_pheromone: float = Field(0.2, ge=0.0, le=1e3,
-                                   description="value set in every empty cell an agent passes while looking for a box")
+    goal_pheromone: float = Field(
+        -1.0, ge=-1e3, lt=0.0, description="value set in the agent's cell when it places a box"
+    )
+    trail_pheromone: float = Field(
+        0.2, ge=0.0, le=1e3, description="value set in every empty cell an agent passes while looking for a box"
+    )
     fatigue: float = Field(0.0, ge=0.0, le=1e3, description="value units per second by which the task layer fades")
-    local_radius: float = Field(0.2, gt=0.0, le=100.0,
-                                description="m, half-width of the square of a local random search point")
-    distance_scale: float | None = Field(None, gt=0.0, le=1e3,
-                                         description="m, nearer pheromone cells appear stronger (value / (1 + d / "
-                                                     "scale)); null: the strongest cell wins")
-    ties: TieBreak = Field(TieBreak.RANDOM, strict=False,
-                           description="which of equally strong cells wins: random or nearest")
-    floor_altitude: float | None = Field(None, gt=0.0, le=100.0,
-                                         description="m, flying altitude over the open floor (null: from the layout)")
-    look_altitude: float | None = Field(None, gt=0.0, le=100.0,
-                                        description="m, flying altitude over the depot (null: from the layout)")
-    cruise_altitude: float | None = Field(None, gt=0.0, le=100.0,
-                                          description="m, flying altitude over the structure (null: from the task)")
-    arrive_tol: float = Field(0.05, gt=0.0, le=10.0,
-                              description="m, horizontal distance at which a search point counts as reached")
-    structure_margin: float = Field(0.02, ge=0.0, le=1.0,
-                                    description="m, keep-out zone around the structure beyond one agent radius")
-    release_clearance: float = Field(0.004, ge=0.0, le=0.5,
-                                     description="m, height of the box above its slot when it is let go")
-    release_tol: float = Field(0.005, gt=0.0, le=0.5,
-                               description="m, per-axis position error within which the box is let go")
-    release_dwell_s: float | None = Field(None, ge=0.0, le=60.0,
-                                          description="s, time within release_tol before the box is let go "
-                                                      "(null: 0, or 0.5 s flying on an estimate)")
-    snapshot_s: float = Field(1.0, ge=0.0, le=1e4,
-                              description="s, period of the pheromone snapshots kept for the figures (0: none)")
+    local_radius: float = Field(
+        0.2, gt=0.0, le=100.0, description="m, half-width of the square of a local random search point"
+    )
+    distance_scale: float | None = Field(
+        None,
+        gt=0.0,
+        le=1e3,
+        description="m, nearer pheromone cells appear stronger (value / (1 + d / "
+        "scale)); null: the strongest cell wins",
+    )
+    ties: TieBreak = Field(
+        TieBreak.RANDOM, strict=False, description="which of equally strong cells wins: random or nearest"
+    )
+    floor_altitude: float | None = Field(
+        None, gt=0.0, le=100.0, description="m, flying altitude over the open floor (null: from the layout)"
+    )
+    look_altitude: float | None = Field(
+        None, gt=0.0, le=100.0, description="m, flying altitude over the depot (null: from the layout)"
+    )
+    cruise_altitude: float | None = Field(
+        None, gt=0.0, le=100.0, description="m, flying altitude over the structure (null: from the task)"
+    )
+    arrive_tol: float = Field(
+        0.05, gt=0.0, le=10.0, description="m, horizontal distance at which a search point counts as reached"
+    )
+    structure_margin: float = Field(
+        0.02, ge=0.0, le=1.0, description="m, keep-out zone around the structure beyond one agent radius"
+    )
+    release_clearance: float = Field(
+        0.004, ge=0.0, le=0.5, description="m, height of the box above its slot when it is let go"
+    )
+    release_tol: float = Field(
+        0.005, gt=0.0, le=0.5, description="m, per-axis position error within which the box is let go"
+    )
+    release_dwell_s: float | None = Field(
+        None,
+        ge=0.0,
+        le=60.0,
+        description="s, time within release_tol before the box is let go (null: 0, or 0.5 s flying on an estimate)",
+    )
+    snapshot_s: float = Field(
+        1.0, ge=0.0, le=1e4, description="s, period of the pheromone snapshots kept for the figures (0: none)"
+    )
     # ---- extensions of the thesis's algorithm (thesis value in brackets)
     claims: bool = Field(True, description="leave a box or slot to a neighbour already working over it [false]")
-    wide_view: bool = Field(True, description="notice every object the task shows (view_radius + grasp height "
-                                              "around its grasp point); false: only within view_window [false]")
-    view_window: float = Field(THESIS_VIEW_M, gt=0.0, le=10.0,
-                               description="m, half-width (max-norm, horizontal, centre to centre) of the view "
-                                           "without wide_view: two radii of the thesis's 15 cm airframe")
-    layout_altitudes: bool = Field(True, description="floor and depot altitudes for seeing, search points over the "
-                                                     "structure moved to its edge, local search along its face "
-                                                     "[false: one altitude at which a carried box clears the "
-                                                     "boxes on the floor, points as drawn]")
-    leave_boxes_by_structure: bool = Field(True, description="leave alone boxes lying beside the structure, whose "
-                                                             "descent would scrape it [false]")
-    drift_breakoff: bool = Field(True, description="break off a descent pushed off its column and climb straight "
-                                                   "back [false]")
-    loose_box_check: bool = Field(True, description="never descend with a box onto a slot with a loose box in it "
-                                                    "[false]")
-    retake: bool = Field(True, description="take back a box let go that did not come to rest in its slot, and "
-                                           "serve the slot again [false]")
-    descent_timeout_s: float | None = Field(DESCENT_TIMEOUT_S, gt=0.0, le=1e4,
-                                            description="s, break off a descent with a box that has not ended in "
-                                                        "a release by then [null: never]")
+    wide_view: bool = Field(
+        True,
+        description="notice every object the task shows (view_radius + grasp height "
+        "around its grasp point); false: only within view_window [false]",
+    )
+    view_window: float = Field(
+        THESIS_VIEW_M,
+        gt=0.0,
+        le=10.0,
+        description="m, half-width (max-norm, horizontal, centre to centre) of the view "
+        "without wide_view: two radii of the thesis's 15 cm airframe",
+    )
+    layout_altitudes: bool = Field(
+        True,
+        description="floor and depot altitudes for seeing, search points over the "
+        "structure moved to its edge, local search along its face "
+        "[false: one altitude at which a carried box clears the "
+        "boxes on the floor, points as drawn]",
+    )
+    leave_boxes_by_structure: bool = Field(
+        True, description="leave alone boxes lying beside the structure, whose descent would scrape it [false]"
+    )
+    drift_breakoff: bool = Field(
+        True, description="break off a descent pushed off its column and climb straight back [false]"
+    )
+    loose_box_check: bool = Field(
+        True, description="never descend with a box onto a slot with a loose box in it [false]"
+    )
+    retake: bool = Field(
+        True,
+        description="take back a box let go that did not come to rest in its slot, and serve the slot again [false]",
+    )
+    descent_timeout_s: float | None = Field(
+        DESCENT_TIMEOUT_S,
+        gt=0.0,
+        le=1e4,
+        description="s, break off a descent with a box that has not ended in a release by then [null: never]",
+    )
 
     #: pheromone layers of the grid (sizes its memory)
     LAYERS: ClassVar[int] = 1
-    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.THESIS: {
-        "cell_size": 0.1, "grid_height": 1.0, "box_pheromone": 1.0, "goal_pheromone": -1.0, "trail_pheromone": 0.2,
-        "fatigue": 0.0, "local_radius": 0.2, "distance_scale": None, "ties": TieBreak.FIRST.value,
-        "claims": False, "wide_view": False, "view_window": THESIS_VIEW_M, "layout_altitudes": False,
-        "leave_boxes_by_structure": False, "drift_breakoff": False, "loose_box_check": False, "retake": False,
-        "descent_timeout_s": None}}
+    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
+        Preset.THESIS: {
+            "cell_size": 0.1,
+            "grid_height": 1.0,
+            "box_pheromone": 1.0,
+            "goal_pheromone": -1.0,
+            "trail_pheromone": 0.2,
+            "fatigue": 0.0,
+            "local_radius": 0.2,
+            "distance_scale": None,
+            "ties": TieBreak.FIRST.value,
+            "claims": False,
+            "wide_view": False,
+            "view_window": THESIS_VIEW_M,
+            "layout_altitudes": False,
+            "leave_boxes_by_structure": False,
+            "drift_breakoff": False,
+            "loose_box_check": False,
+            "retake": False,
+            "descent_timeout_s": None,
+        }
+    }
 
     def check_for(self, context: PlanContext) -> None:
         """Refuse a pheromone grid (with its snapshots) larger than the memory budget."""
         nx, ny = (max(1, math.ceil(x / self.cell_size - 1e-9)) for x in context.arena_size)
         nz = max(1, math.ceil(self.grid_height / self.cell_size - 1e-9))
-        need = self.LAYERS * 16.0 * nx * ny * nz          # values (float64) and sources (int64) per cell
+        need = self.LAYERS * 16.0 * nx * ny * nz  # values (float64) and sources (int64) per cell
         if self.snapshot_s > 0.0:
             period = max(self.snapshot_s, 1.0 / context.planner_hz)
             need += self.LAYERS * 4.0 * nx * ny * (math.floor(context.time_limit_s / period) + 1)
-        check_memory("cell_size", need, context.memory_budget,
-                     f"a pheromone grid of {nx} x {ny} x {nz} cells ({self.LAYERS} layer(s), with its snapshots)")
+        check_memory(
+            "cell_size",
+            need,
+            context.memory_budget,
+            f"a pheromone grid of {nx} x {ny} x {nz} cells ({self.LAYERS} layer(s), with its snapshots)",
+        )
 
 
 class LayeredStigmergyParams(StigmergyParams):
@@ -366,23 +427,43 @@ class LayeredStigmergyParams(StigmergyParams):
     (defaults: thesis Table 6.1)."""
 
     presence_pheromone: float = Field(2.0, gt=0.0, le=1e3, description="value an agent sets in its cell every tick")
-    presence_fatigue: float = Field(2.0, gt=0.0, le=1e3,
-                                    description="value units per second by which presence marks fade (2/s erases a "
-                                                "2 in 1 s)")
-    lookahead: float = Field(0.2, gt=0.0, le=2.0,
-                             description="m, how far along its way an agent checks for other agents' marks "
-                                         "[0.1: the next cell]")
-    footprint: bool = Field(True, description="mark and check the airframe's extent (one agent radius) and the "
-                                              "carried box, not only the agent's own cell [false]")
-    ahead_cone: bool = Field(True, description="only marks ahead of the way block it (within AHEAD_DEG): an agent "
-                                               "may move away from a neighbour beside or behind it [false]")
-    detour: bool = Field(True, description="after a re-plan keep to the new search point for as long as a mark "
-                                           "lasts before going for a seen object again [false]")
+    presence_fatigue: float = Field(
+        2.0, gt=0.0, le=1e3, description="value units per second by which presence marks fade (2/s erases a 2 in 1 s)"
+    )
+    lookahead: float = Field(
+        0.2,
+        gt=0.0,
+        le=2.0,
+        description="m, how far along its way an agent checks for other agents' marks [0.1: the next cell]",
+    )
+    footprint: bool = Field(
+        True,
+        description="mark and check the airframe's extent (one agent radius) and the "
+        "carried box, not only the agent's own cell [false]",
+    )
+    ahead_cone: bool = Field(
+        True,
+        description="only marks ahead of the way block it (within AHEAD_DEG): an agent "
+        "may move away from a neighbour beside or behind it [false]",
+    )
+    detour: bool = Field(
+        True,
+        description="after a re-plan keep to the new search point for as long as a mark "
+        "lasts before going for a seen object again [false]",
+    )
 
     LAYERS: ClassVar[int] = 2
-    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.THESIS: {
-        **StigmergyParams.PRESETS[Preset.THESIS], "presence_pheromone": 2.0, "presence_fatigue": 2.0,
-        "lookahead": 0.1, "footprint": False, "ahead_cone": False, "detour": False}}
+    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
+        Preset.THESIS: {
+            **StigmergyParams.PRESETS[Preset.THESIS],
+            "presence_pheromone": 2.0,
+            "presence_fatigue": 2.0,
+            "lookahead": 0.1,
+            "footprint": False,
+            "ahead_cone": False,
+            "detour": False,
+        }
+    }
 
 
 @dataclasses.dataclass(frozen=True)
@@ -413,7 +494,7 @@ class Zone:
             t1 = (self.lo - a) / d
             t2 = (self.hi - a) / d
         tlo, thi = np.minimum(t1, t2), np.maximum(t1, t2)
-        flat = d == 0.0                                   # axis without motion: inside the slab or never
+        flat = d == 0.0  # axis without motion: inside the slab or never
         within = (a >= self.lo) & (a <= self.hi)
         tlo = np.where(flat, np.where(within, -np.inf, np.inf), tlo)
         thi = np.where(flat, np.where(within, np.inf, -np.inf), thi)
@@ -475,7 +556,7 @@ class FlightGeometry:
         """Derive the altitudes and zones of a construction task."""
         gh, bs, r = info.grasp_height, info.box_size, info.agent_radius
         view = float(info.extra.get("view_radius", 2.0 * r)) + gh
-        carried_bottom = gh + 0.5 * bs                      # m, agent centre above the bottom of its box
+        carried_bottom = gh + 0.5 * bs  # m, agent centre above the bottom of its box
         slot_grasp = info.slots[:, 2] + gh
         # level with the middle of the structure's grasp points: slots of every layer in view from its edge;
         # and a carried box clears a box lying on the floor (one knocked out of the structure or let go
@@ -484,27 +565,48 @@ class FlightGeometry:
         # (without ``layout_altitudes`` only the clearance, one altitude over the floor and a flat depot,
         # counted from where a climb ends: ALTITUDE_TOL below the altitude)
         seeing = p.layout_altitudes
-        floor = (p.floor_altitude if p.floor_altitude is not None
-                 else max(0.5 * (slot_grasp.min() + slot_grasp.max()), bs + carried_bottom + VERTICAL_CLEARANCE)
-                 if seeing else bs + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL)
+        floor = (
+            p.floor_altitude
+            if p.floor_altitude is not None
+            else max(0.5 * (slot_grasp.min() + slot_grasp.max()), bs + carried_bottom + VERTICAL_CLEARANCE)
+            if seeing
+            else bs + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL
+        )
         ground_grasp = 0.5 * bs + gh
         depot_top = float(np.max(info.depot[:, 2])) + 0.5 * bs if len(info.depot) else bs
-        look = (p.look_altitude if p.look_altitude is not None
-                else max(ground_grasp + 0.5 * view, depot_top + carried_bottom + VERTICAL_CLEARANCE) if seeing
-                else max(floor, depot_top + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL))
+        look = (
+            p.look_altitude
+            if p.look_altitude is not None
+            else max(ground_grasp + 0.5 * view, depot_top + carried_bottom + VERTICAL_CLEARANCE)
+            if seeing
+            else max(floor, depot_top + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL)
+        )
         top = float(np.max(info.slots[:, 2])) + 0.5 * bs
-        cruise = (p.cruise_altitude if p.cruise_altitude is not None
-                  else max(float(info.extra.get("search_height", 0.0)), top + carried_bottom + VERTICAL_CLEARANCE))
+        cruise = (
+            p.cruise_altitude
+            if p.cruise_altitude is not None
+            else max(float(info.extra.get("search_height", 0.0)), top + carried_bottom + VERTICAL_CLEARANCE)
+        )
         if not floor <= look <= cruise:
-            raise _field_error("cruise_altitude", f"altitudes must rise from floor ({floor:.3f} m) to depot "
-                               f"({look:.3f} m) to structure ({cruise:.3f} m)")
+            raise _field_error(
+                "cruise_altitude",
+                f"altitudes must rise from floor ({floor:.3f} m) to depot ({look:.3f} m) to structure ({cruise:.3f} m)",
+            )
         half = 0.5 * bs + r + p.structure_margin
         lo = np.full(2, r)
         hi = np.maximum(np.asarray(info.arena_size, dtype=float)[:2] - r, lo)
         cols = np.unique(np.round(info.slots[:, :2], 9), axis=0)
-        return FlightGeometry(float(floor), Zone(*_around(info.depot[:, :2], half), float(look)),
-                              Zone(*_around(cols, half), float(cruise)), lo, hi, view,
-                              standoff=max(0.03, p.structure_margin), columns=cols, clearance=0.5 * bs + r)
+        return FlightGeometry(
+            float(floor),
+            Zone(*_around(info.depot[:, :2], half), float(look)),
+            Zone(*_around(cols, half), float(cruise)),
+            lo,
+            hi,
+            view,
+            standoff=max(0.03, p.structure_margin),
+            columns=cols,
+            clearance=0.5 * bs + r,
+        )
 
     @property
     def zones(self) -> tuple[Zone, Zone]:
@@ -535,7 +637,7 @@ class FlightGeometry:
         cand += [np.array([xy[0], y]) for y in (*(k.lo[:, 1] - self.standoff), *(k.hi[:, 1] + self.standoff))]
         pts = np.clip(np.array(cand), self.arena_lo, self.arena_hi)
         ok = np.array([not self.inside(c) for c in pts])
-        if not ok.any():       # the zone fills the arena across: nowhere to look from but above it
+        if not ok.any():  # the zone fills the arena across: nowhere to look from but above it
             return xy
         pts = pts[ok]
         cost = np.linalg.norm(pts - xy, axis=1) + np.linalg.norm(pts - start, axis=1)
@@ -547,7 +649,7 @@ class FlightGeometry:
         k = self.structure
         if len(k.lo) == 0:
             return None
-        nearest = np.clip(xy, k.lo, k.hi)                   # (z, 2) nearest point of each column's square
+        nearest = np.clip(xy, k.lo, k.hi)  # (z, 2) nearest point of each column's square
         d = np.hypot(*(nearest - xy).T)
         j = int(np.argmin(d))
         if not 0.0 < d[j] <= reach:
@@ -559,7 +661,7 @@ class FlightGeometry:
         enough from every column for an agent to descend there without touching it."""
         if len(self.columns) == 0:
             return np.ones(len(xy), dtype=bool)
-        d = np.max(np.abs(xy[:, None, :] - self.columns[None, :, :]), axis=2)   # (k, c) m, per-axis distance
+        d = np.max(np.abs(xy[:, None, :] - self.columns[None, :, :]), axis=2)  # (k, c) m, per-axis distance
         return np.all(d >= self.clearance, axis=1) | np.any(d <= COLUMN_TOL + 0.02, axis=1)
 
 
@@ -651,13 +753,20 @@ class Stigmergy:
         if not isinstance(self.params, self.Params):
             raise TypeError(f"{self.name}: expected {self.Params.__name__}, got {type(self.params).__name__}")
         self._steps = {
-            Phase.CHOOSE_BOX: self._step_choose_box, Phase.SEEK_BOX: self._step_seek_box,
-            Phase.TO_BOX: self._step_to_box, Phase.RECLIMB_BOX: self._step_reclimb_box,
-            Phase.DESCEND_BOX: self._step_descend_box, Phase.GRASPING: self._step_descend_box,
-            Phase.LIFT: self._step_lift, Phase.CHOOSE_GOAL: self._step_choose_goal,
-            Phase.SEEK_GOAL: self._step_seek_goal, Phase.TO_SLOT: self._step_to_slot,
-            Phase.RECLIMB_SLOT: self._step_reclimb_slot, Phase.DESCEND_SLOT: self._step_descend_slot,
-            Phase.RELEASING: self._step_descend_slot, Phase.SETTLING: self._step_settling,
+            Phase.CHOOSE_BOX: self._step_choose_box,
+            Phase.SEEK_BOX: self._step_seek_box,
+            Phase.TO_BOX: self._step_to_box,
+            Phase.RECLIMB_BOX: self._step_reclimb_box,
+            Phase.DESCEND_BOX: self._step_descend_box,
+            Phase.GRASPING: self._step_descend_box,
+            Phase.LIFT: self._step_lift,
+            Phase.CHOOSE_GOAL: self._step_choose_goal,
+            Phase.SEEK_GOAL: self._step_seek_goal,
+            Phase.TO_SLOT: self._step_to_slot,
+            Phase.RECLIMB_SLOT: self._step_reclimb_slot,
+            Phase.DESCEND_SLOT: self._step_descend_slot,
+            Phase.RELEASING: self._step_descend_slot,
+            Phase.SETTLING: self._step_settling,
             Phase.CLIMB: self._step_climb,
         }
 
@@ -670,8 +779,13 @@ class Stigmergy:
     @classmethod
     def make_medium(cls, params: StigmergyParams, info: TaskInfo) -> PheromoneGrid:
         """The pheromone grid shared by the agents of a run, from the planner's validated parameters."""
-        return PheromoneGrid(info.arena_size, cls.layer_specs(params), cell=params.cell_size,
-                             height=params.grid_height, snapshot_s=params.snapshot_s)
+        return PheromoneGrid(
+            info.arena_size,
+            cls.layer_specs(params),
+            cell=params.cell_size,
+            height=params.grid_height,
+            snapshot_s=params.snapshot_s,
+        )
 
     # ------------------------------------------------------------- protocol
     def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
@@ -683,22 +797,22 @@ class Stigmergy:
         self.info = info
         self.geo = FlightGeometry.from_task(info, self.params)
         self.attach = float(info.extra.get("attach_threshold", 0.02))
-        sigma = float(info.extra.get("position_std", 0.0))   # m, per-axis std of the agent's own position estimate
-        self.clearance = max(self.params.release_clearance, CLEARANCE_SIGMAS * sigma)   # m
+        sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agent's own position estimate
+        self.clearance = max(self.params.release_clearance, CLEARANCE_SIGMAS * sigma)  # m
         dwell = self.params.release_dwell_s
-        self.dwell = (0.5 if sigma > 0.0 else 0.0) if dwell is None else float(dwell)   # s
+        self.dwell = (0.5 if sigma > 0.0 else 0.0) if dwell is None else float(dwell)  # s
         self.phase = Phase.CHOOSE_BOX
-        self.strategy = Strategy.RANDOM      # the thesis starts every agent in mode 0 ("random")
-        self.target = np.zeros(2)            # m, current search point
-        self.box = Sighting()                # the box being fetched
-        self.slot = Sighting()               # the slot being served
-        self.carry: Carry | None = None      # the box held
-        self.grasp_offset = np.zeros(3)      # m, box centre relative to the agent when it asked to GRASP
-        self.column = np.zeros(2)            # m, where the agent climbs straight up (LIFT, SETTLING, CLIMB, RECLIMB_*)
-        self.climb_at: NDArray[np.float64] | None = None   # m, where it latched to climb before a higher zone
+        self.strategy = Strategy.RANDOM  # the thesis starts every agent in mode 0 ("random")
+        self.target = np.zeros(2)  # m, current search point
+        self.box = Sighting()  # the box being fetched
+        self.slot = Sighting()  # the slot being served
+        self.carry: Carry | None = None  # the box held
+        self.grasp_offset = np.zeros(3)  # m, box centre relative to the agent when it asked to GRASP
+        self.column = np.zeros(2)  # m, where the agent climbs straight up (LIFT, SETTLING, CLIMB, RECLIMB_*)
+        self.climb_at: NDArray[np.float64] | None = None  # m, where it latched to climb before a higher zone
         self.watch = ReleaseWatch()
-        self.let_go: LetGo | None = None     # the box let go last, watched while SETTLING
-        self.retake: LetGo | None = None     # a box let go beside its slot, taken back to serve that slot again
+        self.let_go: LetGo | None = None  # the box let go last, watched while SETTLING
+        self.retake: LetGo | None = None  # a box let go beside its slot, taken back to serve that slot again
 
     @property
     def holding(self) -> bool:
@@ -713,7 +827,7 @@ class Stigmergy:
     def plan(self, obs: Observation, medium: PheromoneGrid | None) -> Command:
         """The agent's command for the next planner period."""
         self._sync(obs, medium)
-        for _ in range(MAX_STEPS):   # a step returns None when it changed the phase and the next one should act now
+        for _ in range(MAX_STEPS):  # a step returns None when it changed the phase and the next one should act now
             cmd = self._steps[self.phase](obs, medium)
             if cmd is not None:
                 return cmd
@@ -726,9 +840,9 @@ class Stigmergy:
             self._grasped(obs, medium)
         elif obs.carrying < 0 and self.carry is not None:
             self._let_go(obs, medium)
-        elif self.phase is Phase.GRASPING:      # the grasp did not take: keep at it
+        elif self.phase is Phase.GRASPING:  # the grasp did not take: keep at it
             self.phase = Phase.DESCEND_BOX
-        elif self.phase is Phase.RELEASING:     # the box is still held: keep at it
+        elif self.phase is Phase.RELEASING:  # the box is still held: keep at it
             self.phase = Phase.DESCEND_SLOT
 
     def _grasped(self, obs: Observation, medium: PheromoneGrid | None) -> None:
@@ -790,9 +904,15 @@ class Stigmergy:
         ties = self.params.ties
         best = None
         if medium is not None:
-            best = medium.strongest(Layer.TASK.value, sign, near=p, distance_scale=self.params.distance_scale,
-                                    rng=self.rng if ties is TieBreak.RANDOM else None, by_column=True,
-                                    first_by=THESIS_GRID_ORDER if ties is TieBreak.FIRST else None)
+            best = medium.strongest(
+                Layer.TASK.value,
+                sign,
+                near=p,
+                distance_scale=self.params.distance_scale,
+                rng=self.rng if ties is TieBreak.RANDOM else None,
+                by_column=True,
+                first_by=THESIS_GRID_ORDER if ties is TieBreak.FIRST else None,
+            )
         g = self.geo
         layout = self.params.layout_altitudes
         if best is None or self.strategy == Strategy.LOCAL:
@@ -806,7 +926,7 @@ class Stigmergy:
             r = self.params.local_radius
             xy = p[:2] + self.rng.uniform(-r, r, size=2)
             face = g.face_normal(p[:2], reach=g.standoff + self.params.arrive_tol + COLUMN_TOL) if layout else None
-            if face is not None:   # beside the structure: look along its face, where slots are in view
+            if face is not None:  # beside the structure: look along its face, where slots are in view
                 tangent = np.array([-face[1], face[0]]) / np.hypot(*face)
                 xy = p[:2] + self.rng.uniform(-r, r) * tangent + face * (1.0 + 1e-6) + 1e-3 * face / np.hypot(*face)
         # a point over the structure is searched from the edge of the keep-out zone, low, where the
@@ -817,8 +937,7 @@ class Stigmergy:
             medium.tally(f"target_{self.strategy.name.lower()}")
 
     def _arrived(self, p: NDArray[np.float64], xy: NDArray[np.float64]) -> bool:
-        return bool(np.hypot(*(p[:2] - xy)) <= self.params.arrive_tol
-                    and abs(p[2] - self.geo.altitude(xy)) <= 0.05)
+        return bool(np.hypot(*(p[:2] - xy)) <= self.params.arrive_tol and abs(p[2] - self.geo.altitude(xy)) <= 0.05)
 
     def _step_seek_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
         """SEEK_BOX -> TO_BOX (a free box in view) | CHOOSE_BOX (search point reached); trail 0.2 on the way."""
@@ -854,8 +973,16 @@ class Stigmergy:
         """True while the agent keeps to its search point whatever it sees (none in 3-D stigmergy)."""
         return False
 
-    def _pick(self, obs: Observation, ids: NDArray[np.int64], where: NDArray[np.float64],
-              shift: NDArray[np.float64], *, boxes: bool = False, skip: NDArray[np.bool_] | None = None) -> int:
+    def _pick(
+        self,
+        obs: Observation,
+        ids: NDArray[np.int64],
+        where: NDArray[np.float64],
+        shift: NDArray[np.float64],
+        *,
+        boxes: bool = False,
+        skip: NDArray[np.bool_] | None = None,
+    ) -> int:
         """Index (into ``ids``) of the nearest visible object nobody else is working on, or -1.
         ``shift`` (3,) m moves an object's centre to where the agent's column over it is; with
         ``boxes``, boxes beside the structure (whose descent would scrape it) are left alone;
@@ -865,7 +992,7 @@ class Stigmergy:
         par = self.params
         cols = where[:, :2] - shift[:2]
         free = np.array([not (par.claims and self._claimed(obs, c)) for c in cols])
-        if not par.wide_view:   # the thesis's window: object centre to agent centre, largest horizontal difference
+        if not par.wide_view:  # the thesis's window: object centre to agent centre, largest horizontal difference
             free &= np.max(np.abs(where[:, :2] - obs.position[:2]), axis=1) <= par.view_window
         if skip is not None:
             free &= ~skip
@@ -894,7 +1021,9 @@ class Stigmergy:
     def _gone(self, p: NDArray[np.float64], obj: NDArray[np.float64]) -> bool:
         """True when an object the agent should see from here (well inside its view range) is not there."""
         grasp = obj + [0.0, 0.0, self.info.grasp_height]
-        return bool(view_distance(grasp - p, self.info.extra.get("view_norm", "chebyshev")) <= 0.9 * self.geo.view_range)
+        return bool(
+            view_distance(grasp - p, self.info.extra.get("view_norm", "chebyshev")) <= 0.9 * self.geo.view_range
+        )
 
     # ------------------------------------------------------------- a box: over it, down, grasp, up
     def _box_lost(self, obs: Observation, *, claims: bool) -> bool:
@@ -904,8 +1033,9 @@ class Stigmergy:
         if seen.size:
             self.box.pos = obs.boxes[seen[0]].copy()
         if (not seen.size and self._gone(obs.position, self.box.pos)) or (
-                claims and self.params.claims and self._claimed(obs, self.box.pos[:2])):
-            self.phase = Phase.SEEK_BOX          # taken or claimed by another agent: keep looking
+            claims and self.params.claims and self._claimed(obs, self.box.pos[:2])
+        ):
+            self.phase = Phase.SEEK_BOX  # taken or claimed by another agent: keep looking
             self.box = Sighting(-1, self.box.pos)
             return True
         return False
@@ -945,7 +1075,7 @@ class Stigmergy:
     def _grasp(self, obs: Observation, grasp: NDArray[np.float64]) -> Command:
         """Down to the grasp point (3,) m; GRASP there once steady (-> GRASPING)."""
         p = obs.position
-        steady = self.dwell == 0.0 or np.linalg.norm(obs.velocity) < SETTLED_SPEED   # a tilted grasp skews the offset
+        steady = self.dwell == 0.0 or np.linalg.norm(obs.velocity) < SETTLED_SPEED  # a tilted grasp skews the offset
         if np.linalg.norm(p - grasp) <= GRASP_FRACTION * self.attach and steady:
             self.grasp_offset = self.box.pos - p
             self.phase = Phase.GRASPING
@@ -962,8 +1092,9 @@ class Stigmergy:
         a neighbour works over it."""
         seen = bool(np.any(obs.slot_ids == self.slot.id))
         if (not seen and self._gone(obs.position, self.slot.pos)) or (
-                claims and self.params.claims and self._claimed(obs, self.slot.pos[:2] - self.offset[:2])):
-            self.phase = Phase.SEEK_GOAL         # filled or claimed by another agent: keep looking
+            claims and self.params.claims and self._claimed(obs, self.slot.pos[:2] - self.offset[:2])
+        ):
+            self.phase = Phase.SEEK_GOAL  # filled or claimed by another agent: keep looking
             self.slot = Sighting(-1, self.slot.pos)
             return True
         return False
@@ -973,7 +1104,8 @@ class Stigmergy:
         box could not be set down within ``descent_timeout_s``."""
         timeout = self.params.descent_timeout_s
         if (self.params.loose_box_check and self._occupied(obs, self.slot.pos)) or (
-                descending and timeout is not None and obs.time_s - self.watch.descent_start > timeout):
+            descending and timeout is not None and obs.time_s - self.watch.descent_start > timeout
+        ):
             self.phase = Phase.SEEK_GOAL
             self.slot = Sighting(-1, self.slot.pos)
             self.watch.clear()
@@ -1056,10 +1188,10 @@ class Stigmergy:
         assert self.let_go is not None
         if obs.time_s - self.let_go.time_s >= SETTLE_S - 1e-9:
             seen = np.flatnonzero(obs.box_ids == self.let_go.box)
-            if seen.size and self.let_go.slot.id >= 0:   # the box lies loose beside its slot: take it back
+            if seen.size and self.let_go.slot.id >= 0:  # the box lies loose beside its slot: take it back
                 self.box = Sighting(self.let_go.box, obs.boxes[seen[0]].copy())
                 self.retake = self.let_go
-                self.phase = Phase.DESCEND_BOX           # straight down: the agent is over it
+                self.phase = Phase.DESCEND_BOX  # straight down: the agent is over it
                 return None
             self.let_go = None
             self.phase = Phase.CLIMB
@@ -1103,8 +1235,11 @@ class Stigmergy:
     def _over(self, obs: Observation, xy: NDArray[np.float64]) -> bool:
         """True when the agent hovers over ``xy`` (2,) m at its flying altitude, ready to descend."""
         p = obs.position
-        return bool(np.hypot(*(p[:2] - xy)) <= COLUMN_TOL and abs(p[2] - self.geo.altitude(xy)) <= ALTITUDE_TOL
-                    and np.linalg.norm(obs.velocity) < SETTLED_SPEED)
+        return bool(
+            np.hypot(*(p[:2] - xy)) <= COLUMN_TOL
+            and abs(p[2] - self.geo.altitude(xy)) <= ALTITUDE_TOL
+            and np.linalg.norm(obs.velocity) < SETTLED_SPEED
+        )
 
     # ------------------------------------------------------------- flight
     def _travel(self, p: NDArray[np.float64], dest: NDArray[np.float64]) -> Command:
@@ -1120,9 +1255,9 @@ class Stigmergy:
         g = self.geo
         xy = p[:2]
         hits = [(t, z) for z in g.zones if (t := z.entry(xy, dest)) is not None]
-        h_way = max([g.floor_altitude, *(z.altitude for _, z in hits)])    # m, altitude over the whole way
+        h_way = max([g.floor_altitude, *(z.altitude for _, z in hits)])  # m, altitude over the whole way
         higher = [(t, z) for t, z in hits if z.altitude > p[2] + ALTITUDE_TOL]
-        if not higher:                  # high enough (or only the open floor to climb over): fly there
+        if not higher:  # high enough (or only the open floor to climb over): fly there
             return Command.goto([dest[0], dest[1], h_way]), False
         t, zone = min(higher, key=lambda tz: tz[0])
         way = dest - xy
@@ -1132,7 +1267,7 @@ class Stigmergy:
             if np.hypot(*(before - xy)) > COLUMN_TOL:
                 h_now = max([g.floor_altitude, *(z.altitude for _, z in hits if z.altitude <= p[2] + ALTITUDE_TOL)])
                 return Command.goto([before[0], before[1], h_now]), False
-        if self.climb_at is None:         # latch where to climb: chasing the measured position would drift
+        if self.climb_at is None:  # latch where to climb: chasing the measured position would drift
             self.climb_at = xy.copy()
         return Command.goto([self.climb_at[0], self.climb_at[1], zone.altitude]), True
 
@@ -1169,8 +1304,9 @@ class LayeredStigmergy(Stigmergy):
             cmd = Command.hold()
         marks = self._origins(obs.position)
         for q in marks:
-            medium.deposit(Layer.PRESENCE.value, q, self.params.presence_pheromone, rule=DepositRule.SET,
-                           source=self.id)
+            medium.deposit(
+                Layer.PRESENCE.value, q, self.params.presence_pheromone, rule=DepositRule.SET, source=self.id
+            )
         return cmd
 
     def _ignoring_objects(self, obs: Observation) -> bool:
@@ -1191,8 +1327,8 @@ class LayeredStigmergy(Stigmergy):
             return False
         u = way / dist
         step = 0.5 * self.params.cell_size
-        s = np.arange(step, min(self.params.lookahead, dist) + step - 1e-9, step)   # (k,) m along the way
-        swept = (np.outer(s, u)[:, None, :] + self._footprint[None, :, :]).reshape(-1, 3)   # offsets from a centre
+        s = np.arange(step, min(self.params.lookahead, dist) + step - 1e-9, step)  # (k,) m along the way
+        swept = (np.outer(s, u)[:, None, :] + self._footprint[None, :, :]).reshape(-1, 3)  # offsets from a centre
         for o in self._origins(p):
             pts = o + swept
             marked = pts[medium.values_at(Layer.PRESENCE.value, pts, exclude_source=self.id) > 0.0]
@@ -1200,7 +1336,7 @@ class LayeredStigmergy(Stigmergy):
                 continue
             if not self.params.ahead_cone:
                 return True
-            rel = medium.centre(medium.index(marked)) - o                          # (m, 3) m
+            rel = medium.centre(medium.index(marked)) - o  # (m, 3) m
             if np.any(rel @ u > math.cos(math.radians(AHEAD_DEG)) * np.linalg.norm(rel, axis=1)):
                 return True
         return False
@@ -1212,7 +1348,7 @@ class LayeredStigmergy(Stigmergy):
     def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
         """Start a run as agent ``agent_id`` (see ``Stigmergy.reset``)."""
         super().reset(agent_id, rng, info)
-        self.detour_until = -math.inf        # s, until then the agent keeps to its search point
+        self.detour_until = -math.inf  # s, until then the agent keeps to its search point
         r = info.agent_radius
         h = 0.5 * self.params.cell_size
         grid = np.array(np.meshgrid([-r, 0.0, r], [-r, 0.0, r], [-h, 0.0, h], indexing="ij"))
@@ -1222,7 +1358,17 @@ class LayeredStigmergy(Stigmergy):
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402
 
-register_planner("stigmergy", Stigmergy, "3-D stigmergy (thesis ch. 5): random / strongest-pheromone / local search, "
-                 "boxes +1, goals -1, trail 0.2 in a shared grid", ("construction",))
-register_planner("layered_stigmergy", LayeredStigmergy, "layered stigmergy (thesis ch. 6): 3-D stigmergy plus a "
-                 "fading presence layer; agents re-plan rather than enter another's marked cell", ("construction",))
+register_planner(
+    "stigmergy",
+    Stigmergy,
+    "3-D stigmergy (thesis ch. 5): random / strongest-pheromone / local search, "
+    "boxes +1, goals -1, trail 0.2 in a shared grid",
+    ("construction",),
+)
+register_planner(
+    "layered_stigmergy",
+    LayeredStigmergy,
+    "layered stigmergy (thesis ch. 6): 3-D stigmergy plus a "
+    "fading presence layer; agents re-plan rather than enter another's marked cell",
+    ("construction",),
+)

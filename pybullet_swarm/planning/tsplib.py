@@ -6,6 +6,7 @@ the ``KEY : value`` specification lines, ``NODE_COORD_SECTION`` and ``EOF``. Oth
 is raised as a one-line :class:`~pybullet_swarm.errors.ConfigError` naming the file, the
 keyword or section, and what was expected.
 """
+
 from __future__ import annotations
 
 import math
@@ -127,8 +128,9 @@ def load_tsplib(path_or_name: str | os.PathLike[str]) -> TSPInstance:
             raise ConfigError("no such file", source=str(path_or_name))
         if not bundled.is_file():
             names = ", ".join(bundled_instances()) or "none"
-            raise ConfigError(f"no such file and no bundled instance of that name "
-                              f"(bundled: {names})", source=str(path_or_name))
+            raise ConfigError(
+                f"no such file and no bundled instance of that name (bundled: {names})", source=str(path_or_name)
+            )
         path = bundled
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
@@ -154,8 +156,7 @@ def parse_tsplib(text: str, *, source: str = "<string>") -> TSPInstance:
     scan = _scan(text, source)
     if not scan.has_coords:
         _check_spec(scan.spec, source)
-        raise ConfigError("missing (the node coordinates)", source=source,
-                          field="NODE_COORD_SECTION")
+        raise ConfigError("missing (the node coordinates)", source=source, field="NODE_COORD_SECTION")
     spec = scan.spec
     n = _dimension(spec, source)
     coords = _read_coords(scan.coord_lines, n, source)
@@ -195,8 +196,7 @@ def _scan(text: str, source: str) -> _Scan:
         match = _KEYWORD.match(line)
         if match is None:
             if section is None:
-                raise ConfigError(f"line {lineno}: expected 'KEYWORD : value', got {line[:40]!r}",
-                                  source=source)
+                raise ConfigError(f"line {lineno}: expected 'KEYWORD : value', got {line[:40]!r}", source=source)
             if section == "NODE_COORD_SECTION":
                 scan.coord_lines.append((lineno, line))
             continue
@@ -225,12 +225,12 @@ def _check_spec(spec: dict[str, str], source: str) -> None:
     ewt = spec["EDGE_WEIGHT_TYPE"]
     if ewt not in EdgeWeightType.__members__:
         supported = ", ".join(EdgeWeightType.__members__)
-        raise ConfigError(f"unsupported {ewt!r} (supported: {supported})", source=source,
-                          field="EDGE_WEIGHT_TYPE")
+        raise ConfigError(f"unsupported {ewt!r} (supported: {supported})", source=source, field="EDGE_WEIGHT_TYPE")
     coord_type = spec.get("NODE_COORD_TYPE", "TWOD_COORDS")
     if coord_type != "TWOD_COORDS":
-        raise ConfigError(f"unsupported {coord_type!r} (supported: TWOD_COORDS)", source=source,
-                          field="NODE_COORD_TYPE")
+        raise ConfigError(
+            f"unsupported {coord_type!r} (supported: TWOD_COORDS)", source=source, field="NODE_COORD_TYPE"
+        )
 
 
 def _dimension(spec: dict[str, str], source: str) -> int:
@@ -241,8 +241,7 @@ def _dimension(spec: dict[str, str], source: str) -> int:
     try:
         n = int(value)
     except ValueError:
-        raise ConfigError(f"expected a positive integer, got {value!r}", source=source,
-                          field="DIMENSION") from None
+        raise ConfigError(f"expected a positive integer, got {value!r}", source=source, field="DIMENSION") from None
     if n < 1:
         raise ConfigError(f"expected a positive integer, got {n}", source=source, field="DIMENSION")
     return n
@@ -257,27 +256,26 @@ def _read_coords(lines: list[tuple[int, str]], n: int, source: str) -> NDArray[n
     for lineno, line in lines:
         parts = line.split()
         if len(parts) != 3:
-            raise ConfigError(f"line {lineno}: expected 'index x y', got {line[:40]!r}",
-                              source=source, field=where)
+            raise ConfigError(f"line {lineno}: expected 'index x y', got {line[:40]!r}", source=source, field=where)
         try:
             index = int(parts[0])
         except ValueError:
-            raise ConfigError(f"line {lineno}: expected an integer node index, got {parts[0]!r}",
-                              source=source, field=where) from None
+            raise ConfigError(
+                f"line {lineno}: expected an integer node index, got {parts[0]!r}", source=source, field=where
+            ) from None
         if not 1 <= index <= n:
-            raise ConfigError(f"line {lineno}: node index {index} outside 1..{n}", source=source,
-                              field=where)
+            raise ConfigError(f"line {lineno}: node index {index} outside 1..{n}", source=source, field=where)
         if not np.isnan(coords[index - 1, 0]):
-            raise ConfigError(f"line {lineno}: node {index} given twice", source=source,
-                              field=where)
+            raise ConfigError(f"line {lineno}: node {index} given twice", source=source, field=where)
         for axis, token in enumerate(parts[1:]):
             try:
                 value = float(token)
             except ValueError:
                 value = math.nan
             if not math.isfinite(value):
-                raise ConfigError(f"line {lineno}: node {index}: expected a number, got {token!r}",
-                                  source=source, field=where)
+                raise ConfigError(
+                    f"line {lineno}: node {index}: expected a number, got {token!r}", source=source, field=where
+                )
             coords[index - 1, axis] = value
     coords.setflags(write=False)
     return coords
@@ -293,8 +291,7 @@ def _optimum(spec: dict[str, str], name: str, source: str) -> float | None:
     except ValueError:
         optimum = math.nan
     if not math.isfinite(optimum) or optimum < 0:
-        raise ConfigError(f"expected a non-negative number, got {value!r}", source=source,
-                          field="OPTIMUM")
+        raise ConfigError(f"expected a non-negative number, got {value!r}", source=source, field="OPTIMUM")
     return optimum
 
 

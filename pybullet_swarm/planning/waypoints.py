@@ -1,4 +1,5 @@
 """The default planner of waypoint tasks: every agent follows the task's timed set-points."""
+
 from __future__ import annotations
 
 from typing import ClassVar
@@ -37,5 +38,10 @@ class WaypointFollower:
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402
 
-register_planner("waypoints", WaypointFollower, "centralised: every agent follows the task's timed set-points",
-                 ("waypoints",), default_for=("waypoints",))
+register_planner(
+    "waypoints",
+    WaypointFollower,
+    "centralised: every agent follows the task's timed set-points",
+    ("waypoints",),
+    default_for=("waypoints",),
+)

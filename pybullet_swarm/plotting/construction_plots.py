@@ -1,4 +1,5 @@
 """Figures of a construction run (thesis Figs. 3.8-3.12, 5.3, 5.4), drawn from saved arrays only."""
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -104,8 +105,15 @@ def _obstacle_patches(obstacles: Sequence[ArrayLike]) -> list[Any]:
     return patches
 
 
-def plot_top_view(positions: ArrayLike, arena_size: ArrayLike, boxes_start: ArrayLike, slots: ArrayLike,
-                  box_size: float, path: Path | str, obstacles: Sequence[ArrayLike] | None = None) -> Path:
+def plot_top_view(
+    positions: ArrayLike,
+    arena_size: ArrayLike,
+    boxes_start: ArrayLike,
+    slots: ArrayLike,
+    box_size: float,
+    path: Path | str,
+    obstacles: Sequence[ArrayLike] | None = None,
+) -> Path:
     """Top view of the arena with the depot, the goal slots and every agent's flight path.
 
     The thesis's qualitative "shape of flight pattern" metric (section 3.6).
@@ -133,8 +141,14 @@ def plot_top_view(positions: ArrayLike, arena_size: ArrayLike, boxes_start: Arra
     ax.add_patch(Rectangle((0.0, 0.0), lx, ly, fill=False, ec="k", lw=1.5))
     if obstacles is not None and len(obstacles):
         ax.add_collection(PatchCollection(_obstacle_patches(obstacles), fc="0.55", ec="0.3", zorder=2))
-    ax.add_collection(PatchCollection([Rectangle((x - half, y - half), box_size, box_size) for x, y in boxes[:, :2]],
-                                      fc="peru", ec="saddlebrown", zorder=3))
+    ax.add_collection(
+        PatchCollection(
+            [Rectangle((x - half, y - half), box_size, box_size) for x, y in boxes[:, :2]],
+            fc="peru",
+            ec="saddlebrown",
+            zorder=3,
+        )
+    )
     layers = _slot_layers(sl, box_size)
     n_layers = int(layers.max()) + 1 if layers.size else 0
     # draw lower layers first so the upper (darker) outlines stay visible
@@ -149,8 +163,9 @@ def plot_top_view(positions: ArrayLike, arena_size: ArrayLike, boxes_start: Arra
         if p.shape[0]:
             ax.plot(p[0, i, 0], p[0, i, 1], "o", ms=6, mfc=colours[i], mec="k", zorder=6)
     handles = [Patch(fc="peru", ec="saddlebrown", label="boxes (depot)")]
-    handles += [Patch(fc=str(0.85 - 0.6 * k / max(1, n_layers - 1)), ec="k", label=f"slots, layer {k}")
-                for k in range(n_layers)]
+    handles += [
+        Patch(fc=str(0.85 - 0.6 * k / max(1, n_layers - 1)), ec="k", label=f"slots, layer {k}") for k in range(n_layers)
+    ]
     handles.append(Line2D([], [], ls="", marker="o", mfc="w", mec="k", label="agent start"))
     ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=len(handles))
     margin = 0.05 * max(lx, ly)
@@ -193,8 +208,9 @@ def plot_acceleration(t: ArrayLike, acc: ArrayLike, path: Path | str, agent: int
     return _save(fig, path)
 
 
-def plot_collision_timeline(events: Sequence[Any], sim_time: float, path: Path | str,
-                            classes: Sequence[str] = COLLISION_CLASSES) -> Path:
+def plot_collision_timeline(
+    events: Sequence[Any], sim_time: float, path: Path | str, classes: Sequence[str] = COLLISION_CLASSES
+) -> Path:
     """Timeline of collision events, one row per class with its count (thesis Fig. 5.3).
 
     Args:
@@ -215,7 +231,7 @@ def plot_collision_timeline(events: Sequence[Any], sim_time: float, path: Path |
             times[kind].append(float(ev.time_s))
     fig = Figure(figsize=(9, 1.2 + 0.55 * len(names)), layout="constrained")
     ax = fig.subplots()
-    rows = np.arange(len(names))[::-1]                        # first class on top
+    rows = np.arange(len(names))[::-1]  # first class on top
     for k, (row, name) in enumerate(zip(rows, names)):
         ts = np.asarray(times[name])
         ax.plot(ts, np.full(ts.shape, row), "|", ms=14, mew=1.6, color=f"C{k % 10}")

@@ -1,4 +1,5 @@
 """Plot a controller design: open-loop Bode diagrams and closed-loop step responses of all loops."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -50,8 +51,8 @@ def _bode_figure(design: ControllerDesign) -> Figure:
     for loop in Loop:
         omega = _frequency_grid(design, loop)
         resp = control.frequency_response(design.open_loop(loop), omega)
-        mag_db = 20.0 * np.log10(np.abs(np.squeeze(resp.magnitude)))        # (n,) dB
-        phase_deg = np.degrees(np.unwrap(np.squeeze(resp.phase)))         # (n,) deg
+        mag_db = 20.0 * np.log10(np.abs(np.squeeze(resp.magnitude)))  # (n,) dB
+        phase_deg = np.degrees(np.unwrap(np.squeeze(resp.phase)))  # (n,) deg
         # Bring the low-frequency phase of the type-3 loop into (-360, 0] so curves overlay.
         phase_deg -= 360.0 * np.ceil(phase_deg[0] / 360.0)
         color = "tab:blue" if loop.is_attitude else "tab:red"
@@ -64,8 +65,10 @@ def _bode_figure(design: ControllerDesign) -> Figure:
     ax_mag.set_ylim(-80.0, 80.0)
     ax_phase.set_ylabel("arg L(exp(jwT)) [deg]")
     ax_phase.set_xlabel("frequency [rad/s]")
-    ax_mag.set_title(f"{design.vehicle}: sampled-data open loops L = C P up to each loop's Nyquist frequency "
-                     "(blue attitude, red position)")
+    ax_mag.set_title(
+        f"{design.vehicle}: sampled-data open loops L = C P up to each loop's Nyquist frequency "
+        "(blue attitude, red position)"
+    )
     ax_mag.legend(fontsize="small", loc="lower left")
     for ax in (ax_mag, ax_phase):
         ax.grid(True, which="both", alpha=0.3)
@@ -80,8 +83,11 @@ def _step_axes(design: ControllerDesign, ax: Axes, loops: tuple[Loop, ...], unit
         resp = control.step_response(design.closed_loop(loop), T=t)
         bw = design.report(loop).bandwidth_rad_s
         ax.step(
-            resp.time, np.squeeze(resp.outputs), where="post", linestyle=_LINESTYLE[loop],
-            label=f"{loop.value} (BW {bw:.2f} rad/s)"
+            resp.time,
+            np.squeeze(resp.outputs),
+            where="post",
+            linestyle=_LINESTYLE[loop],
+            label=f"{loop.value} (BW {bw:.2f} rad/s)",
         )
     ax.axhline(1.0, color="k", lw=0.8)
     ax.set_ylabel(f"output [{unit}] for a unit step")

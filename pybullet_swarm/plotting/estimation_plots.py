@@ -5,6 +5,7 @@
 * ``estimation_variance.png``: evolution of the Kalman filter's variances (the course report's
   Fig. 15): position variance rising between fixes and dropping at each, velocity and bias.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -34,8 +35,13 @@ def _fix_samples(t: NDArray[np.float64], fix_time: NDArray[np.float64], fixes: N
     return fix_time[first], fixes[first]
 
 
-def plot_estimate_axes(t: NDArray[np.float64], truth: NDArray[np.float64], extra: dict[str, NDArray[np.float64]],
-                       path: Path | str, agent: int = 0) -> Path:
+def plot_estimate_axes(
+    t: NDArray[np.float64],
+    truth: NDArray[np.float64],
+    extra: dict[str, NDArray[np.float64]],
+    path: Path | str,
+    agent: int = 0,
+) -> Path:
     """Estimate vs truth per axis of one agent.
 
     Args:
@@ -57,7 +63,7 @@ def plot_estimate_axes(t: NDArray[np.float64], truth: NDArray[np.float64], extra
         ax.plot(t, tr, lw=1.6, color=TRUTH, label="truth" if a == 0 else None)
         ax.plot(t, k[:, a], lw=1.0, ls="--", color=KALMAN, label="Kalman" if a == 0 else None)
         span = max(float(tr.max() - tr.min()), 0.1)
-        ax.set_ylim(float(tr.min()) - 0.3 * span, float(tr.max()) + 0.3 * span)   # dead reckoning leaves the frame
+        ax.set_ylim(float(tr.min()) - 0.3 * span, float(tr.max()) + 0.3 * span)  # dead reckoning leaves the frame
         ax.set_ylabel(f"{name} [m]")
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8, ncol=4, loc="upper right")
@@ -66,9 +72,14 @@ def plot_estimate_axes(t: NDArray[np.float64], truth: NDArray[np.float64], extra
     return save_figure(fig, path)
 
 
-def plot_estimation_error(t: NDArray[np.float64], truth: NDArray[np.float64], true_yaw: NDArray[np.float64],
-                          extra: dict[str, NDArray[np.float64]], path: Path | str,
-                          metrics: dict[str, Any] | None = None) -> Path:
+def plot_estimation_error(
+    t: NDArray[np.float64],
+    truth: NDArray[np.float64],
+    true_yaw: NDArray[np.float64],
+    extra: dict[str, NDArray[np.float64]],
+    path: Path | str,
+    metrics: dict[str, Any] | None = None,
+) -> Path:
     """Position error (norm, over time, worst agent drawn thin) and heading error of the three sources."""
     truth = truth.astype(float)
     err = {
@@ -132,9 +143,14 @@ def plot_variances(t: NDArray[np.float64], variance: NDArray[np.float64], path: 
     return save_figure(fig, path)
 
 
-def plot_estimation(t: NDArray[np.float64], positions: NDArray[np.float64], true_yaw: NDArray[np.float64],
-                    extra: dict[str, NDArray[np.float64]], out_dir: Path | str,
-                    metrics: dict[str, Any] | None = None) -> list[Path]:
+def plot_estimation(
+    t: NDArray[np.float64],
+    positions: NDArray[np.float64],
+    true_yaw: NDArray[np.float64],
+    extra: dict[str, NDArray[np.float64]],
+    out_dir: Path | str,
+    metrics: dict[str, Any] | None = None,
+) -> list[Path]:
     """Every estimation figure of a run into ``out_dir``; returns the files written.
 
     Args:

@@ -1,4 +1,5 @@
 """Figures of a route run (flocking or formation): fitness over time, top view of the course, formation error."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -17,12 +18,25 @@ def _pass_lines(ax: Axes, pass_times: list[float | None] | None) -> None:
     for k, t in enumerate(pass_times or []):
         if t is not None:
             ax.axvline(float(t), color="0.5", lw=0.8, ls=":")
-            ax.annotate(f"wp {k}", (float(t), 1.0), xycoords=("data", "axes fraction"), xytext=(2, -10),
-                        textcoords="offset points", fontsize=7, color="0.35")
+            ax.annotate(
+                f"wp {k}",
+                (float(t), 1.0),
+                xycoords=("data", "axes fraction"),
+                xytext=(2, -10),
+                textcoords="offset points",
+                fontsize=7,
+                color="0.35",
+            )
 
 
-def plot_fitness(t: ArrayLike, series: dict[str, NDArray[np.float64]], path: Path | str, *,
-                 pass_times: list[float | None] | None = None, title: str = "flocking fitness") -> Path:
+def plot_fitness(
+    t: ArrayLike,
+    series: dict[str, NDArray[np.float64]],
+    path: Path | str,
+    *,
+    pass_times: list[float | None] | None = None,
+    title: str = "flocking fitness",
+) -> Path:
     """Fitness and its components over time.
 
     Args:
@@ -62,9 +76,16 @@ def _draw_obstacle(ax: Axes, ob: dict[str, Any]) -> None:
     ax.add_patch(Polygon(corners @ np.array([[c, s], [-s, c]]) + np.asarray(pos[:2]), closed=True, **style))
 
 
-def plot_course(positions: ArrayLike, path: Path | str, *, route: ArrayLike, obstacles: list[dict[str, Any]],
-                arena_size: ArrayLike | None = None, pass_radius: float | None = None,
-                collisions: list[tuple[float, float]] | None = None) -> Path:
+def plot_course(
+    positions: ArrayLike,
+    path: Path | str,
+    *,
+    route: ArrayLike,
+    obstacles: list[dict[str, Any]],
+    arena_size: ArrayLike | None = None,
+    pass_radius: float | None = None,
+    collisions: list[tuple[float, float]] | None = None,
+) -> Path:
     """Top view of the course: arena, obstacles, waypoints (with their pass radius) and every flown path.
 
     Args:
@@ -109,8 +130,9 @@ def plot_course(positions: ArrayLike, path: Path | str, *, route: ArrayLike, obs
     return save_figure(fig, path)
 
 
-def plot_formation_error(t: ArrayLike, errors: ArrayLike, path: Path | str, *,
-                         pass_times: list[float | None] | None = None) -> Path:
+def plot_formation_error(
+    t: ArrayLike, errors: ArrayLike, path: Path | str, *, pass_times: list[float | None] | None = None
+) -> Path:
     """Slot error of every agent (thin) and their mean (thick) over time.
 
     Args:
@@ -134,8 +156,9 @@ def plot_formation_error(t: ArrayLike, errors: ArrayLike, path: Path | str, *,
     return save_figure(fig, path)
 
 
-def plot_route_run(ts: Any, out_dir: Path, metrics: dict[str, Any], scenario: dict[str, Any],
-                   events: list[Any]) -> list[Path]:
+def plot_route_run(
+    ts: Any, out_dir: Path, metrics: dict[str, Any], scenario: dict[str, Any], events: list[Any]
+) -> list[Path]:
     """Every route figure of a run from its saved results (time series, metrics, scenario, events)."""
     from pybullet_swarm.metrics.flocking import route_fitness_series, slot_errors
     from pybullet_swarm.tasks.route import FormationSpec
@@ -159,13 +182,28 @@ def plot_route_run(ts: Any, out_dir: Path, metrics: dict[str, Any], scenario: di
             if i is not None:
                 k = int(np.argmin(np.abs(ts.t - e.time_s)))
                 hits.append((pos[k, i, 0], pos[k, i, 1]))
-    files.append(plot_course(pos, out_dir / "course.png", route=route,
-                             obstacles=list(scenario.get("arena", {}).get("obstacles", [])),
-                             arena_size=scenario.get("arena", {}).get("size"), pass_radius=task.get("pass_radius"),
-                             collisions=hits))
+    files.append(
+        plot_course(
+            pos,
+            out_dir / "course.png",
+            route=route,
+            obstacles=list(scenario.get("arena", {}).get("obstacles", [])),
+            arena_size=scenario.get("arena", {}).get("size"),
+            pass_radius=task.get("pass_radius"),
+            collisions=hits,
+        )
+    )
     if slots is not None and s["formation"] is not None:
-        files.append(plot_fitness(ts.t, {k: v for k, v in s["formation"].items()}, out_dir / "formation_fitness.png",
-                                  pass_times=pass_times, title="formation fitness"))
-        files.append(plot_formation_error(ts.t, slot_errors(pos, slots), out_dir / "formation_error.png",
-                                          pass_times=pass_times))
+        files.append(
+            plot_fitness(
+                ts.t,
+                {k: v for k, v in s["formation"].items()},
+                out_dir / "formation_fitness.png",
+                pass_times=pass_times,
+                title="formation fitness",
+            )
+        )
+        files.append(
+            plot_formation_error(ts.t, slot_errors(pos, slots), out_dir / "formation_error.png", pass_times=pass_times)
+        )
     return files

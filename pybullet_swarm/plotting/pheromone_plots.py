@@ -1,4 +1,5 @@
 """Figures of a pheromone medium (thesis Figs. 5.2, 6.1, 6.2), drawn from saved arrays only."""
+
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
@@ -16,8 +17,9 @@ from numpy.typing import ArrayLike
 _save = save_figure
 
 
-def plot_pheromone_map(values_xy: ArrayLike, cell: float, path: Path | str, *, title: str,
-                       extent: ArrayLike | None = None) -> Path:
+def plot_pheromone_map(
+    values_xy: ArrayLike, cell: float, path: Path | str, *, title: str, extent: ArrayLike | None = None
+) -> Path:
     """One pheromone layer seen from above: a cell map, positive red, negative blue (thesis Fig. 5.2).
 
     Args:
@@ -38,8 +40,14 @@ def plot_pheromone_map(values_xy: ArrayLike, cell: float, path: Path | str, *, t
     span = span if span > 0 else 1.0
     fig = Figure(figsize=(9, 0.9 + 7.5 * v.shape[1] / max(v.shape[0], 1)), layout="constrained")
     ax = fig.subplots()
-    im = ax.imshow(v.T, origin="lower", extent=(0.0, v.shape[0] * cell, 0.0, v.shape[1] * cell), cmap="RdBu_r",
-                   norm=TwoSlopeNorm(vcenter=0.0, vmin=-span, vmax=span), interpolation="nearest")
+    im = ax.imshow(
+        v.T,
+        origin="lower",
+        extent=(0.0, v.shape[0] * cell, 0.0, v.shape[1] * cell),
+        cmap="RdBu_r",
+        norm=TwoSlopeNorm(vcenter=0.0, vmin=-span, vmax=span),
+        interpolation="nearest",
+    )
     ax.set_xlim(0.0, lx)
     ax.set_ylim(0.0, ly)
     ax.set_aspect("equal")
@@ -75,8 +83,9 @@ def plot_pheromone_mass(t: ArrayLike, mass: Mapping[str, ArrayLike], path: Path 
     return _layer_lines(t, mass, "mass", "pheromone mass [sum of |value|]", "pheromone mass over time", path)
 
 
-def _layer_lines(t: ArrayLike, series: Mapping[str, ArrayLike], what: str, ylabel: str, title: str,
-                 path: Path | str) -> Path:
+def _layer_lines(
+    t: ArrayLike, series: Mapping[str, ArrayLike], what: str, ylabel: str, title: str, path: Path | str
+) -> Path:
     """One line per layer over the snapshot times ``t`` (each series checked against its shape)."""
     tt = np.asarray(t, dtype=float)
     fig = Figure(figsize=(9, 4), layout="constrained")
@@ -95,8 +104,9 @@ def _layer_lines(t: ArrayLike, series: Mapping[str, ArrayLike], what: str, ylabe
     return _save(fig, Path(path))
 
 
-def plot_pheromone_series(t: ArrayLike, history: ArrayLike, cell: float, extent: ArrayLike, path: Path | str, *,
-                          title: str, count: int = 8) -> Path:
+def plot_pheromone_series(
+    t: ArrayLike, history: ArrayLike, cell: float, extent: ArrayLike, path: Path | str, *, title: str, count: int = 8
+) -> Path:
     """A series of top views of one layer at ``count`` evenly spaced snapshots (thesis Fig. 6.2).
 
     Args:
@@ -119,11 +129,19 @@ def plot_pheromone_series(t: ArrayLike, history: ArrayLike, cell: float, extent:
     ext = np.asarray(extent, dtype=float)
     im = None
     for ax, j in zip(axes, picks):
-        im = ax.imshow(hist[j].T, origin="lower", extent=(0, ext[0], 0, ext[1]), vmin=0.0, vmax=vmax,
-                       cmap="viridis", aspect="equal", interpolation="nearest")
+        im = ax.imshow(
+            hist[j].T,
+            origin="lower",
+            extent=(0, ext[0], 0, ext[1]),
+            vmin=0.0,
+            vmax=vmax,
+            cmap="viridis",
+            aspect="equal",
+            interpolation="nearest",
+        )
         ax.set_title(f"t = {tt[j]:.1f} s", fontsize=8)
         ax.tick_params(labelsize=7)
-    for ax in axes[len(picks):]:
+    for ax in axes[len(picks) :]:
         ax.set_visible(False)
     if im is not None:
         fig.colorbar(im, ax=axes.tolist(), shrink=0.8)
@@ -175,6 +193,14 @@ def plot_pheromones(arrays: Mapping[str, Any], out_dir: Path | str, *, persisten
         for name in marked:
             hist = np.asarray(arrays[f"{name}_history"])
             if name not in keep and hist.shape[0] > 1:
-                written.append(plot_pheromone_series(t, hist, cell, extent[:2], out / f"pheromone_{name}_series.png",
-                                                     title=f"pheromone layer '{name}' over the run"))
+                written.append(
+                    plot_pheromone_series(
+                        t,
+                        hist,
+                        cell,
+                        extent[:2],
+                        out / f"pheromone_{name}_series.png",
+                        title=f"pheromone layer '{name}' over the run",
+                    )
+                )
     return written

@@ -20,6 +20,7 @@ Views:
 - ``orbit``: the ``3d`` camera circling the arena once every ``ORBIT_PERIOD_S`` of video.
 - ``chase``: a camera behind and above the swarm's centroid, looking along its smoothed heading.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -41,19 +42,19 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.types import Event, TimeSeries
 from pybullet_swarm.world.camera import camera_for_arena
 
-DEFAULT_SIZE = (1280, 720)   # px, width x height of a replay
-DEFAULT_FPS = 25             # frames per second of a replay
-DEFAULT_SPEED = 4.0          # simulated seconds per second of video
-TRAIL_S = 3.0                # s of simulated time behind each agent drawn as its trail
-ORBIT_PERIOD_S = 24.0        # s of video per turn of the orbit camera
-CHASE_PITCH_DEG = -30.0      # deg, the chase camera looks down this much
-CHASE_SMOOTH_S = 1.5         # s, half-width of the moving average of the chased centroid and heading
-FLASH_S = 0.6                # s of simulated time a contact flashes (at least FLASH_FRAMES frames)
+DEFAULT_SIZE = (1280, 720)  # px, width x height of a replay
+DEFAULT_FPS = 25  # frames per second of a replay
+DEFAULT_SPEED = 4.0  # simulated seconds per second of video
+TRAIL_S = 3.0  # s of simulated time behind each agent drawn as its trail
+ORBIT_PERIOD_S = 24.0  # s of video per turn of the orbit camera
+CHASE_PITCH_DEG = -30.0  # deg, the chase camera looks down this much
+CHASE_SMOOTH_S = 1.5  # s, half-width of the moving average of the chased centroid and heading
+FLASH_S = 0.6  # s of simulated time a contact flashes (at least FLASH_FRAMES frames)
 FLASH_FRAMES = 10
-MIN_ICON_FRACTION = 0.04     # a vehicle is drawn at least this fraction of the frame height across
-MAX_LABELLED_AGENTS = 20     # agents are numbered on the frame up to this many
-NEAR_M = 0.05                # m, near plane of the perspective cameras
-FOV_DEG = 50.0               # deg, vertical field of view of the perspective cameras (Bullet's render)
+MIN_ICON_FRACTION = 0.04  # a vehicle is drawn at least this fraction of the frame height across
+MAX_LABELLED_AGENTS = 20  # agents are numbered on the frame up to this many
+NEAR_M = 0.05  # m, near plane of the perspective cameras
+FOV_DEG = 50.0  # deg, vertical field of view of the perspective cameras (Bullet's render)
 DPI = 100
 
 BACKGROUND = (0.975, 0.975, 0.97, 1.0)
@@ -64,7 +65,7 @@ OBSTACLE = (0.52, 0.55, 0.60, 0.6)
 FLASH = (0.86, 0.08, 0.08, 1.0)
 TARGET = (0.35, 0.35, 0.35, 1.0)
 TARGET_DONE = (0.20, 0.60, 0.25, 1.0)
-LIGHT = np.array([0.35, -0.45, 0.82]) / np.linalg.norm([0.35, -0.45, 0.82])   # direction towards the light
+LIGHT = np.array([0.35, -0.45, 0.82]) / np.linalg.norm([0.35, -0.45, 0.82])  # direction towards the light
 CONTACT_KINDS = frozenset({"agent_agent", "agent_box", "agent_structure", "agent_ground", "agent_obstacle"})
 
 
@@ -178,7 +179,7 @@ def _carried_from_events(t: NDArray[np.float64], n_boxes: int, events: Sequence[
         agent, box = _index(e.a, "agent"), _index(e.b, "box")
         if agent is None or box is None or box >= n_boxes:
             continue
-        k = int(np.searchsorted(t, e.time_s + 1e-4))   # a sample at the event's instant was taken before it
+        k = int(np.searchsorted(t, e.time_s + 1e-4))  # a sample at the event's instant was taken before it
         out[k:, box] = agent if e.kind == "grasp" else -1
     return out
 
@@ -225,13 +226,18 @@ def pheromone_history(arrays: Mapping[str, NDArray[Any]] | None) -> PheromoneHis
     hist = np.asarray(arrays.get(f"{layer}_history", np.zeros((0, 0, 0))))
     if hist.ndim != 3 or hist.shape[0] == 0:
         return None
-    return PheromoneHistory(layer, np.asarray(arrays["snapshot_t"], dtype=float), hist.astype(np.float32),
-                            float(arrays["cell"]))
+    return PheromoneHistory(
+        layer, np.asarray(arrays["snapshot_t"], dtype=float), hist.astype(np.float32), float(arrays["cell"])
+    )
 
 
-def replay_data(ts: TimeSeries, events: Sequence[Event], scenario: Mapping[str, Any],
-                metrics: Mapping[str, Any] | None = None, pheromones: Mapping[str, NDArray[Any]] | None = None,
-                ) -> ReplayData:
+def replay_data(
+    ts: TimeSeries,
+    events: Sequence[Event],
+    scenario: Mapping[str, Any],
+    metrics: Mapping[str, Any] | None = None,
+    pheromones: Mapping[str, NDArray[Any]] | None = None,
+) -> ReplayData:
     """What a replay draws, from a run's saved results.
 
     Args:
@@ -255,14 +261,20 @@ def replay_data(ts: TimeSeries, events: Sequence[Event], scenario: Mapping[str, 
     extra = ts.extra
     boxes = extra["box_positions"].astype(float) if "box_positions" in extra else np.zeros((m, 0, 3))
     b = boxes.shape[1]
-    box_q = (extra["box_quaternions"].astype(float) if "box_quaternions" in extra
-             else np.tile(np.array([0.0, 0.0, 0.0, 1.0]), (m, b, 1)))
-    carried = (np.rint(extra["box_carried_by"]).astype(np.int64) if "box_carried_by" in extra
-               else _carried_from_events(t, b, events))
+    box_q = (
+        extra["box_quaternions"].astype(float)
+        if "box_quaternions" in extra
+        else np.tile(np.array([0.0, 0.0, 0.0, 1.0]), (m, b, 1))
+    )
+    carried = (
+        np.rint(extra["box_carried_by"]).astype(np.int64)
+        if "box_carried_by" in extra
+        else _carried_from_events(t, b, events)
+    )
     try:
         vehicle = load_vehicle((scenario.get("agents", {}) or {}).get("vehicle", "quad150"))
         rotor_xy = vehicle.rotor_xy
-        half_width = 0.5 * max(vehicle.collision_size[:2])   # the rotors reach the airframe's box
+        half_width = 0.5 * max(vehicle.collision_size[:2])  # the rotors reach the airframe's box
         rotor_radius = max(0.3 * vehicle.arm_length, half_width - vehicle.arm_length / math.sqrt(2))
     except (OSError, ValueError, ConfigError):
         rotor_xy = 0.053 * np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]]) / math.sqrt(2)
@@ -274,25 +286,37 @@ def replay_data(ts: TimeSeries, events: Sequence[Event], scenario: Mapping[str, 
     seed = metrics.get("seed", scenario.get("seed"))
     title = f"{name}  |  {planner or 'task set-points'} + {avoidance} avoidance  |  seed {seed}"
     return ReplayData(
-        t=t, positions=ts.positions.astype(float), quaternions=ts.quaternions.astype(float),
-        box_positions=boxes, box_quaternions=box_q, box_carried_by=carried,
+        t=t,
+        positions=ts.positions.astype(float),
+        quaternions=ts.quaternions.astype(float),
+        box_positions=boxes,
+        box_quaternions=box_q,
+        box_carried_by=carried,
         box_size=float(task.get("box_size", 0.1)),
         slots=np.asarray(task.get("structure", []), dtype=float).reshape(-1, 3),
-        targets=_targets(task), arena=(float(size[0]), float(size[1])),
-        obstacles=_obstacles(scenario.get("arena", {}) or {}), rotor_xy=np.asarray(rotor_xy, dtype=float),
-        rotor_radius=float(rotor_radius), events=tuple(events), pheromone=pheromone_history(pheromones),
-        title=title)
+        targets=_targets(task),
+        arena=(float(size[0]), float(size[1])),
+        obstacles=_obstacles(scenario.get("arena", {}) or {}),
+        rotor_xy=np.asarray(rotor_xy, dtype=float),
+        rotor_radius=float(rotor_radius),
+        events=tuple(events),
+        pheromone=pheromone_history(pheromones),
+        title=title,
+    )
 
 
 # ----------------------------------------------------------------------------- geometry
 def quat_matrices(q: NDArray[np.float64]) -> NDArray[np.float64]:
     """Rotation matrices (..., 3, 3) of unit quaternions (..., 4) (x, y, z, w), body to world."""
     x, y, z, w = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
-    ], axis=-2)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+        ],
+        axis=-2,
+    )
 
 
 def frame_times(t0: float, t1: float, speed: float, fps: int) -> NDArray[np.float64]:
@@ -375,15 +399,21 @@ def _basis(yaw_deg: float, pitch_deg: float) -> tuple[NDArray[np.float64], NDArr
     return forward, right, np.cross(right, forward)
 
 
-def perspective(target: Sequence[float] | NDArray[np.float64], distance: float, yaw_deg: float, pitch_deg: float,
-                size: tuple[int, int]) -> ViewCamera:
+def perspective(
+    target: Sequence[float] | NDArray[np.float64],
+    distance: float,
+    yaw_deg: float,
+    pitch_deg: float,
+    size: tuple[int, int],
+) -> ViewCamera:
     """The perspective camera of Bullet's (target, distance, yaw, pitch) with a ``FOV_DEG`` vertical
     field of view, for frames of ``size`` (width, height) px."""
     forward, right, up = _basis(yaw_deg, pitch_deg)
     w, h = size
     focal = 0.5 * h / math.tan(math.radians(FOV_DEG) / 2)
-    return ViewCamera(np.asarray(target, dtype=float) - distance * forward, forward, right, up, focal,
-                      (0.5 * w, 0.5 * h))
+    return ViewCamera(
+        np.asarray(target, dtype=float) - distance * forward, forward, right, up, focal, (0.5 * w, 0.5 * h)
+    )
 
 
 def top_camera(arena: tuple[float, float], size: tuple[int, int], *, hud_px: float) -> ViewCamera:
@@ -393,8 +423,15 @@ def top_camera(arena: tuple[float, float], size: tuple[int, int], *, hud_px: flo
     margin = 0.03 * min(w, h)
     scale = min((w - 2 * margin) / lx, (h - hud_px - 2 * margin) / ly)
     centre = (0.5 * w, hud_px + margin + 0.5 * (h - hud_px - 2 * margin))
-    return ViewCamera(np.array([0.5 * lx, 0.5 * ly, 1e3]), np.array([0.0, 0.0, -1.0]), np.array([1.0, 0.0, 0.0]),
-                      np.array([0.0, 1.0, 0.0]), scale, centre, orthographic=True)
+    return ViewCamera(
+        np.array([0.5 * lx, 0.5 * ly, 1e3]),
+        np.array([0.0, 0.0, -1.0]),
+        np.array([1.0, 0.0, 0.0]),
+        np.array([0.0, 1.0, 0.0]),
+        scale,
+        centre,
+        orthographic=True,
+    )
 
 
 def _fixed_3d(data: ReplayData, size: tuple[int, int]) -> tuple[tuple[float, float, float], float, float, float]:
@@ -433,13 +470,14 @@ def chase_track(data: ReplayData) -> tuple[NDArray[np.float64], NDArray[np.float
     dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
     half = int(round(CHASE_SMOOTH_S / dt))
     centroid = _moving_average(pos.mean(axis=1), half)
-    spread = _moving_average(np.sqrt(np.mean(np.sum((pos[..., :2] - pos.mean(axis=1, keepdims=True)[..., :2]) ** 2,
-                                                     axis=2), axis=1)), half)
+    spread = _moving_average(
+        np.sqrt(np.mean(np.sum((pos[..., :2] - pos.mean(axis=1, keepdims=True)[..., :2]) ** 2, axis=2), axis=1)), half
+    )
     vel = np.gradient(centroid[:, :2], t, axis=0) if t.size > 1 else np.zeros((1, 2))
     speed = np.linalg.norm(vel, axis=1)
-    heading = np.full(t.size, math.pi / 2)   # no motion yet: look along +y, as the 3d view
+    heading = np.full(t.size, math.pi / 2)  # no motion yet: look along +y, as the 3d view
     last = math.pi / 2
-    for k in range(t.size):   # hold the last heading while the swarm hovers
+    for k in range(t.size):  # hold the last heading while the swarm hovers
         if speed[k] > 0.02:
             last = math.atan2(vel[k, 1], vel[k, 0])
         heading[k] = last
@@ -453,8 +491,9 @@ _CUBE_FACES = np.array([[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], 
 _CUBE_NORMALS = np.array([[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1]], dtype=float)
 
 
-def cube_faces(centres: NDArray[np.float64], rotations: NDArray[np.float64], extents: NDArray[np.float64]
-               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def cube_faces(
+    centres: NDArray[np.float64], rotations: NDArray[np.float64], extents: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Faces (k, 6, 4, 3) m and outward normals (k, 6, 3) of boxes: centres (k, 3) m, rotations
     (k, 3, 3), extents (k, 3) m."""
     corners = np.einsum("kij,kvj->kvi", rotations, _CUBE[None] * extents[:, None, :]) + centres[:, None, :]
@@ -510,7 +549,7 @@ class _TextLayer:
     """
 
     LINE_SPACING = 1.35
-    PAD = 0.45   # of the font size, around the text in the box
+    PAD = 0.45  # of the font size, around the text in the box
 
     def __init__(self, font_px: float, title: str, widest: str, size: tuple[int, int]) -> None:
         from matplotlib import font_manager
@@ -529,8 +568,13 @@ class _TextLayer:
         self.box = (x0, y0, x0 + width + 2 * pad, y0 + 2 * self.line + 2 * pad - (self.LINE_SPACING - 1) * font_px)
         self.text_xy = (x0 + pad, y0 + pad)
 
-    def draw(self, rgba: Any, size: tuple[int, int], hud: str,
-             labels: Sequence[tuple[str, tuple[float, float], tuple[int, int, int]]]) -> NDArray[np.uint8]:
+    def draw(
+        self,
+        rgba: Any,
+        size: tuple[int, int],
+        hud: str,
+        labels: Sequence[tuple[str, tuple[float, float], tuple[int, int, int]]],
+    ) -> NDArray[np.uint8]:
         """The RGB frame (height, width, 3) of the RGBA pixels ``rgba`` (a buffer of ``size`` (width,
         height) px) with the heads-up box (title and ``hud``) and the ``labels`` (text, bottom-left
         corner px, RGB) drawn on it."""
@@ -538,8 +582,9 @@ class _TextLayer:
 
         image = Image.frombuffer("RGBA", size, rgba, "raw", "RGBA", 0, 1).convert("RGB")
         draw = ImageDraw.Draw(image, "RGBA")
-        draw.rounded_rectangle(self.box, radius=0.3 * self.line, fill=(255, 255, 255, 217),
-                               outline=(153, 153, 153, 255), width=1)
+        draw.rounded_rectangle(
+            self.box, radius=0.3 * self.line, fill=(255, 255, 255, 217), outline=(153, 153, 153, 255), width=1
+        )
         x, y = self.text_xy
         draw.text((x, y), self.title, font=self.mono, fill=(0, 0, 0, 255))
         draw.text((x, y + self.line), hud, font=self.mono, fill=(0, 0, 0, 255))
@@ -619,13 +664,19 @@ class ReplayRenderer:
         contacts = [e for e in d.events if e.kind in CONTACT_KINDS]
         self._contact_t = np.array([e.time_s for e in contacts], dtype=float)
         self._contact_ends = [(self._entity(e.a), self._entity(e.b)) for e in contacts]
-        placed = [(e.time_s, 1 if e.kind == "placed" else -1, _index(e.a, "box")) for e in d.events
-                  if e.kind in ("placed", "unplaced")]
+        placed = [
+            (e.time_s, 1 if e.kind == "placed" else -1, _index(e.a, "box"))
+            for e in d.events
+            if e.kind in ("placed", "unplaced")
+        ]
         self._placed_t = np.array([p[0] for p in placed], dtype=float)
         self._placed_count = np.cumsum([p[1] for p in placed]) if placed else np.zeros(0)
-        self._placed_change = [(p[1] > 0, p[2]) for p in placed]   # (placed, box) in time order
-        reached = [(e.time_s, _index(e.b, "waypoint") if e.kind == "waypoint" else _index(e.b, "point"))
-                   for e in d.events if e.kind in ("waypoint", "visit")]
+        self._placed_change = [(p[1] > 0, p[2]) for p in placed]  # (placed, box) in time order
+        reached = [
+            (e.time_s, _index(e.b, "waypoint") if e.kind == "waypoint" else _index(e.b, "point"))
+            for e in d.events
+            if e.kind in ("waypoint", "visit")
+        ]
         self._target_t = np.full(len(d.targets), np.inf)
         for t, j in reached:
             if j is not None and j < len(d.targets):
@@ -694,10 +745,25 @@ class ReplayRenderer:
         self.stars = ax.scatter([], [], marker="*", linewidths=0.5)
         for c in (*self.static, self.boxes, self.trails, self.arms, self.carried, self.heading):
             ax.add_collection(c, autolim=False)
-        self.moving = [self.shadows, self.targets, self.boxes, self.trails, self.arms, self.rotors, self.carried,
-                       self.bodies, self.heading, self.rings, self.stars]
-        self.text = _TextLayer(self.font * DPI / 72.0, d.title,
-                               max((self.hud_text(float(t)) for t in (d.t[0], d.t[-1])), key=len), self.size)
+        self.moving = [
+            self.shadows,
+            self.targets,
+            self.boxes,
+            self.trails,
+            self.arms,
+            self.rotors,
+            self.carried,
+            self.bodies,
+            self.heading,
+            self.rings,
+            self.stars,
+        ]
+        self.text = _TextLayer(
+            self.font * DPI / 72.0,
+            d.title,
+            max((self.hud_text(float(t)) for t in (d.t[0], d.t[-1])), key=len),
+            self.size,
+        )
         self._labels: list[tuple[str, tuple[float, float], tuple[int, int, int]]] = []
         for a in self.moving:
             a.set_animated(True)
@@ -716,8 +782,15 @@ class ReplayRenderer:
         x, y = np.meshgrid(np.arange(nx) * c, np.arange(ny) * c, indexing="ij")
         x, y = x.ravel(), y.ravel()
         z = np.full_like(x, 2e-3)
-        return np.stack([np.stack([x, y, z], 1), np.stack([x + c, y, z], 1), np.stack([x + c, y + c, z], 1),
-                         np.stack([x, y + c, z], 1)], axis=1)
+        return np.stack(
+            [
+                np.stack([x, y, z], 1),
+                np.stack([x + c, y, z], 1),
+                np.stack([x + c, y + c, z], 1),
+                np.stack([x, y + c, z], 1),
+            ],
+            axis=1,
+        )
 
     # ---------------------------------------------------------------- state at a time
     def state(self, t: float) -> dict[str, NDArray[Any]]:
@@ -741,9 +814,14 @@ class ReplayRenderer:
             m = (1.0 - w) * a + w * b
             return m / np.maximum(np.linalg.norm(m, axis=-1, keepdims=True), 1e-12)
 
-        return {"positions": lerp(d.positions), "rotations": quat_matrices(nlerp(d.quaternions)),
-                "box_positions": lerp(d.box_positions), "box_rotations": quat_matrices(nlerp(d.box_quaternions)),
-                "carried_by": d.box_carried_by[j if w >= 1.0 else i], "index": np.array(i)}
+        return {
+            "positions": lerp(d.positions),
+            "rotations": quat_matrices(nlerp(d.quaternions)),
+            "box_positions": lerp(d.box_positions),
+            "box_rotations": quat_matrices(nlerp(d.box_quaternions)),
+            "carried_by": d.box_carried_by[j if w >= 1.0 else i],
+            "index": np.array(i),
+        }
 
     # ---------------------------------------------------------------- static scene
     def _update_static(self, cam: ViewCamera) -> None:
@@ -767,12 +845,12 @@ class ReplayRenderer:
             keep = cam.facing(centres, normals)
             shown, far = [], []
             for k in np.nonzero(keep)[0]:
-                p2 = px[sizes[k]:sizes[k + 1]]
+                p2 = px[sizes[k] : sizes[k + 1]]
                 if np.all(np.isfinite(p2)):
                     shown.append(k)
-                    far.append(-float(np.mean(depth[sizes[k]:sizes[k + 1]])))
+                    far.append(-float(np.mean(depth[sizes[k] : sizes[k + 1]])))
             order = [shown[i] for i in np.argsort(far, kind="stable")]
-            self.obstacles.set_verts([px[sizes[k]:sizes[k + 1]] for k in order])
+            self.obstacles.set_verts([px[sizes[k] : sizes[k + 1]] for k in order])
             fill = _shade(np.tile(OBSTACLE, (len(order), 1)), normals[order])
             self.obstacles.set_facecolor(fill)
             self.obstacles.set_edgecolor(np.where(outlined[order][:, None], (0.2, 0.2, 0.25, 0.6), fill))
@@ -825,16 +903,17 @@ class ReplayRenderer:
         scale = cam.px_per_m(depth)
         # vehicles: arms to the rotors, rotor discs, body disc; at least MIN_ICON_FRACTION of the height across
         span_m = 2.0 * (float(np.max(np.linalg.norm(d.rotor_xy, axis=1))) + d.rotor_radius)
-        icon = np.maximum(span_m * scale, MIN_ICON_FRACTION * self.size[1])   # px
+        icon = np.maximum(span_m * scale, MIN_ICON_FRACTION * self.size[1])  # px
         grow = icon / np.maximum(span_m * scale, 1e-9)
         rotor_body = np.column_stack([d.rotor_xy, np.zeros(4)])
         rotor_w = np.einsum("nij,rj->nri", rot, rotor_body) + pos[:, None, :]
         rpx = cam.project(rotor_w)[0]
         rpx = centre[:, None, :] + (rpx - centre[:, None, :]) * grow[:, None, None]
-        self.arms.set_segments([np.array([rpx[i, 0], rpx[i, 2]]) for i in range(n)]
-                               + [np.array([rpx[i, 1], rpx[i, 3]]) for i in range(n)])
+        self.arms.set_segments(
+            [np.array([rpx[i, 0], rpx[i, 2]]) for i in range(n)] + [np.array([rpx[i, 1], rpx[i, 3]]) for i in range(n)]
+        )
         self.rotors.set_offsets(rpx.reshape(-1, 2))
-        rotor_px = 2.0 * d.rotor_radius * scale * grow   # px, rotor diameter
+        rotor_px = 2.0 * d.rotor_radius * scale * grow  # px, rotor diameter
         self.rotors.set_sizes(np.repeat(self._pt2(rotor_px), 4))
         rc = np.repeat(self.colors, 4, axis=0).copy()
         rc[:, 3] = 0.45
@@ -849,12 +928,15 @@ class ReplayRenderer:
         direction = nose - centre
         norm = np.linalg.norm(direction, axis=1, keepdims=True)
         unit = np.where(norm > 1e-6, direction / np.maximum(norm, 1e-9), 0.0)
-        self.heading.set_segments(list(np.stack([centre + unit * (0.26 * icon)[:, None],
-                                                 centre + unit * (0.62 * icon)[:, None]], axis=1)))
+        self.heading.set_segments(
+            list(np.stack([centre + unit * (0.26 * icon)[:, None], centre + unit * (0.62 * icon)[:, None]], axis=1))
+        )
         rgb = np.round(self.colors[:, :3] * 255).astype(int)
-        self._labels = [(str(i), (centre[i, 0] + 0.36 * icon[i], centre[i, 1] - 0.30 * icon[i]), tuple(rgb[i]))
-                        for i in range(min(n, MAX_LABELLED_AGENTS) if n <= MAX_LABELLED_AGENTS else 0)
-                        if np.all(np.isfinite(centre[i]))]
+        self._labels = [
+            (str(i), (centre[i, 0] + 0.36 * icon[i], centre[i, 1] - 0.30 * icon[i]), tuple(rgb[i]))
+            for i in range(min(n, MAX_LABELLED_AGENTS) if n <= MAX_LABELLED_AGENTS else 0)
+            if np.all(np.isfinite(centre[i]))
+        ]
         self._update_trails(cam, t, pos, int(st["index"]))
         self._update_boxes(cam, t, st)
         self._update_flashes(cam, t, pos, st["box_positions"], icon)
@@ -867,8 +949,8 @@ class ReplayRenderer:
     def _update_trails(self, cam: ViewCamera, t: float, pos: NDArray[np.float64], i: int) -> None:
         d = self.data
         lo = int(np.searchsorted(d.t, t - self.options.trail_s, side="left"))
-        past = d.positions[lo:i + 1]
-        pts = np.concatenate([past, pos[None]], axis=0)   # (k, n, 3)
+        past = d.positions[lo : i + 1]
+        pts = np.concatenate([past, pos[None]], axis=0)  # (k, n, 3)
         px = cam.project(pts)[0]
         self.trails.set_segments([px[:, a] for a in range(d.n_agents)])
         c = self.colors.copy()
@@ -903,7 +985,7 @@ class ReplayRenderer:
 
     def _placed_boxes(self, t: float) -> set[int]:
         placed: set[int] = set()
-        for now_placed, box in self._placed_change[:int(np.searchsorted(self._placed_t, t, side="right"))]:
+        for now_placed, box in self._placed_change[: int(np.searchsorted(self._placed_t, t, side="right"))]:
             if box is not None:
                 if now_placed:
                     placed.add(box)
@@ -911,8 +993,9 @@ class ReplayRenderer:
                     placed.discard(box)
         return placed
 
-    def _update_flashes(self, cam: ViewCamera, t: float, pos: NDArray[np.float64], boxes: NDArray[np.float64],
-                        icon: NDArray[np.float64]) -> None:
+    def _update_flashes(
+        self, cam: ViewCamera, t: float, pos: NDArray[np.float64], boxes: NDArray[np.float64], icon: NDArray[np.float64]
+    ) -> None:
         if self._contact_t.size == 0:
             return
         active = np.nonzero((self._contact_t <= t + 1e-9) & (t < self._contact_t + self._flash_life))[0]
@@ -972,7 +1055,6 @@ class ReplayRenderer:
             parts.append(f"x{self.options.speed:g}")
         return "   ".join(parts)
 
-
     # ---------------------------------------------------------------- frames
     def frame(self, t: float) -> NDArray[np.uint8]:
         """The RGB frame (height, width, 3) uint8 showing simulated time ``t`` s."""
@@ -983,7 +1065,7 @@ class ReplayRenderer:
             self._update_static(cam)
             self._pheromone_k = -1
         if self._update_field(t) or dirty or self._background is None:
-            self.canvas.draw()   # the static scene; animated artists are left out
+            self.canvas.draw()  # the static scene; animated artists are left out
             self._background = self.canvas.copy_from_bbox(self.fig.bbox)
         else:
             self.canvas.restore_region(self._background)
@@ -1001,4 +1083,3 @@ class ReplayRenderer:
         """Simulated times (k,) s of the frames."""
         d, o = self.data, self.options
         return frame_times(float(d.t[0]), float(d.t[-1]), o.speed, o.fps)
-

@@ -9,6 +9,7 @@ figure, and one line per run linking to the run's own page when it has one.
 Figures are embedded as base64 PNG data URIs, so the page can be mailed or moved alone; the video
 (too large to embed) is linked by its path relative to the page.
 """
+
 from __future__ import annotations
 
 import base64
@@ -24,7 +25,7 @@ from matplotlib.figure import Figure
 
 from pybullet_swarm.types import Event
 
-MAX_EVENT_ROWS = 2000          # rows of the events table (the figure shows every event)
+MAX_EVENT_ROWS = 2000  # rows of the events table (the figure shows every event)
 
 _CSS = """
 body{font-family:-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;margin:0;background:#f6f6f4;color:#222}
@@ -75,16 +76,22 @@ def figure_png(fig: Figure, dpi: int = 100) -> bytes:
 
 
 def _img(src: str, caption: str, css: str = "half") -> str:
-    return (f'<figure class="{css}"><img src="{_esc(src)}" alt="{_esc(caption)}" loading="eager">'
-            f"<figcaption>{_esc(caption)}</figcaption></figure>")
+    return (
+        f'<figure class="{css}"><img src="{_esc(src)}" alt="{_esc(caption)}" loading="eager">'
+        f"<figcaption>{_esc(caption)}</figcaption></figure>"
+    )
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[Any]], numeric: Sequence[bool] | None = None) -> str:
     """A table; ``rows`` hold HTML already escaped."""
     numeric = numeric or [False] * len(header)
     head = "".join(f"<th>{_esc(h)}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f'<td class="num">{c}</td>' if numeric[i] else f"<td>{c}</td>"
-                                    for i, c in enumerate(r)) + "</tr>" for r in rows)
+    body = "".join(
+        "<tr>"
+        + "".join(f'<td class="num">{c}</td>' if numeric[i] else f"<td>{c}</td>" for i, c in enumerate(r))
+        + "</tr>"
+        for r in rows
+    )
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
@@ -93,9 +100,11 @@ def _figures(figures: Sequence[tuple[str, bytes]]) -> list[str]:
 
 
 def _page(title: str, body: str) -> str:
-    return (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-            f"<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
-            f"<title>{_esc(title)}</title><style>{_CSS}</style></head><body><main>{body}</main></body></html>\n")
+    return (
+        f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        f'<meta name="viewport" content="width=device-width, initial-scale=1">'
+        f"<title>{_esc(title)}</title><style>{_CSS}</style></head><body><main>{body}</main></body></html>\n"
+    )
 
 
 # ------------------------------------------------------------------------- a run
@@ -154,21 +163,31 @@ def _scenario_rows(scenario: Mapping[str, Any], metrics: Mapping[str, Any]) -> l
         ("scenario", scenario.get("name", metrics.get("scenario", "-"))),
         ("description", scenario.get("description", "")),
         ("task", f"{task.get('kind', '-')}, time limit {fmt(task.get('time_limit_s'))} s"),
-        ("agents", f"{agents.get('count', metrics.get('agents', '-'))} x "
-                   f"{agents.get('vehicle', metrics.get('vehicle', '-'))}"),
+        (
+            "agents",
+            f"{agents.get('count', metrics.get('agents', '-'))} x {agents.get('vehicle', metrics.get('vehicle', '-'))}",
+        ),
         ("planner", planner),
         ("avoidance", metrics.get("avoidance") or scenario.get("avoidance") or "none"),
         ("seed", metrics.get("seed", scenario.get("seed", "-"))),
         ("arena", f"{' x '.join(fmt(v) for v in size)} m, {len(arena.get('obstacles', []) or [])} obstacles"),
         ("collisions", scenario.get("collisions", "-")),
-        ("rates", "physics {} Hz, control {} Hz, planner {} Hz, recording {} Hz".format(
-            *(sim.get(k, "-") for k in ("physics_hz", "control_hz", "planner_hz", "record_hz")))),
-        ("limits", f"velocity {fmt(limits.get('velocity'))} m/s, "
-                   f"acceleration {fmt(limits.get('acceleration'))} m/s^2"),
+        (
+            "rates",
+            "physics {} Hz, control {} Hz, planner {} Hz, recording {} Hz".format(
+                *(sim.get(k, "-") for k in ("physics_hz", "control_hz", "planner_hz", "record_hz"))
+            ),
+        ),
+        ("limits", f"velocity {fmt(limits.get('velocity'))} m/s, acceleration {fmt(limits.get('acceleration'))} m/s^2"),
     ]
     if task.get("kind") == "construction":
-        rows.append(("structure", f"{len(task.get('boxes', []))} boxes, {len(task.get('structure', []))} slots, "
-                                  f"box {fmt(task.get('box_size'))} m"))
+        rows.append(
+            (
+                "structure",
+                f"{len(task.get('boxes', []))} boxes, {len(task.get('structure', []))} slots, "
+                f"box {fmt(task.get('box_size'))} m",
+            )
+        )
     return [(k, str(v)) for k, v in rows]
 
 
@@ -180,38 +199,67 @@ def run_report_html(page: RunPage) -> str:
     name = scenario.get("name", metrics.get("scenario", "run"))
     status = str(metrics.get("exit_status", "unfinished"))
     sim_t = metrics.get("sim_time_s")
-    parts = [f"<h1>{_esc(name)}: run report</h1>",
-             f'<p class="sub"><span class="badge {_esc(status)}">{_esc(status)}</span>'
-             f"{_esc(fmt(sim_t))} s simulated, {_esc(fmt(metrics.get('real_time_factor')))}x real time"
-             f" &middot; <code>{_esc(page.directory)}</code></p>"]
-    summary = "<h2>Scenario</h2>" + _table(("field", "value"), [(_esc(k), _esc(v)) for k, v in
-                                                              _scenario_rows(scenario, metrics)])
+    parts = [
+        f"<h1>{_esc(name)}: run report</h1>",
+        f'<p class="sub"><span class="badge {_esc(status)}">{_esc(status)}</span>'
+        f"{_esc(fmt(sim_t))} s simulated, {_esc(fmt(metrics.get('real_time_factor')))}x real time"
+        f" &middot; <code>{_esc(page.directory)}</code></p>",
+    ]
+    summary = "<h2>Scenario</h2>" + _table(
+        ("field", "value"), [(_esc(k), _esc(v)) for k, v in _scenario_rows(scenario, metrics)]
+    )
     if scenario:
-        summary += ("<details><summary>scenario.yaml (reproduces the run)</summary><pre>"
-                    f"{_esc(yaml.safe_dump(dict(scenario), sort_keys=False))}</pre></details>")
+        summary += (
+            "<details><summary>scenario.yaml (reproduces the run)</summary><pre>"
+            f"{_esc(yaml.safe_dump(dict(scenario), sort_keys=False))}</pre></details>"
+        )
     rows_m = [(_esc(k), _esc(fmt(v))) for k, v in page.flat_metrics]
-    table = (f'<div class="scroll">{_table(("metric", "value"), rows_m, (False, True))}</div>' if rows_m
-             else "<p>No metrics.json (unfinished run).</p>")
+    table = (
+        f'<div class="scroll">{_table(("metric", "value"), rows_m, (False, True))}</div>'
+        if rows_m
+        else "<p>No metrics.json (unfinished run).</p>"
+    )
     parts.append(f'<div class="cols"><section>{summary}</section><section><h2>Metrics</h2>{table}</section></div>')
     if page.video:
-        media = (f'<video controls preload="metadata" src="{_esc(page.video)}"></video>'
-                 if page.video.endswith(".mp4") else f'<img src="{_esc(page.video)}" alt="replay">')
-        parts.append(f"<h2>Replay</h2>{media}<p class=\"sub\">{_esc(page.video)} (pybullet-swarm replay RUN_DIR "
-                     "draws other views)</p>")
-    figures = ([_img(png_data_uri(page.still), "last instant, seen from above (replay renderer)", "full")]
-               if page.still else [])
+        media = (
+            f'<video controls preload="metadata" src="{_esc(page.video)}"></video>'
+            if page.video.endswith(".mp4")
+            else f'<img src="{_esc(page.video)}" alt="replay">'
+        )
+        parts.append(
+            f'<h2>Replay</h2>{media}<p class="sub">{_esc(page.video)} (pybullet-swarm replay RUN_DIR '
+            "draws other views)</p>"
+        )
+    figures = (
+        [_img(png_data_uri(page.still), "last instant, seen from above (replay renderer)", "full")]
+        if page.still
+        else []
+    )
     figures += _figures(page.figures)
-    parts.append("<h2>Figures</h2>" + (f'<div class="grid">{"".join(figures)}</div>' if figures else
-                                       "<p>No figures (drawn with pybullet-swarm plot RUN_DIR).</p>"))
+    parts.append(
+        "<h2>Figures</h2>"
+        + (
+            f'<div class="grid">{"".join(figures)}</div>'
+            if figures
+            else "<p>No figures (drawn with pybullet-swarm plot RUN_DIR).</p>"
+        )
+    )
     t_end = float(sim_t) if isinstance(sim_t, (int, float)) else max((e.time_s for e in events), default=1.0)
     timeline = png_data_uri(figure_png(events_timeline_figure(events, t_end)))
     rows = [(f"{e.time_s:.3f}", _esc(e.kind), _esc(e.a), _esc(e.b), _esc(e.detail)) for e in events[:MAX_EVENT_ROWS]]
-    more = (f"<p class=\"sub\">first {MAX_EVENT_ROWS} of {len(events)} events (all in events.csv)</p>"
-            if len(events) > MAX_EVENT_ROWS else "")
-    parts.append("<h2>Events</h2>" + _img(timeline, "events over time, one row per kind", "full")
-                 + more + '<div class="scroll">'
-                 + _table(("time [s]", "kind", "a", "b", "detail"), rows, (True, False, False, False, False))
-                 + "</div>")
+    more = (
+        f'<p class="sub">first {MAX_EVENT_ROWS} of {len(events)} events (all in events.csv)</p>'
+        if len(events) > MAX_EVENT_ROWS
+        else ""
+    )
+    parts.append(
+        "<h2>Events</h2>"
+        + _img(timeline, "events over time, one row per kind", "full")
+        + more
+        + '<div class="scroll">'
+        + _table(("time [s]", "kind", "a", "b", "detail"), rows, (True, False, False, False, False))
+        + "</div>"
+    )
     return _page(f"{name} run report", "".join(parts))
 
 
@@ -268,26 +316,40 @@ def comparison_table(records: Sequence[Mapping[str, str]], first: Sequence[str] 
                 continue
             mean, lo, hi, std = (_number(r.get(k)) for k in ("mean", "ci95_low", "ci95_high", "std"))
             ci = f"[{lo:.4g}, {hi:.4g}]" if math.isfinite(lo) and math.isfinite(hi) else "[-]"
-            row.append(f"{_esc(fmt(mean))} <small>{_esc(ci)}<br>std {_esc(fmt(std))}, n {_esc(r.get('n', '-'))}"
-                       f"/{_esc(r.get('n_runs', '-'))}</small>")
+            row.append(
+                f"{_esc(fmt(mean))} <small>{_esc(ci)}<br>std {_esc(fmt(std))}, n {_esc(r.get('n', '-'))}"
+                f"/{_esc(r.get('n_runs', '-'))}</small>"
+            )
         rows.append(row)
     header = ["metric", *configs]
-    return (f"<p class=\"sub\">mean [95 % confidence interval of the mean, {_esc(method)}]; n = runs with a value / "
-            "runs of the configuration</p>" + _table(header, rows, [False] + [True] * len(configs)))
+    return (
+        f'<p class="sub">mean [95 % confidence interval of the mean, {_esc(method)}]; n = runs with a value / '
+        "runs of the configuration</p>" + _table(header, rows, [False] + [True] * len(configs))
+    )
 
 
 def sweep_report_html(page: SweepPage) -> str:
     """The HTML page of a sweep."""
     badges = "".join(f'<span class="badge {_esc(k)}">{_esc(k)} {v}</span>' for k, v in page.statuses.items())
-    parts = [f"<h1>{_esc(page.name)}: sweep report</h1>",
-             f'<p class="sub">{badges} {sum(page.statuses.values())} runs recorded &middot; '
-             f"<code>{_esc(page.directory)}</code></p>",
-             "<h2>Sweep</h2>" + _table(("field", "value"), [(_esc(k), _esc(v)) for k, v in page.setup])]
-    parts.append("<h2>Comparison</h2>" + (comparison_table(page.summary, page.metric_order) if page.summary
-                                          else "<p>No summary.csv yet.</p>"))
+    parts = [
+        f"<h1>{_esc(page.name)}: sweep report</h1>",
+        f'<p class="sub">{badges} {sum(page.statuses.values())} runs recorded &middot; '
+        f"<code>{_esc(page.directory)}</code></p>",
+        "<h2>Sweep</h2>" + _table(("field", "value"), [(_esc(k), _esc(v)) for k, v in page.setup]),
+    ]
+    parts.append(
+        "<h2>Comparison</h2>"
+        + (comparison_table(page.summary, page.metric_order) if page.summary else "<p>No summary.csv yet.</p>")
+    )
     figures = _figures(page.figures)
-    parts.append("<h2>Comparison figures</h2>" + (f'<div class="grid">{"".join(figures)}</div>' if figures else
-                                                  "<p>No figures (pybullet-swarm plot SWEEP_DIR draws them).</p>"))
+    parts.append(
+        "<h2>Comparison figures</h2>"
+        + (
+            f'<div class="grid">{"".join(figures)}</div>'
+            if figures
+            else "<p>No figures (pybullet-swarm plot SWEEP_DIR draws them).</p>"
+        )
+    )
     numeric = [c not in ("run_id", "planner", "avoidance", "exit_status") for c in page.run_columns]
     rows = []
     for r in page.runs:

@@ -1,4 +1,5 @@
 """Figures of one run, drawn from its saved results (never from a live simulation)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -28,7 +29,7 @@ def plot_positions(ts: TimeSeries, path: Path) -> Path:
     axes = fig.subplots(3, 1, sharex=True)
     for k, (ax, name) in enumerate(zip(axes, "xyz")):
         for i in _agents(ts):
-            line, = ax.plot(ts.t, ts.positions[:, i, k], lw=1.2, label=f"agent {i}" if k == 0 else None)
+            (line,) = ax.plot(ts.t, ts.positions[:, i, k], lw=1.2, label=f"agent {i}" if k == 0 else None)
             ax.plot(ts.t, ts.ref_positions[:, i, k], "--", lw=0.9, color=line.get_color())
         ax.set_ylabel(f"{name} [m]")
         ax.grid(alpha=0.3)
@@ -68,8 +69,14 @@ def plot_rotors(ts: TimeSeries, path: Path) -> Path:
     return _save(fig, path)
 
 
-def plot_run(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any] | None = None, *,
-             scenario: dict[str, Any] | None = None, events: list[Any] | None = None) -> list[Path]:
+def plot_run(
+    ts: TimeSeries,
+    out_dir: Path,
+    metrics: dict[str, Any] | None = None,
+    *,
+    scenario: dict[str, Any] | None = None,
+    events: list[Any] | None = None,
+) -> list[Path]:
     """Draw every figure of a run into ``out_dir``; returns the files written.
 
     Args:
@@ -89,11 +96,17 @@ def plot_run(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any] | None = Non
     ]
     if scenario is not None:
         files += _swarm_figures(ts, out_dir, metrics or {}, scenario, events or [])
-    if "est_kalman_position" in ts.extra:   # the run's onboard estimation (sensing.state estimated)
+    if "est_kalman_position" in ts.extra:  # the run's onboard estimation (sensing.state estimated)
         from pybullet_swarm.plotting.estimation_plots import plot_estimation
 
-        files += plot_estimation(ts.t, ts.positions, quat_to_euler(ts.quaternions.astype(float))[..., 2], ts.extra, out_dir,
-                                 (metrics or {}).get("estimation"))
+        files += plot_estimation(
+            ts.t,
+            ts.positions,
+            quat_to_euler(ts.quaternions.astype(float))[..., 2],
+            ts.extra,
+            out_dir,
+            (metrics or {}).get("estimation"),
+        )
     return files
 
 
@@ -109,7 +122,7 @@ def plot_saved_artifacts(run_dir: Path, out_dir: Path) -> list[Path]:
         names = [str(n) for n in np.asarray(arrays["layers"]).ravel()]
         if "persistent" in arrays:
             lasting = [str(n) for n in np.asarray(arrays.pop("persistent")).ravel()]
-        else:   # written before the file named them
+        else:  # written before the file named them
             lasting = [n for n in names if n == "task"]
         files += plot_pheromones(arrays, out_dir, persistent=lasting)
     tour = Path(run_dir) / "tour.json"
@@ -120,10 +133,14 @@ def plot_saved_artifacts(run_dir: Path, out_dir: Path) -> list[Path]:
     return files
 
 
-def _swarm_figures(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any], scenario: dict[str, Any],
-                   events: list[Any]) -> list[Path]:
-    from pybullet_swarm.metrics.construction import (acceleration_series, box_to_goal_distance,
-                                                     nearest_neighbour_distances)
+def _swarm_figures(
+    ts: TimeSeries, out_dir: Path, metrics: dict[str, Any], scenario: dict[str, Any], events: list[Any]
+) -> list[Path]:
+    from pybullet_swarm.metrics.construction import (
+        acceleration_series,
+        box_to_goal_distance,
+        nearest_neighbour_distances,
+    )
     from pybullet_swarm.plotting import construction_plots as cp
     from pybullet_swarm.vehicle import load_vehicle
 
@@ -134,11 +151,13 @@ def _swarm_figures(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any], scena
     vehicle = load_vehicle(scenario.get("agents", {}).get("vehicle", "quad150"))
     diameter = max(vehicle.collision_size[0], vehicle.collision_size[1])
     if pos.shape[1] > 1:
-        files.append(cp.plot_nn_distance(ts.t, nearest_neighbour_distances(pos), diameter,
-                                         out_dir / "nn_distance.png"))
+        files.append(cp.plot_nn_distance(ts.t, nearest_neighbour_distances(pos), diameter, out_dir / "nn_distance.png"))
     files.append(cp.plot_collision_timeline(events, float(ts.t[-1]), out_dir / "collision_timeline.png"))
-    files.append(cp.plot_acceleration(ts.t, acceleration_series(ts.t, ts.velocities.astype(float)),
-                                      out_dir / "acceleration.png", agent=0))
+    files.append(
+        cp.plot_acceleration(
+            ts.t, acceleration_series(ts.t, ts.velocities.astype(float)), out_dir / "acceleration.png", agent=0
+        )
+    )
     if task.get("kind") == "route":
         from pybullet_swarm.plotting.flocking_plots import plot_route_run
 
@@ -149,6 +168,9 @@ def _swarm_figures(ts: TimeSeries, out_dir: Path, metrics: dict[str, Any], scena
         files.append(cp.plot_top_view(pos, arena, boxes, slots, float(task["box_size"]), out_dir / "top_view.png"))
         if "box_positions" in ts.extra:
             total = box_to_goal_distance(ts.extra["box_positions"].astype(float), slots)
-            files.append(cp.plot_box_to_goal(ts.t, total, out_dir / "box_to_goal.png",
-                                             completion_time=metrics.get("completion_time_s")))
+            files.append(
+                cp.plot_box_to_goal(
+                    ts.t, total, out_dir / "box_to_goal.png", completion_time=metrics.get("completion_time_s")
+                )
+            )
     return files

@@ -4,6 +4,7 @@
 - ``time_vs_collisions.png``: completion time against collisions, one colour per configuration;
   runs that did not complete are drawn at their end time with a cross.
 """
+
 from __future__ import annotations
 
 import math
@@ -18,11 +19,18 @@ from pybullet_swarm.plotting.common import save_figure
 from matplotlib.ticker import MaxNLocator
 from numpy.typing import NDArray
 
-Group = tuple[str, Sequence[Mapping[str, Any]]]   # (configuration label, its rows)
+Group = tuple[str, Sequence[Mapping[str, Any]]]  # (configuration label, its rows)
 
 #: Metrics drawn first, when present.
-PREFERRED = ("completed", "completion_time_s", "sim_time_s", "collisions.total", "collisions.agent_agent",
-             "path_length_m.total", "energy_j")
+PREFERRED = (
+    "completed",
+    "completion_time_s",
+    "sim_time_s",
+    "collisions.total",
+    "collisions.agent_agent",
+    "path_length_m.total",
+    "energy_j",
+)
 
 
 _save = save_figure
@@ -73,13 +81,17 @@ def plot_metric_box(groups: Sequence[Group], metric: str, path: Path) -> Path:
     positions = np.arange(1, len(groups) + 1)
     drawn = [(p, d) for p, d in zip(positions, data) if d.size]
     if drawn:
-        ax.boxplot([d for _, d in drawn], positions=[p for p, _ in drawn], widths=0.5, showfliers=False,
-                   medianprops={"color": "k"})
-    rng = np.random.default_rng(0)   # fixed jitter: the same figure every time
+        ax.boxplot(
+            [d for _, d in drawn],
+            positions=[p for p, _ in drawn],
+            widths=0.5,
+            showfliers=False,
+            medianprops={"color": "k"},
+        )
+    rng = np.random.default_rng(0)  # fixed jitter: the same figure every time
     for p, d in zip(positions, data):
         ax.plot(p + rng.uniform(-0.12, 0.12, d.size), d, "o", ms=4, alpha=0.6, color="tab:blue")
-        ax.annotate(f"n={d.size}", (p, 1.0), xycoords=("data", "axes fraction"), ha="center", va="bottom",
-                    fontsize=7)
+        ax.annotate(f"n={d.size}", (p, 1.0), xycoords=("data", "axes fraction"), ha="center", va="bottom", fontsize=7)
     ax.set_xticks(positions, labels, fontsize=8)
     ax.set_xlim(0.4, len(groups) + 0.6)
     ax.set_ylabel(metric)

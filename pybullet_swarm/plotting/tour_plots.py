@@ -1,4 +1,5 @@
 """Figures of a tour run: inspection points, planned legs and flown paths, top and side views."""
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -21,8 +22,15 @@ def _colour(i: int) -> str:
     return f"C{i % 10}"
 
 
-def _view(ax: Axes, axes: tuple[int, int], pts: NDArray[np.float64], planned: Sequence[NDArray[np.float64]],
-          flown: NDArray[np.float64] | None, visited_by: NDArray[np.int64], labels: bool) -> None:
+def _view(
+    ax: Axes,
+    axes: tuple[int, int],
+    pts: NDArray[np.float64],
+    planned: Sequence[NDArray[np.float64]],
+    flown: NDArray[np.float64] | None,
+    visited_by: NDArray[np.int64],
+    labels: bool,
+) -> None:
     """Draw one projection (axes: indices of the horizontal and vertical coordinates)."""
     a, b = axes
     if flown is not None:
@@ -34,17 +42,32 @@ def _view(ax: Axes, axes: tuple[int, int], pts: NDArray[np.float64], planned: Se
             ax.plot(path[:, a], path[:, b], ls="--", lw=1.0, color=_colour(i), alpha=0.6, zorder=2)
     hit = visited_by >= 0
     ax.scatter(pts[~hit, a], pts[~hit, b], marker="x", s=40, c="k", zorder=5)
-    ax.scatter(pts[hit, a], pts[hit, b], marker="o", s=30, c=[_colour(int(i)) for i in visited_by[hit]],
-               edgecolors="k", linewidths=0.6, zorder=5)
+    ax.scatter(
+        pts[hit, a],
+        pts[hit, b],
+        marker="o",
+        s=30,
+        c=[_colour(int(i)) for i in visited_by[hit]],
+        edgecolors="k",
+        linewidths=0.6,
+        zorder=5,
+    )
     if labels:
         for j, p in enumerate(pts):
             ax.annotate(str(j), (p[a], p[b]), xytext=(3, 3), textcoords="offset points", fontsize=6, color="0.25")
     ax.grid(alpha=0.25)
 
 
-def plot_tour(points: ArrayLike, path: Path | str, *, arena_size: ArrayLike | None = None,
-              planned: Sequence[ArrayLike] | None = None, flown: ArrayLike | None = None,
-              visited_by: ArrayLike | None = None, visit_radius: float | None = None) -> Path:
+def plot_tour(
+    points: ArrayLike,
+    path: Path | str,
+    *,
+    arena_size: ArrayLike | None = None,
+    planned: Sequence[ArrayLike] | None = None,
+    flown: ArrayLike | None = None,
+    visited_by: ArrayLike | None = None,
+    visit_radius: float | None = None,
+) -> Path:
     """Top view (x-y) and side view (x-z) of a tour: points, planned legs (dashed), flown paths.
 
     Points are coloured by the agent that visited them (black crosses: not visited); each agent's
@@ -90,9 +113,12 @@ def plot_tour(points: ArrayLike, path: Path | str, *, arena_size: ArrayLike | No
     side.set_title("side view")
     n = max(len(plans), 0 if fl is None else fl.shape[1])
     handles = [Line2D([], [], color=_colour(i), lw=1.5, label=f"agent {i}") for i in range(n)]
-    handles += [Line2D([], [], color="0.4", ls="--", label="planned"), Line2D([], [], color="0.4", label="flown"),
-                Line2D([], [], ls="", marker="o", mfc="w", mec="k", label="start / visited point"),
-                Line2D([], [], ls="", marker="x", color="k", label="not visited")]
+    handles += [
+        Line2D([], [], color="0.4", ls="--", label="planned"),
+        Line2D([], [], color="0.4", label="flown"),
+        Line2D([], [], ls="", marker="o", mfc="w", mec="k", label="start / visited point"),
+        Line2D([], [], ls="", marker="x", color="k", label="not visited"),
+    ]
     side.legend(handles=handles, fontsize=7, loc="upper right", ncol=2)
     visited = int(np.count_nonzero(by >= 0))
     radius = f", visit radius {visit_radius:g} m" if visit_radius is not None else ""
@@ -110,5 +136,12 @@ def plot_saved_tour(tour_json: Path | str, timeseries: Path | str | None, path: 
         with np.load(timeseries) as z:
             flown = z["positions"].astype(float) if "positions" in z.files else None
     plan = data.get("plan") or {}
-    return plot_tour(data["points"], path, arena_size=data.get("arena_size"), planned=plan.get("paths"),
-                     flown=flown, visited_by=data.get("visited_by"), visit_radius=data.get("visit_radius"))
+    return plot_tour(
+        data["points"],
+        path,
+        arena_size=data.get("arena_size"),
+        planned=plan.get("paths"),
+        flown=flown,
+        visited_by=data.get("visited_by"),
+        visit_radius=data.get("visit_radius"),
+    )

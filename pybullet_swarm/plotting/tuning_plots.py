@@ -8,6 +8,7 @@
 - ``tuned_vs_default.png``: the default against the tuned configuration on held-out seeds,
   mean and 95 % interval per planner (the scripted thesis study).
 """
+
 from __future__ import annotations
 
 import math
@@ -24,8 +25,15 @@ def _finite(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v))
 
 
-def plot_history(records: Sequence[Mapping[str, Any]], columns: Sequence[str], labels: Sequence[str],
-                 minimise: Sequence[bool], path: Path, *, title: str = "") -> Path:
+def plot_history(
+    records: Sequence[Mapping[str, Any]],
+    columns: Sequence[str],
+    labels: Sequence[str],
+    minimise: Sequence[bool],
+    path: Path,
+    *,
+    title: str = "",
+) -> Path:
     """Objective value per trial and the best so far.
 
     Args:
@@ -46,16 +54,24 @@ def plot_history(records: Sequence[Mapping[str, Any]], columns: Sequence[str], l
         base = [r for r in done if r.get("baseline")]
         ax.plot(x, y, "o", ms=4, color="tab:blue", alpha=0.7, label="trial (mean over seeds)")
         if base:
-            ax.plot([r["trial"] for r in base], [float(r[col]) for r in base], "s", ms=7, mfc="none",
-                    color="tab:green", label="baseline (defaults)")
+            ax.plot(
+                [r["trial"] for r in base],
+                [float(r[col]) for r in base],
+                "s",
+                ms=7,
+                mfc="none",
+                color="tab:green",
+                label="baseline (defaults)",
+            )
         if len(y):
             order = np.argsort(x)
             best = np.minimum.accumulate(y[order]) if lower else np.maximum.accumulate(y[order])
             ax.step(x[order], best, where="post", color="tab:red", lw=1.8, label="best so far")
         failed = [r["trial"] for r in records if r.get("state") == "fail" and r.get("error")]
         if failed and len(y):
-            ax.plot(failed, [np.nanmin(y) if lower else np.nanmax(y)] * len(failed), "x", color="0.4",
-                    label="failed trial")
+            ax.plot(
+                failed, [np.nanmin(y) if lower else np.nanmax(y)] * len(failed), "x", color="0.4", label="failed trial"
+            )
         ax.set_ylabel(label if len(label) <= 40 else label[:37] + "...", fontsize=8)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="best")
@@ -96,8 +112,15 @@ def plot_importance(importances: Mapping[str, Mapping[str, float]], path: Path, 
     return save_figure(fig, path)
 
 
-def plot_pareto(records: Sequence[Mapping[str, Any]], columns: Sequence[str], labels: Sequence[str],
-                minimise: Sequence[bool], path: Path, *, title: str = "") -> Path:
+def plot_pareto(
+    records: Sequence[Mapping[str, Any]],
+    columns: Sequence[str],
+    labels: Sequence[str],
+    minimise: Sequence[bool],
+    path: Path,
+    *,
+    title: str = "",
+) -> Path:
     """The first two objectives of every finished trial with the Pareto front.
 
     Args:
@@ -113,8 +136,14 @@ def plot_pareto(records: Sequence[Mapping[str, Any]], columns: Sequence[str], la
     front = sorted((r for r in done if r.get("pareto")), key=lambda r: float(r[cx]))
     fig = Figure(figsize=(6.4, 4.8), layout="constrained")
     ax = fig.subplots()
-    ax.plot([float(r[cx]) for r in done], [float(r[cy]) for r in done], "o", color="0.65", ms=4,
-            label="trial (mean over seeds)")
+    ax.plot(
+        [float(r[cx]) for r in done],
+        [float(r[cy]) for r in done],
+        "o",
+        color="0.65",
+        ms=4,
+        label="trial (mean over seeds)",
+    )
     if front:
         fx = [float(r[cx]) for r in front]
         fy = [float(r[cy]) for r in front]
@@ -124,18 +153,33 @@ def plot_pareto(records: Sequence[Mapping[str, Any]], columns: Sequence[str], la
             ax.annotate(str(r["trial"]), (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
     base = [r for r in done if r.get("baseline")]
     if base:
-        ax.plot([float(r[cx]) for r in base], [float(r[cy]) for r in base], "s", ms=8, mfc="none",
-                color="tab:green", label="baseline (defaults)")
+        ax.plot(
+            [float(r[cx]) for r in base],
+            [float(r[cy]) for r in base],
+            "s",
+            ms=8,
+            mfc="none",
+            color="tab:green",
+            label="baseline (defaults)",
+        )
     whole = [r for r in done if r.get("completed") == 1 or r.get("pareto")]
     off = len(done) - len(whole)
-    if whole and off:   # penalised trials (runs that did not complete) would squash the front: zoom in
+    if whole and off:  # penalised trials (runs that did not complete) would squash the front: zoom in
         xs = [float(r[cx]) for r in whole]
         ys = [float(r[cy]) for r in whole]
         pad_x, pad_y = 0.08 * (max(xs) - min(xs) or 1.0), 0.08 * (max(ys) - min(ys) or 1.0)
         ax.set_xlim(min(xs) - pad_x, max(xs) + pad_x)
         ax.set_ylim(min(ys) - pad_y, max(ys) + pad_y)
-        ax.text(0.99, 0.01, f"{off} trial(s) with incomplete runs (penalised) beyond the axes",
-                transform=ax.transAxes, ha="right", va="bottom", fontsize=7, color="0.4")
+        ax.text(
+            0.99,
+            0.01,
+            f"{off} trial(s) with incomplete runs (penalised) beyond the axes",
+            transform=ax.transAxes,
+            ha="right",
+            va="bottom",
+            fontsize=7,
+            color="0.4",
+        )
     arrow = {True: "lower is better", False: "higher is better"}
     ax.set_xlabel(f"{labels[0]} ({arrow[bool(minimise[0])]})", fontsize=8)
     ax.set_ylabel(f"{labels[1]} ({arrow[bool(minimise[1])]})", fontsize=8)
@@ -160,7 +204,7 @@ def plot_tuned_vs_default(table: Sequence[Mapping[str, Any]], path: Path, *, yla
     fig = Figure(figsize=(6.4, 4.4), layout="constrained")
     ax = fig.subplots()
     colours = {"default": "tab:gray", "tuned": "tab:blue"}
-    rng = np.random.default_rng(0)   # horizontal jitter of the points only
+    rng = np.random.default_rng(0)  # horizontal jitter of the points only
     for i, planner in enumerate(planners):
         for j, config in enumerate(("default", "tuned")):
             rec = next((r for r in table if r["planner"] == planner and r["config"] == config), None)
@@ -171,8 +215,16 @@ def plot_tuned_vs_default(table: Sequence[Mapping[str, Any]], path: Path, *, yla
             ax.plot(x + rng.uniform(-0.06, 0.06, len(vals)), vals, "o", ms=3, alpha=0.5, color=colours[config])
             lo, hi = rec.get("ci95_low"), rec.get("ci95_high")
             err = None if not (_finite(lo) and _finite(hi)) else [[rec["mean"] - lo], [hi - rec["mean"]]]
-            ax.errorbar([x], [rec["mean"]], yerr=err, fmt="D", ms=7, capsize=5, color=colours[config],
-                        label=config if i == 0 else None)
+            ax.errorbar(
+                [x],
+                [rec["mean"]],
+                yerr=err,
+                fmt="D",
+                ms=7,
+                capsize=5,
+                color=colours[config],
+                label=config if i == 0 else None,
+            )
     ax.set_xticks(range(len(planners)), planners)
     ax.set_ylabel(ylabel if len(ylabel) <= 45 else ylabel[:42] + "...", fontsize=8)
     ax.grid(True, axis="y", alpha=0.3)

@@ -14,6 +14,7 @@ reckoning) is faded out when the norm of the specific force departs from g; the 
 corrects the tilt against the expected specific force instead (see
 ``OnboardEstimation._level_from_bias``) and calls ``update(..., tilt=False)``.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -186,7 +187,7 @@ class ComplementaryFilter:
             norm = np.linalg.norm(accel, axis=1)
             weight = np.clip(1.0 - np.abs(norm - self.gravity) / self.gains.gate, 0.0, 1.0)
             measured_up = accel / np.maximum(norm, 1e-9)[:, None]
-            estimated_up = self.rotation[:, 2, :]          # world z seen in the body frame: third row of R
+            estimated_up = self.rotation[:, 2, :]  # world z seen in the body frame: third row of R
             # rotating the body by +k (m x e) moves the estimated up direction towards the measured one
             omega = gyro + (k * weight)[:, None] * cross_rows(measured_up, np.ascontiguousarray(estimated_up))
         self.q = quat_normalize(quat_multiply(self.q, quat_exp(omega * dt)))
@@ -204,7 +205,7 @@ class ComplementaryFilter:
         rz[:, 2] = np.sin(0.5 * turn)
         rz[:, 3] = np.cos(0.5 * turn)
         q = self._q.copy()
-        q[sel] = quat_normalize(quat_multiply(rz, q[sel]))   # world-frame turn about z
+        q[sel] = quat_normalize(quat_multiply(rz, q[sel]))  # world-frame turn about z
         self.q = q
 
     @property

@@ -6,6 +6,7 @@ z) is the accelerometer bias, the mean gyroscope reading is the gyroscope bias, 
 the positioning fixes (and headings) is the initial pose. The level assumption holds for
 agents resting on flat ground; a tilted pad would leak into the accelerometer bias.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -53,7 +54,7 @@ class RestCalibration:
         self._k = 0
         self._pos = np.zeros((n, 3))
         self._npos = np.zeros(n, dtype=np.int64)
-        self._head = np.zeros((n, 2))    # sum of (cos, sin)
+        self._head = np.zeros((n, 2))  # sum of (cos, sin)
         self._has_heading = False
 
     def add_imu(self, accel: NDArray[np.float64], gyro: NDArray[np.float64]) -> None:
@@ -62,8 +63,9 @@ class RestCalibration:
         self._gyr += gyro
         self._k += 1
 
-    def add_fix(self, valid: NDArray[np.bool_], positions: NDArray[np.float64],
-                headings: NDArray[np.float64] | None) -> None:
+    def add_fix(
+        self, valid: NDArray[np.bool_], positions: NDArray[np.float64], headings: NDArray[np.float64] | None
+    ) -> None:
         """Add the fixes (n, 3) m (and headings (n,) rad) of the agents marked ``valid`` (n,)."""
         self._pos[valid] += positions[valid]
         self._npos += valid

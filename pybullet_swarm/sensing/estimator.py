@@ -16,6 +16,7 @@ One ``OnboardEstimation`` serves the whole swarm with numpy arrays of shape (n, 
 ``state_array`` (n, 13) holds the estimate in the simulation's state layout (position,
 quaternion, velocity, world angular velocity), ready for the position loop and the planners.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -74,8 +75,17 @@ class OnboardEstimation:
         rng: parent generator; the IMU, the positioning sensor and neighbour sensing get a child each.
     """
 
-    def __init__(self, n: int, imu: ImuNoise, positioning: PositioningParams, params: EstimatorParams, *,
-                 control_hz: float, gravity: float, rng: np.random.Generator) -> None:
+    def __init__(
+        self,
+        n: int,
+        imu: ImuNoise,
+        positioning: PositioningParams,
+        params: EstimatorParams,
+        *,
+        control_hz: float,
+        gravity: float,
+        rng: np.random.Generator,
+    ) -> None:
         self.n = n
         self.params = params
         self.dt = 1.0 / float(control_hz)
@@ -84,7 +94,7 @@ class OnboardEstimation:
         imu_rng, pos_rng, self.neighbour_rng = rng.spawn(3)
         self.imu = Imu(n, imu, control_hz, gravity, rng=imu_rng)
         self.positioning = PositioningSensor(n, positioning, rng=pos_rng)
-        self.state_array = np.zeros((n, 13))    # estimate: position, quaternion, velocity, world angular velocity
+        self.state_array = np.zeros((n, 13))  # estimate: position, quaternion, velocity, world angular velocity
         self.state_array[:, 6] = 1.0
         self.calibration: CalibrationResult | None = None
         self._pending: Fix | None = None
@@ -102,20 +112,20 @@ class OnboardEstimation:
             cal.add_imu(s.accel, s.gyro)
         rate = self.positioning.params.rate_hz
         n_fix = max(1, int(round(p.calibration_s * rate)))
-        for j in range(n_fix):   # the fixes of the calibration phase, dropouts included
+        for j in range(n_fix):  # the fixes of the calibration phase, dropouts included
             tj = t - (n_fix - 1 - j) / rate
             fix = self.positioning.measure(tj, state[:, :3], q_rest)
             cal.add_fix(fix.valid, fix.positions, fix.headings)
         result = cal.result()
         missing = result.position_fixes == 0
-        if np.any(missing):   # no fix at all: start from one noisy fix regardless of dropouts and outages
+        if np.any(missing):  # no fix at all: start from one noisy fix regardless of dropouts and outages
             extra = self.positioning.measure(t, state[:, :3], q_rest)
             result.position[missing] = extra.positions[missing]
             result.position_fixes[missing] = 1
             if result.heading is not None and extra.headings is not None:
                 result.heading[missing] = extra.headings[missing]
         self.calibration = result
-        self.positioning.fixes = self.positioning.dropped = 0   # count the fixes of the flight only
+        self.positioning.fixes = self.positioning.dropped = 0  # count the fixes of the flight only
         self._init_filters(state, result, t)
         return result
 
@@ -138,11 +148,11 @@ class OnboardEstimation:
         if d == 3:
             P0[:, 2, 2] = p.initial_bias_std**2
         self.kalman = AxisKalman(x0, P0, self.dt, p.accel_process_std, p.bias_walk)
-        self.dr_position = cal.position.copy()      # (n, 3) m, IMU dead reckoning
-        self.dr_velocity = np.zeros((n, 3))         # (n, 3) m/s
-        self.fix_position = cal.position.copy()     # (n, 3) m, positioning alone: the last fix
+        self.dr_position = cal.position.copy()  # (n, 3) m, IMU dead reckoning
+        self.dr_velocity = np.zeros((n, 3))  # (n, 3) m/s
+        self.fix_position = cal.position.copy()  # (n, 3) m, positioning alone: the last fix
         self.fix_heading = None if cal.heading is None else np.where(np.isfinite(cal.heading), cal.heading, yaw)
-        self.fix_time = np.full(n, t)               # (n,) s, when that fix was taken
+        self.fix_time = np.full(n, t)  # (n,) s, when that fix was taken
         self._q_prev = state[:, 3:7].copy()
         self._v_prev = state[:, 7:10].copy()
         self.time = t
@@ -212,10 +222,10 @@ class OnboardEstimation:
         towards gravity this stays right in sustained accelerations, where a quadrotor's specific
         force tilts with the airframe.
         """
-        F = np.einsum("nij,nj->ni", self.attitude.rotation, accel)            # (n, 3) m/s^2
-        b = self.kalman.x[:, 2].reshape(self.n, 3)                             # (n, 3) m/s^2
+        F = np.einsum("nij,nj->ni", self.attitude.rotation, accel)  # (n, 3) m/s^2
+        b = self.kalman.x[:, 2].reshape(self.n, 3)  # (n, 3) m/s^2
         f2 = np.maximum(np.einsum("ni,ni->n", F, F), 1e-6)[:, None]
-        phi = cross_rows(F, np.ascontiguousarray(b)) / f2                                              # (n, 3) rad
+        phi = cross_rows(F, np.ascontiguousarray(b)) / f2  # (n, 3) rad
         step = min(self.params.tilt_gain * self.dt, 1.0)
         self.attitude.rotate_world(-step * phi)
         b_perp = b - F * (np.einsum("ni,ni->n", F, b)[:, None] / f2)
@@ -275,10 +285,19 @@ class OnboardEstimation:
         R_est = self.attitude.rotation
         R_true = rotation_matrices(state[:, 3:7])
         cos_tilt = np.clip(np.einsum("ni,ni->n", R_est[:, :, 2], R_true[:, :, 2]), -1.0, 1.0)
-        errors.add_tick(kalman=self.state_array[:, :3], kalman_yaw=self.yaw, velocity=self.state_array[:, 7:10],
-                        tilt_error=np.arccos(cos_tilt), position_variance=self.variances[:, :, 0],
-                        imu=self.dr_position, imu_yaw=self.dr_yaw, held_fix=self.fix_position,
-                        true_positions=state[:, :3], true_velocities=state[:, 7:10], true_yaw=yaw_of(state[:, 3:7]))
+        errors.add_tick(
+            kalman=self.state_array[:, :3],
+            kalman_yaw=self.yaw,
+            velocity=self.state_array[:, 7:10],
+            tilt_error=np.arccos(cos_tilt),
+            position_variance=self.variances[:, :, 0],
+            imu=self.dr_position,
+            imu_yaw=self.dr_yaw,
+            held_fix=self.fix_position,
+            true_positions=state[:, :3],
+            true_velocities=state[:, 7:10],
+            true_yaw=yaw_of(state[:, 3:7]),
+        )
 
     def summary(self) -> dict[str, Any]:
         """Settings and counters of the run's sensing (merged into the ``estimation`` metrics)."""
@@ -314,6 +333,11 @@ def expected_position_std(positioning: PositioningParams, params: EstimatorParam
 
     if positioning.noise_std <= 0.0:
         return 0.0
-    return steady_position_std(1.0 / float(control_hz), params.accel_process_std,
-                               max(1, round(float(control_hz) / positioning.rate_hz)), positioning.noise_std,
-                               bias_walk=params.bias_walk, bias=params.estimate_bias)
+    return steady_position_std(
+        1.0 / float(control_hz),
+        params.accel_process_std,
+        max(1, round(float(control_hz) / positioning.rate_hz)),
+        positioning.noise_std,
+        bias_walk=params.bias_walk,
+        bias=params.estimate_bias,
+    )

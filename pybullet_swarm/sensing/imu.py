@@ -17,6 +17,7 @@ A sample averaged over the period ``T`` of white noise with density ``N`` has th
 deviation ``N / sqrt(2 T)`` = ``N sqrt(rate / 2)``. Motor vibration, which dominates a real
 airframe's accelerometer noise, is not simulated (raise the densities to model it).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -90,18 +91,22 @@ class Imu:
         self.dt = 1.0 / float(rate_hz)
         self.gravity = float(gravity)
         self.rng = rng
-        self.accel_sigma = noise.accel_std(rate_hz)    # m/s^2 per sample
-        self.gyro_sigma = noise.gyro_std(rate_hz)      # rad/s per sample
-        self.accel_bias = self._bias(noise.accel_bias, noise.accel_bias_std)   # (n, 3) m/s^2
-        self.gyro_bias = self._bias(noise.gyro_bias, noise.gyro_bias_std)      # (n, 3) rad/s
+        self.accel_sigma = noise.accel_std(rate_hz)  # m/s^2 per sample
+        self.gyro_sigma = noise.gyro_std(rate_hz)  # rad/s per sample
+        self.accel_bias = self._bias(noise.accel_bias, noise.accel_bias_std)  # (n, 3) m/s^2
+        self.gyro_bias = self._bias(noise.gyro_bias, noise.gyro_bias_std)  # (n, 3) rad/s
         self._gravity_world = np.array([0.0, 0.0, self.gravity])
 
     def _bias(self, fixed: tuple[float, float, float] | list[float] | None, std: float) -> NDArray[np.float64]:
-        drawn = self.rng.normal(0.0, 1.0, size=(self.n, 3)) * std   # always drawn: the stream does not depend on it
+        drawn = self.rng.normal(0.0, 1.0, size=(self.n, 3)) * std  # always drawn: the stream does not depend on it
         return np.tile(np.asarray(fixed, dtype=float), (self.n, 1)) if fixed is not None else drawn
 
-    def measure(self, quaternions: NDArray[np.float64], mean_acceleration: NDArray[np.float64],
-                mean_body_rate: NDArray[np.float64]) -> ImuSample:
+    def measure(
+        self,
+        quaternions: NDArray[np.float64],
+        mean_acceleration: NDArray[np.float64],
+        mean_body_rate: NDArray[np.float64],
+    ) -> ImuSample:
         """Sample from true motion over the last period.
 
         Args:
@@ -110,14 +115,19 @@ class Imu:
             mean_body_rate: (n, 3) rad/s, mean body rate over the period.
         """
         R = rotation_matrices(np.asarray(quaternions, dtype=float))
-        specific = np.einsum("nji,nj->ni", R, mean_acceleration + self._gravity_world)   # R^T (a + g e_z)
+        specific = np.einsum("nji,nj->ni", R, mean_acceleration + self._gravity_world)  # R^T (a + g e_z)
         noise = self.rng.normal(0.0, 1.0, size=(2, self.n, 3))
         accel = specific + self.accel_bias + self.accel_sigma * noise[0]
         gyro = mean_body_rate + self.gyro_bias + self.gyro_sigma * noise[1]
         return ImuSample(accel, gyro)
 
-    def measure_motion(self, q_prev: NDArray[np.float64], q_now: NDArray[np.float64], v_prev: NDArray[np.float64],
-                       v_now: NDArray[np.float64]) -> ImuSample:
+    def measure_motion(
+        self,
+        q_prev: NDArray[np.float64],
+        q_now: NDArray[np.float64],
+        v_prev: NDArray[np.float64],
+        v_now: NDArray[np.float64],
+    ) -> ImuSample:
         """Sample from the true states at the start and the end of the period.
 
         Args:

@@ -17,6 +17,7 @@ deviation ``sigma_a`` per sample enters through ``G = [T^2/2, T, 0]``, ``Q = sig
 plus a random walk of the bias, ``sigma_w^2 T``. A fix ``z`` taken ``lag`` s before the state's
 time measures ``p - lag v`` with variance ``sigma_p^2``. Covariances are updated in Joseph form.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -34,8 +35,9 @@ class AxisKalman:
         bias_walk: m/s^2/sqrt(s), random-walk density of the bias (d = 3 only).
     """
 
-    def __init__(self, x0: NDArray[np.float64], P0: NDArray[np.float64], dt: float, accel_std: float,
-                 bias_walk: float = 0.0) -> None:
+    def __init__(
+        self, x0: NDArray[np.float64], P0: NDArray[np.float64], dt: float, accel_std: float, bias_walk: float = 0.0
+    ) -> None:
         self.x = np.array(x0, dtype=float, copy=True)
         m, d = self.x.shape
         if d not in (2, 3):
@@ -76,11 +78,11 @@ class AxisKalman:
         h[1] = -lag
         x = self.x[rows]
         P = self.P[rows]
-        Ph = P @ h                                   # (k, d)
-        s = np.maximum(Ph @ h + variance, 1e-300)    # (k,) innovation variance (0 only for exact fixes of an exact state)
-        K = Ph / s[:, None]                          # (k, d)
+        Ph = P @ h  # (k, d)
+        s = np.maximum(Ph @ h + variance, 1e-300)  # (k,) innovation variance (0 only for exact fixes of an exact state)
+        K = Ph / s[:, None]  # (k, d)
         x = x + K * (np.asarray(z, dtype=float) - x @ h)[:, None]
-        A = np.eye(self.d) - K[:, :, None] * h[None, None, :]     # (k, d, d) I - K h^T
+        A = np.eye(self.d) - K[:, :, None] * h[None, None, :]  # (k, d, d) I - K h^T
         P = A @ P @ np.swapaxes(A, 1, 2) + variance * K[:, :, None] * K[:, None, :]
         self.x[rows] = x
         self.P[rows] = 0.5 * (P + np.swapaxes(P, 1, 2))
@@ -91,8 +93,17 @@ class AxisKalman:
         return np.diagonal(self.P, axis1=1, axis2=2).copy()
 
 
-def steady_position_std(dt: float, accel_std: float, fix_every: int, fix_std: float, *, bias_walk: float = 0.0,
-                        bias: bool = True, initial: NDArray[np.float64] | None = None, cycles: int = 400) -> float:
+def steady_position_std(
+    dt: float,
+    accel_std: float,
+    fix_every: int,
+    fix_std: float,
+    *,
+    bias_walk: float = 0.0,
+    bias: bool = True,
+    initial: NDArray[np.float64] | None = None,
+    cycles: int = 400,
+) -> float:
     """Per-axis position standard deviation, m, that the filter settles to with a fix every ``fix_every``
     predictions: the largest over a fix cycle (just before a fix), after ``cycles`` cycles of the
     covariance recursion (no data needed: the covariance of a linear filter does not depend on it).

@@ -6,6 +6,7 @@ neighbour is decided physically, from true positions within the sensing radius, 
 query over the swarm; what an agent learns about a neighbour is its sensed position (with the
 positioning noise when the swarm flies on estimates) and velocity.
 """
+
 from __future__ import annotations
 
 from typing import Callable
@@ -21,8 +22,9 @@ from pybullet_swarm.types import Perception
 BRUTE_FORCE_MAX = 48
 
 
-def neighbour_pairs(positions: NDArray[np.float64], radius: float) -> tuple[NDArray[np.int64], NDArray[np.int64],
-                                                                           NDArray[np.float64]]:
+def neighbour_pairs(
+    positions: NDArray[np.float64], radius: float
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
     """Every ordered pair of distinct agents within ``radius`` m of each other.
 
     Args:
@@ -41,9 +43,9 @@ def neighbour_pairs(positions: NDArray[np.float64], radius: float) -> tuple[NDAr
         d = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
         mask = d <= radius
         np.fill_diagonal(mask, False)
-        i, j = np.nonzero(mask)             # row-major: owners ascending, neighbours ascending
+        i, j = np.nonzero(mask)  # row-major: owners ascending, neighbours ascending
         return i.astype(np.int64), j.astype(np.int64), d[i, j]
-    pairs = cKDTree(positions).query_pairs(radius, output_type="ndarray").astype(np.int64)   # (p, 2), a < b
+    pairs = cKDTree(positions).query_pairs(radius, output_type="ndarray").astype(np.int64)  # (p, 2), a < b
     if pairs.size == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
     i = np.concatenate([pairs[:, 0], pairs[:, 1]])
@@ -65,16 +67,30 @@ class PerceptionStage:
             noise, when the swarm flies on estimates), or None: neighbours are seen where they are.
     """
 
-    def __init__(self, n: int, sensing_radius: float, *, position_std: float = 0.0,
-                 neighbour_noise: Callable[[int], NDArray[np.float64]] | None = None) -> None:
+    def __init__(
+        self,
+        n: int,
+        sensing_radius: float,
+        *,
+        position_std: float = 0.0,
+        neighbour_noise: Callable[[int], NDArray[np.float64]] | None = None,
+    ) -> None:
         self.n = int(n)
         self.radius = float(sensing_radius)
         self.position_std = float(position_std)
         self.neighbour_noise = neighbour_noise
         self._start = np.zeros(self.n + 1, dtype=np.int64)
 
-    def snapshot(self, t: float, true_state: NDArray[np.float64], sensed_state: NDArray[np.float64],
-                 ranges: NDArray[np.float64], carrying: NDArray[np.int64], *, neighbours: bool = True) -> Perception:
+    def snapshot(
+        self,
+        t: float,
+        true_state: NDArray[np.float64],
+        sensed_state: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        carrying: NDArray[np.int64],
+        *,
+        neighbours: bool = True,
+    ) -> Perception:
         """The snapshot at time ``t`` s.
 
         Args:
@@ -96,8 +112,17 @@ class PerceptionStage:
         if self.neighbour_noise is not None and j.size:
             nb_pos = nb_pos + self.neighbour_noise(j.size)
         return Perception(
-            time_s=float(t), positions=sensed_state[:, :3].copy(), velocities=sensed_state[:, 7:10].copy(),
-            quaternions=sensed_state[:, 3:7].copy(), yaws=quat_to_euler(sensed_state[:, 3:7])[:, 2],
-            position_std=self.position_std, nb_start=start, nb_ids=j, nb_positions=nb_pos,
-            nb_velocities=sensed_state[j, 7:10].copy(), nb_distances=d, ranges=np.array(ranges, dtype=float),
-            carrying=np.asarray(carrying, dtype=np.int64).copy())
+            time_s=float(t),
+            positions=sensed_state[:, :3].copy(),
+            velocities=sensed_state[:, 7:10].copy(),
+            quaternions=sensed_state[:, 3:7].copy(),
+            yaws=quat_to_euler(sensed_state[:, 3:7])[:, 2],
+            position_std=self.position_std,
+            nb_start=start,
+            nb_ids=j,
+            nb_positions=nb_pos,
+            nb_velocities=sensed_state[j, 7:10].copy(),
+            nb_distances=d,
+            ranges=np.array(ranges, dtype=float),
+            carrying=np.asarray(carrying, dtype=np.int64).copy(),
+        )

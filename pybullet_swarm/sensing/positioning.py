@@ -8,6 +8,7 @@ Default figures: 10 Hz and 1 cm per axis (about 1.7 cm in 3-D), the order of an 
 lighthouse or ultra-wideband-plus-optical system and the GPS noise of the course report's
 fusion exercise (sigma_x = sigma_y = 0.01 m); heading 0.01 rad (about 0.6 deg).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -69,8 +70,8 @@ class PositioningSensor:
         self.params = params
         self.rng = rng
         self.outages = np.asarray(params.outages, dtype=float).reshape(-1, 2)
-        self.fixes = 0      # agent-fixes delivered
-        self.dropped = 0    # agent-fixes lost
+        self.fixes = 0  # agent-fixes delivered
+        self.dropped = 0  # agent-fixes lost
 
     def in_outage(self, t: float) -> bool:
         """True when ``t`` s lies in a scheduled outage."""

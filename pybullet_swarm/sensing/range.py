@@ -15,6 +15,7 @@ generator (a child spawned from ``Simulation.rng``).
 The sensing layer never imports pybullet: casting goes through any object with the
 ``RayCaster`` interface (the World has it).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -28,8 +29,9 @@ from numpy.typing import NDArray
 class RayCaster(Protocol):
     """Anything that casts a batch of rays (the World)."""
 
-    def ray_cast(self, starts: NDArray[np.float64],
-                 ends: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    def ray_cast(
+        self, starts: NDArray[np.float64], ends: NDArray[np.float64]
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         """Hit body handles (m,) (-1: none) and hit fractions (m,) in [0, 1] for rays (m, 3) m."""
 
 
@@ -77,8 +79,9 @@ class RangeFan:
         b = self.bearings(yaws)
         return np.stack([np.cos(b), np.sin(b), np.zeros_like(b)], axis=2)
 
-    def segments(self, positions: NDArray[np.float64],
-                 yaws: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def segments(
+        self, positions: NDArray[np.float64], yaws: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Ray start and end points, each (n * r, 3) m, agent-major, for positions (n, 3) m."""
         d = self.directions(yaws)
         p = np.asarray(positions, dtype=float).reshape(-1, 1, 3)
@@ -102,8 +105,8 @@ class RangeSensor:
         self.fan = fan
         self.noise_std_m = float(noise_std_m)
         self.rng = rng
-        self.readings = np.zeros((0, fan.rays))            # (n, r) m, the last readings
-        self.hit_bodies = np.zeros((0, fan.rays), dtype=np.int64)   # (n, r) body handles, -1: none
+        self.readings = np.zeros((0, fan.rays))  # (n, r) m, the last readings
+        self.hit_bodies = np.zeros((0, fan.rays), dtype=np.int64)  # (n, r) body handles, -1: none
 
     def read(self, caster: RayCaster, positions: NDArray[np.float64], yaws: NDArray[np.float64]) -> NDArray[np.float64]:
         """Cast every agent's fan once; returns (and keeps) the readings (n, r) m.

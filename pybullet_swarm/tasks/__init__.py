@@ -9,6 +9,7 @@ Every task kind, the built-in ones included, registers the same two things:
 A user task registers itself the same way from its own module (import it before loading the
 scenario); ``task_models()`` imports the bundled task modules.
 """
+
 from __future__ import annotations
 
 import importlib

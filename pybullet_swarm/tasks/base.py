@@ -7,6 +7,7 @@ perception of the planners, and hands the agents' task actions to ``apply``. At 
 the runtime's ``metrics`` into ``metrics.json`` and writes its ``artefacts`` (plain data) into the
 run directory. The learning environments call the same methods.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -99,8 +100,9 @@ class TaskRuntime(Protocol):
         """Read the task's bodies now without judging progress (between planner ticks, e.g. for a
         learning environment's observation)."""
 
-    def local_views(self, true_positions: NDArray[np.float64],
-                    sensed_positions: NDArray[np.float64]) -> list[LocalView] | None:
+    def local_views(
+        self, true_positions: NDArray[np.float64], sensed_positions: NDArray[np.float64]
+    ) -> list[LocalView] | None:
         """The objects each agent sees (seen from where its airframe truly is, expressed in the agent's
         own, possibly estimated, frame), or None when the task has no objects to see."""
 
@@ -133,8 +135,9 @@ class TaskBase:
         """No static layout beyond the arena."""
         return {}
 
-    def local_views(self, true_positions: NDArray[np.float64],
-                    sensed_positions: NDArray[np.float64]) -> list[LocalView] | None:
+    def local_views(
+        self, true_positions: NDArray[np.float64], sensed_positions: NDArray[np.float64]
+    ) -> list[LocalView] | None:
         """No objects to see."""
         return None
 

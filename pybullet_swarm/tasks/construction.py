@@ -7,6 +7,7 @@ when it is empty and every slot under it is filled; a box counts as placed when 
 ``place_tolerance_m`` and ``place_tolerance_deg`` of a slot. The task is completed when every
 slot is filled and the structure has stood still for ``settle_s``.
 """
+
 from __future__ import annotations
 
 import math
@@ -38,25 +39,25 @@ class ConstructionTask(pydantic.BaseModel):
 
     kind: Literal["construction"]
     time_limit_s: float = Field(500.0, gt=0.0, le=1e5)
-    boxes: Annotated[list[Vec3], Field(min_length=1, max_length=500)]       # m, box centres at the start
-    structure: Annotated[list[Vec3], Field(min_length=1, max_length=500)]   # m, goal slot centres
-    box_size: float = Field(0.1, gt=0.0, le=2.0)                # m, cube edge
-    box_mass: float = Field(0.01, gt=0.0, le=10.0)              # kg
+    boxes: Annotated[list[Vec3], Field(min_length=1, max_length=500)]  # m, box centres at the start
+    structure: Annotated[list[Vec3], Field(min_length=1, max_length=500)]  # m, goal slot centres
+    box_size: float = Field(0.1, gt=0.0, le=2.0)  # m, cube edge
+    box_mass: float = Field(0.01, gt=0.0, le=10.0)  # kg
     box_friction: float = Field(0.8, ge=0.0, le=5.0)
-    attach_threshold: float = Field(0.02, gt=0.0, le=1.0)       # m, agent to grasp point
-    grasp_gap: float = Field(0.005, ge=0.0, le=0.5)             # m, airframe bottom to box top when held
+    attach_threshold: float = Field(0.02, gt=0.0, le=1.0)  # m, agent to grasp point
+    grasp_gap: float = Field(0.005, ge=0.0, le=0.5)  # m, airframe bottom to box top when held
     place_tolerance_m: float = Field(0.01, gt=0.0, le=1.0)
     place_tolerance_deg: float = Field(10.0, gt=0.0, le=45.0)
     # a placed box counts as displaced only beyond (1 + place_hysteresis) x the place tolerances
     place_hysteresis: float = Field(0.5, ge=0.0, le=2.0)
     settle_s: float = Field(1.0, ge=0.0, le=100.0)
-    settle_speed: float = Field(0.01, gt=0.0, le=10.0)          # m/s, "still" below this
-    search_height: float = Field(0.45, gt=0.0, le=100.0)        # m, cruise altitude of the planners
-    grip_force: float = Field(2.0, gt=0.0, le=1000.0)           # N, a harder pull on a held box makes it slip
+    settle_speed: float = Field(0.01, gt=0.0, le=10.0)  # m/s, "still" below this
+    search_height: float = Field(0.45, gt=0.0, le=100.0)  # m, cruise altitude of the planners
+    grip_force: float = Field(2.0, gt=0.0, le=1000.0)  # N, a harder pull on a held box makes it slip
     # the grip squares a held box to the airframe (nearest quarter turn), as a square jaw would: a
     # box knocked askew is placed straight again (false: held as it was grasped)
     square_grip: bool = True
-    view_radius: float | None = Field(None, gt=0.0, le=100.0)   # m (default: 2 x agent radius)
+    view_radius: float | None = Field(None, gt=0.0, le=100.0)  # m (default: 2 x agent radius)
     # distance in which the view radius is measured: "chebyshev" (the largest per-axis difference, a
     # cube of half-width view_radius: the thesis's appendix A, dist = max(abs(object - agent))) or
     # "euclidean" (a ball)
@@ -69,16 +70,26 @@ class ConstructionTask(pydantic.BaseModel):
         boxes = np.asarray(self.boxes, dtype=float)
         slots = np.asarray(self.structure, dtype=float)
         if len(slots) > len(boxes):
-            raise ConfigError(f"needs at most as many slots as boxes ({len(boxes)}), got {len(slots)}",
-                              source=source, field="task.structure")
+            raise ConfigError(
+                f"needs at most as many slots as boxes ({len(boxes)}), got {len(slots)}",
+                source=source,
+                field="task.structure",
+            )
         for name, pts in (("boxes", boxes), ("structure", slots)):
             for i, p in enumerate(pts):
                 if not (h - 1e-9 <= p[0] <= lx - h + 1e-9 and h - 1e-9 <= p[1] <= ly - h + 1e-9):
-                    raise ConfigError(f"box at ({p[0]:g}, {p[1]:g}) is outside the arena [0, {lx:g}] x [0, {ly:g}] m "
-                                      f"(box size {self.box_size:g} m)", source=source, field=f"task.{name}[{i}]")
+                    raise ConfigError(
+                        f"box at ({p[0]:g}, {p[1]:g}) is outside the arena [0, {lx:g}] x [0, {ly:g}] m "
+                        f"(box size {self.box_size:g} m)",
+                        source=source,
+                        field=f"task.{name}[{i}]",
+                    )
                 if p[2] < h - 1e-6:
-                    raise ConfigError(f"box centre must be at least box_size / 2 = {h:g} m above the ground, "
-                                      f"got z = {p[2]:g}", source=source, field=f"task.{name}[{i}]")
+                    raise ConfigError(
+                        f"box centre must be at least box_size / 2 = {h:g} m above the ground, got z = {p[2]:g}",
+                        source=source,
+                        field=f"task.{name}[{i}]",
+                    )
             j, k = _first_overlap(pts, self.box_size)
             if j >= 0:
                 raise ConfigError(f"boxes {j} and {k} overlap", source=source, field=f"task.{name}[{k}]")
@@ -87,14 +98,15 @@ class ConstructionTask(pydantic.BaseModel):
                 raise ConfigError("box floats: nothing under it", source=source, field=f"task.boxes[{i}]")
         for i, p in enumerate(slots):
             if p[2] > h + 1e-6 and not _supported(p, slots, self.box_size):
-                raise ConfigError("slot has nothing under it (no slot or ground supports its centre)",
-                                  source=source, field=f"task.structure[{i}]")
+                raise ConfigError(
+                    "slot has nothing under it (no slot or ground supports its centre)",
+                    source=source,
+                    field=f"task.structure[{i}]",
+                )
         for i, p in enumerate(boxes):
             d = np.max(np.abs(slots - p), axis=1)
             if np.any(d < self.box_size - 1e-9):
                 raise ConfigError("box starts inside a goal slot", source=source, field=f"task.boxes[{i}]")
-
-
 
 
 def _first_overlap(pts: NDArray[np.float64], size: float) -> tuple[int, int]:
@@ -112,8 +124,11 @@ def supporters(slots: NDArray[np.float64], size: float) -> list[NDArray[np.int64
     out = []
     for p in slots:
         dz = p[2] - slots[:, 2]
-        under = (np.abs(dz - size) < 1e-6) & (np.abs(slots[:, 0] - p[0]) < size - 1e-9) & (
-            np.abs(slots[:, 1] - p[1]) < size - 1e-9)
+        under = (
+            (np.abs(dz - size) < 1e-6)
+            & (np.abs(slots[:, 0] - p[0]) < size - 1e-9)
+            & (np.abs(slots[:, 1] - p[1]) < size - 1e-9)
+        )
         out.append(np.nonzero(under)[0])
     return out
 
@@ -144,7 +159,7 @@ def _box_tilt_and_yaw_error(q: NDArray[np.float64]) -> tuple[NDArray[np.float64]
     from pybullet_swarm.control.rotations import quat_to_matrix
 
     R = quat_to_matrix(q)
-    zc = np.abs(R[:, 2, :])                  # |vertical component| of each box axis
+    zc = np.abs(R[:, 2, :])  # |vertical component| of each box axis
     k = np.argmax(zc, axis=1)
     tilt = np.arccos(np.clip(zc[np.arange(len(q)), k], -1.0, 1.0))
     # heading of one horizontal box axis, folded into [-45, 45) deg
@@ -169,33 +184,51 @@ class ConstructionRuntime(TaskBase):
         position_std: m, per-axis standard deviation of an agent's own position estimate (0 on true state).
     """
 
-    def __init__(self, spec: ConstructionTask, world: World, *, agent_half_height: float, agent_radius: float,
-                 ghost: bool = False, starts: NDArray[np.float64] | None = None,
-                 v_max: NDArray[np.float64] | None = None, position_std: float = 0.0) -> None:
+    def __init__(
+        self,
+        spec: ConstructionTask,
+        world: World,
+        *,
+        agent_half_height: float,
+        agent_radius: float,
+        ghost: bool = False,
+        starts: NDArray[np.float64] | None = None,
+        v_max: NDArray[np.float64] | None = None,
+        position_std: float = 0.0,
+    ) -> None:
         self.spec = spec
         self.agent_starts = np.zeros((0, 3)) if starts is None else np.asarray(starts, dtype=float)
         self.n = len(self.agent_starts)
         self.v_max = v_max
         self.position_std = float(position_std)
         self.world = world
-        self.ghost = ghost   # carried boxes pass through other agents, as the agents do
+        self.ghost = ghost  # carried boxes pass through other agents, as the agents do
         self.size = spec.box_size
-        self.start = np.asarray(spec.boxes, dtype=float)          # (B, 3)
-        self.slots = np.asarray(spec.structure, dtype=float)      # (S, 3)
+        self.start = np.asarray(spec.boxes, dtype=float)  # (B, 3)
+        self.slots = np.asarray(spec.structure, dtype=float)  # (S, 3)
         self.B, self.S = len(self.start), len(self.slots)
         self.grasp_height = agent_half_height + spec.grasp_gap + 0.5 * spec.box_size
         self.view_radius = spec.view_radius if spec.view_radius is not None else 2.0 * agent_radius
-        self.bodies = [world.add_box(p, [spec.box_size] * 3, mass=spec.box_mass, kind=BodyKind.BOX, name=f"box{i}",
-                                     color=(0.55, 0.45, 0.3, 1.0), friction=spec.box_friction)
-                       for i, p in enumerate(self.start)]
+        self.bodies = [
+            world.add_box(
+                p,
+                [spec.box_size] * 3,
+                mass=spec.box_mass,
+                kind=BodyKind.BOX,
+                name=f"box{i}",
+                color=(0.55, 0.45, 0.3, 1.0),
+                friction=spec.box_friction,
+            )
+            for i, p in enumerate(self.start)
+        ]
         self.body_to_box = {b: i for i, b in enumerate(self.bodies)}
         self.support = supporters(self.slots, spec.box_size)
-        self.positions = self.start.copy()                       # (B, 3) m
+        self.positions = self.start.copy()  # (B, 3) m
         self.quaternions = np.tile([0.0, 0.0, 0.0, 1.0], (self.B, 1))
-        self.speeds = np.zeros(self.B)                           # m/s
-        self.state = np.zeros(self.B, dtype=np.int64)            # FREE / CARRIED / PLACED
+        self.speeds = np.zeros(self.B)  # m/s
+        self.state = np.zeros(self.B, dtype=np.int64)  # FREE / CARRIED / PLACED
         self.carried_by = np.full(self.B, -1, dtype=np.int64)
-        self.slot_box = np.full(self.S, -1, dtype=np.int64)      # box in each slot, -1 when empty
+        self.slot_box = np.full(self.S, -1, dtype=np.int64)  # box in each slot, -1 when empty
         self._constraints: dict[int, int] = {}
         self.still_since: float | None = None
         self.completed_at: float | None = None
@@ -206,9 +239,16 @@ class ConstructionRuntime(TaskBase):
     @classmethod
     def build(cls, spec: ConstructionTask, ctx: TaskContext) -> ConstructionRuntime:
         """The runtime factory registered in ``TASK_RUNTIMES``."""
-        return cls(spec, ctx.world, agent_half_height=0.5 * float(ctx.collision_size[2]),
-                   agent_radius=ctx.agent_radius, ghost=ctx.ghost, starts=ctx.starts, v_max=ctx.v_max,
-                   position_std=ctx.position_std)
+        return cls(
+            spec,
+            ctx.world,
+            agent_half_height=0.5 * float(ctx.collision_size[2]),
+            agent_radius=ctx.agent_radius,
+            ghost=ctx.ghost,
+            starts=ctx.starts,
+            v_max=ctx.v_max,
+            position_std=ctx.position_std,
+        )
 
     # ------------------------------------------------------------ bookkeeping
     def read(self) -> None:
@@ -226,7 +266,7 @@ class ConstructionRuntime(TaskBase):
         aligned = (tilt <= tol_a) & (yaw <= tol_a)
         loose = self.state != CARRIED
         new_slot_box = np.full(self.S, -1, dtype=np.int64)
-        d = np.linalg.norm(self.positions[None, :, :] - self.slots[:, None, :], axis=2)   # (S, B)
+        d = np.linalg.norm(self.positions[None, :, :] - self.slots[:, None, :], axis=2)  # (S, B)
         # hysteresis: a box in its slot stays there until it has moved clearly out of the tolerances
         # (a box resting on the boundary would otherwise flicker between placed and free)
         wide = 1.0 + self.spec.place_hysteresis
@@ -276,8 +316,9 @@ class ConstructionRuntime(TaskBase):
         if not np.isfinite(d[i]) or d[i] > self.spec.attach_threshold:
             return -1
         body = self.bodies[i]
-        self._constraints[i] = self.world.attach(agent_body, body, max_force=self.spec.grip_force,
-                                                 square=self.spec.square_grip)
+        self._constraints[i] = self.world.attach(
+            agent_body, body, max_force=self.spec.grip_force, square=self.spec.square_grip
+        )
         for other in self._ghost_partners(i, agent_body):
             self.world.set_pair_collision(other, body, False)
         self.state[i] = CARRIED
@@ -349,19 +390,35 @@ class ConstructionRuntime(TaskBase):
     # ---------------------------------------------------------------- protocol
     def task_info(self) -> dict[str, Any]:
         """Depot, slots, box size and grasp height; view and search settings as extras."""
-        extra: dict[str, Any] = {"search_height": self.spec.search_height,
-                                 "attach_threshold": self.spec.attach_threshold,
-                                 "view_radius": self.view_radius, "view_norm": self.spec.view_norm}
-        return {"depot": self.start.copy(), "slots": self.slots.copy(), "box_size": self.size,
-                "grasp_height": self.grasp_height, "extra": extra}
+        extra: dict[str, Any] = {
+            "search_height": self.spec.search_height,
+            "attach_threshold": self.spec.attach_threshold,
+            "view_radius": self.view_radius,
+            "view_norm": self.spec.view_norm,
+        }
+        return {
+            "depot": self.start.copy(),
+            "slots": self.slots.copy(),
+            "box_size": self.size,
+            "grasp_height": self.grasp_height,
+            "extra": extra,
+        }
 
     def view(self, t: float) -> TaskView:
         """Boxes, their states, slots and who carries what."""
-        return TaskView(t, self.carrying(self.n), objects=self.positions.copy(), object_state=self.state.copy(),
-                        slots=self.slots, slot_filled=self.slot_box.copy(), slot_open=self.slot_open)
+        return TaskView(
+            t,
+            self.carrying(self.n),
+            objects=self.positions.copy(),
+            object_state=self.state.copy(),
+            slots=self.slots,
+            slot_filled=self.slot_box.copy(),
+            slot_open=self.slot_open,
+        )
 
-    def local_views(self, true_positions: NDArray[np.float64],
-                    sensed_positions: NDArray[np.float64]) -> list[LocalView]:
+    def local_views(
+        self, true_positions: NDArray[np.float64], sensed_positions: NDArray[np.float64]
+    ) -> list[LocalView]:
         """Free boxes and open slots in each agent's view (measured from where the airframe truly is).
 
         Boxes are seen relative to the airframe, so they appear in the agent's own (possibly
@@ -369,7 +426,9 @@ class ConstructionRuntime(TaskBase):
         """
         n = len(true_positions)
         gh = np.array([0.0, 0.0, self.grasp_height])
-        seen_b = (self.state == FREE)[None, :] & self.in_view(self.grasp_points()[None, :, :] - true_positions[:, None, :])
+        seen_b = (self.state == FREE)[None, :] & self.in_view(
+            self.grasp_points()[None, :, :] - true_positions[:, None, :]
+        )
         seen_s = self.slot_open[None, :] & self.in_view((self.slots + gh)[None, :, :] - true_positions[:, None, :])
         shift = sensed_positions - true_positions
         out = []
@@ -406,14 +465,18 @@ class ConstructionRuntime(TaskBase):
     def sample(self) -> dict[str, NDArray[np.float64]]:
         """Box positions (B, 3) m, orientations (B, 4) (x, y, z, w) and carriers (B,) (agent, -1: none) now."""
         self.read()
-        return {"box_positions": self.positions, "box_quaternions": self.quaternions,
-                "box_carried_by": self.carried_by}
+        return {"box_positions": self.positions, "box_quaternions": self.quaternions, "box_carried_by": self.carried_by}
 
-    def metrics(self, series: TimeSeries | None = None, planner_artefacts: dict[str, Any] | None = None
-                ) -> dict[str, Any]:
+    def metrics(
+        self, series: TimeSeries | None = None, planner_artefacts: dict[str, Any] | None = None
+    ) -> dict[str, Any]:
         """Boxes placed, grasps, releases, the task's lower bound and the efficiency of the run."""
-        out: dict[str, Any] = {"boxes_placed": self.boxes_placed, "boxes_total": self.S, "grasps": self.grasps,
-                               "releases": self.releases}
+        out: dict[str, Any] = {
+            "boxes_placed": self.boxes_placed,
+            "boxes_total": self.S,
+            "grasps": self.grasps,
+            "releases": self.releases,
+        }
         if self.n:
             v = np.full(3, 1e9) if self.v_max is None else self.v_max
             lb = task_lower_bound(self.agent_starts, self.start, self.slots, v, grasp_height=self.grasp_height)

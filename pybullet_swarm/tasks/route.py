@@ -19,6 +19,7 @@ fitness when a formation is required), ``flocking`` {o, d, v, fitness} and, with
 ``pybullet_swarm.metrics.flocking``. Collisions with obstacles and between agents are the
 simulation's ``collisions.agent_obstacle`` and ``collisions.agent_agent``.
 """
+
 from __future__ import annotations
 
 import enum
@@ -45,7 +46,7 @@ SEED_FORMATION = np.array([[0.15, 0.0], [0.0, 0.15], [0.0, -0.15], [0.3, 0.15], 
 class Criterion(str, enum.Enum):
     """When a waypoint counts as passed."""
 
-    CENTROID = "centroid"        # the swarm's centroid comes within pass_radius
+    CENTROID = "centroid"  # the swarm's centroid comes within pass_radius
     EVERY_AGENT = "every_agent"  # every agent comes within pass_radius itself
 
 
@@ -103,33 +104,48 @@ class RouteTask(_Model):
         for i, w in enumerate(self.waypoints):
             field = f"task.waypoints[{i}]"
             if not (0.0 <= w[0] <= lx and 0.0 <= w[1] <= ly):
-                raise ConfigError(f"waypoint ({w[0]:g}, {w[1]:g}) is outside the arena [0, {lx:g}] x [0, {ly:g}] m",
-                                  source=source, field=field)
+                raise ConfigError(
+                    f"waypoint ({w[0]:g}, {w[1]:g}) is outside the arena [0, {lx:g}] x [0, {ly:g}] m",
+                    source=source,
+                    field=field,
+                )
             if w[2] < h:
-                raise ConfigError(f"waypoint must be at least {h:g} m above the ground, got z = {w[2]:g}",
-                                  source=source, field=field)
+                raise ConfigError(
+                    f"waypoint must be at least {h:g} m above the ground, got z = {w[2]:g}", source=source, field=field
+                )
             if scenario.arena.height is not None and w[2] > scenario.arena.height - h:
-                raise ConfigError(f"waypoint is above the ceiling ({scenario.arena.height:g} m), got z = {w[2]:g}",
-                                  source=source, field=field)
+                raise ConfigError(
+                    f"waypoint is above the ceiling ({scenario.arena.height:g} m), got z = {w[2]:g}",
+                    source=source,
+                    field=field,
+                )
             for k, ob in enumerate(scenario.arena.obstacles):
                 if float(ob.horizontal_distance(np.array([w[:2]]))[0]) < r:
-                    raise ConfigError(f"waypoint is inside obstacle {k} (closer than {r:.3g} m to it)",
-                                      source=source, field=field)
+                    raise ConfigError(
+                        f"waypoint is inside obstacle {k} (closer than {r:.3g} m to it)", source=source, field=field
+                    )
         if self.formation is not None:
             slots = self.formation.slot_array()
             n = scenario.agents.count
             if len(slots) != n:
                 what = "slots" if self.formation.slots is not None else "default five-robot formation"
-                raise ConfigError(f"the {what} hold {len(slots)} agents, the scenario has agents.count = {n}; "
-                                  f"give one slot per agent", source=source, field="task.formation.slots")
+                raise ConfigError(
+                    f"the {what} hold {len(slots)} agents, the scenario has agents.count = {n}; "
+                    f"give one slot per agent",
+                    source=source,
+                    field="task.formation.slots",
+                )
             if n > 1:
                 from scipy.spatial import cKDTree
 
                 pairs = cKDTree(slots).query_pairs(2.0 * r)
                 if pairs:
                     i, j = min(pairs)
-                    raise ConfigError(f"slots {i} and {j} are closer than an airframe's width ({2 * r:.3g} m)",
-                                      source=source, field="task.formation.slots")
+                    raise ConfigError(
+                        f"slots {i} and {j} are closer than an airframe's width ({2 * r:.3g} m)",
+                        source=source,
+                        field="task.formation.slots",
+                    )
 
 
 class RouteRuntime(TaskBase):
@@ -145,14 +161,14 @@ class RouteRuntime(TaskBase):
     def __init__(self, spec: RouteTask, n: int, v_axis: NDArray[np.float64] | None = None) -> None:
         self.spec = spec
         self.n = int(n)
-        self.route = np.asarray(spec.waypoints, dtype=float).reshape(-1, 3)   # (W, 3) m
+        self.route = np.asarray(spec.waypoints, dtype=float).reshape(-1, 3)  # (W, 3) m
         self.W = len(self.route)
         self.criterion = Criterion(spec.criterion)
         self.v_axis = None if v_axis is None else np.asarray(v_axis, dtype=float).reshape(3)
-        self.slots = spec.formation.slot_array() if spec.formation is not None else None   # (n, 3) m
-        self.next = 0                                        # first waypoint not passed by the swarm
-        self.pass_times = np.full(self.W, np.nan)            # s
-        self.agent_next = np.zeros(self.n, dtype=np.int64)   # per agent, first waypoint it has not passed
+        self.slots = spec.formation.slot_array() if spec.formation is not None else None  # (n, 3) m
+        self.next = 0  # first waypoint not passed by the swarm
+        self.pass_times = np.full(self.W, np.nan)  # s
+        self.agent_next = np.zeros(self.n, dtype=np.int64)  # per agent, first waypoint it has not passed
         self.completed_at: float | None = None
         self.events: list[Event] = []
 
@@ -172,7 +188,7 @@ class RouteRuntime(TaskBase):
         """Advance the waypoints passed by agents at ``positions`` (n, 3) m; True once completed."""
         p = np.asarray(positions, dtype=float).reshape(self.n, 3)
         r = self.spec.pass_radius
-        for i in range(self.n):   # per agent, in order (cheap: n scalars per tick)
+        for i in range(self.n):  # per agent, in order (cheap: n scalars per tick)
             while self.agent_next[i] < self.W and np.hypot(*(p[i, :2] - self.route[self.agent_next[i], :2])) <= r:
                 self.agent_next[i] += 1
         c = p.mean(axis=0)
@@ -184,8 +200,9 @@ class RouteRuntime(TaskBase):
             if not ok:
                 break
             self.pass_times[self.next] = t
-            self.events.append(Event(t, "waypoint", "", f"waypoint{self.next}", f"{self.criterion.value} within "
-                                     f"{r:g} m"))
+            self.events.append(
+                Event(t, "waypoint", "", f"waypoint{self.next}", f"{self.criterion.value} within {r:g} m")
+            )
             self.next += 1
         if self.next >= self.W and self.completed_at is None:
             self.completed_at = t
@@ -198,14 +215,21 @@ class RouteRuntime(TaskBase):
 
     def view(self, t: float) -> TaskView:
         """The waypoints and which of them the swarm has passed."""
-        return TaskView(t, np.full(self.n, -1, dtype=np.int64), points=self.route,
-                        points_done=np.arange(self.W) < self.next)
+        return TaskView(
+            t, np.full(self.n, -1, dtype=np.int64), points=self.route, points_done=np.arange(self.W) < self.next
+        )
 
     def series(self, ts: TimeSeries) -> dict[str, Any]:
         """Per-step fitness series of a recorded run (see ``route_fitness_series``)."""
-        return route_fitness_series(ts.t, ts.positions, ts.velocities, self.route,
-                                    [None if np.isnan(x) else float(x) for x in self.pass_times],
-                                    self._v_axis(ts), self.slots)
+        return route_fitness_series(
+            ts.t,
+            ts.positions,
+            ts.velocities,
+            self.route,
+            [None if np.isnan(x) else float(x) for x in self.pass_times],
+            self._v_axis(ts),
+            self.slots,
+        )
 
     def _v_axis(self, ts: TimeSeries) -> NDArray[np.float64]:
         if self.v_axis is not None:
@@ -213,8 +237,9 @@ class RouteRuntime(TaskBase):
         vc = np.abs(np.asarray(ts.velocities, dtype=float).mean(axis=1))
         return np.maximum(vc.max(axis=0), 1e-9) if vc.size else np.ones(3)
 
-    def metrics(self, timeseries: TimeSeries | None = None, planner_artefacts: dict[str, Any] | None = None
-                ) -> dict[str, Any]:
+    def metrics(
+        self, timeseries: TimeSeries | None = None, planner_artefacts: dict[str, Any] | None = None
+    ) -> dict[str, Any]:
         """Route and fitness metrics (plain JSON data)."""
         out: dict[str, Any] = {
             "route_time_s": self.completed_at,
@@ -236,8 +261,12 @@ class RouteRuntime(TaskBase):
         out["fitness"] = avg["fitness"]
         if s["formation"] is not None:
             f = {k: time_average(s["t"], x, end) for k, x in s["formation"].items()}
-            out["formation"] = {"distance": f["distance"], "velocity": f["velocity"], "error_m": f["error"],
-                                "fitness": f["fitness"]}
+            out["formation"] = {
+                "distance": f["distance"],
+                "velocity": f["velocity"],
+                "error_m": f["error"],
+                "fitness": f["fitness"],
+            }
             out["fitness"] = f["fitness"]
         return out
 

@@ -13,6 +13,7 @@ the planner publishes the legs it means to fly (:meth:`TourBoard.publish`), the 
 which points the task has already counted (``TourBoard.visited``). Planners use the board by
 duck typing; the planning layer does not import this module.
 """
+
 from __future__ import annotations
 
 from typing import Annotated, Any, Literal
@@ -48,10 +49,10 @@ class TourTask(pydantic.BaseModel):
 
     kind: Literal["tour"]
     time_limit_s: float = Field(gt=0.0, le=1e5)
-    points: Annotated[list[Vec3], Field(min_length=1, max_length=10_000)]   # m
-    visit_radius: float = Field(0.1, gt=0.0, le=10.0)                        # m
+    points: Annotated[list[Vec3], Field(min_length=1, max_length=10_000)]  # m
+    visit_radius: float = Field(0.1, gt=0.0, le=10.0)  # m
     return_home: bool = False
-    home_height: float = Field(0.3, gt=0.0, le=1e3)                          # m
+    home_height: float = Field(0.3, gt=0.0, le=1e3)  # m
 
     def check(self, scenario: ScenarioLike, source: str) -> None:
         """Refuse points outside the arena or below the airframe's rest height, and points so
@@ -59,35 +60,54 @@ class TourTask(pydantic.BaseModel):
         from pybullet_swarm.vehicle import load_vehicle
 
         vehicle = load_vehicle(scenario.agents.vehicle)
-        r = 0.5 * max(vehicle.collision_size[0], vehicle.collision_size[1])   # m, airframe half width
-        h = 0.5 * vehicle.collision_size[2]                                     # m, lowest centre height
+        r = 0.5 * max(vehicle.collision_size[0], vehicle.collision_size[1])  # m, airframe half width
+        h = 0.5 * vehicle.collision_size[2]  # m, lowest centre height
         lx, ly = scenario.arena.size
         top = scenario.arena.height
         pts = np.asarray(self.points, dtype=float)
         for i, p in enumerate(pts):
             field = f"task.points[{i}]"
             if not (r - 1e-9 <= p[0] <= lx - r + 1e-9 and r - 1e-9 <= p[1] <= ly - r + 1e-9):
-                raise ConfigError(f"point ({p[0]:g}, {p[1]:g}, {p[2]:g}) is outside the arena [0, {lx:g}] x "
-                                  f"[0, {ly:g}] m (an agent's centre stays {r:g} m inside)", source=source, field=field)
+                raise ConfigError(
+                    f"point ({p[0]:g}, {p[1]:g}, {p[2]:g}) is outside the arena [0, {lx:g}] x "
+                    f"[0, {ly:g}] m (an agent's centre stays {r:g} m inside)",
+                    source=source,
+                    field=field,
+                )
             if p[2] < 0.0:
                 raise ConfigError(f"point is below the ground, got z = {p[2]:g}", source=source, field=field)
             if p[2] < h - 1e-9:
-                raise ConfigError(f"point must be at least {h:g} m above the ground (an agent's centre cannot "
-                                  f"go lower), got z = {p[2]:g}", source=source, field=field)
+                raise ConfigError(
+                    f"point must be at least {h:g} m above the ground (an agent's centre cannot "
+                    f"go lower), got z = {p[2]:g}",
+                    source=source,
+                    field=field,
+                )
             if top is not None and p[2] > top - h + 1e-9:
-                raise ConfigError(f"point is above the ceiling ({top:g} m less {h:g} m), got z = {p[2]:g}",
-                                  source=source, field=field)
+                raise ConfigError(
+                    f"point is above the ceiling ({top:g} m less {h:g} m), got z = {p[2]:g}", source=source, field=field
+                )
         j, k = _first_close_pair(pts, self.visit_radius)
         if j >= 0:
-            raise ConfigError(f"points {j} and {k} are closer than visit_radius ({self.visit_radius:g} m): one "
-                              f"visit would count for both", source=source, field=f"task.points[{k}]")
+            raise ConfigError(
+                f"points {j} and {k} are closer than visit_radius ({self.visit_radius:g} m): one "
+                f"visit would count for both",
+                source=source,
+                field=f"task.points[{k}]",
+            )
         if self.return_home:
             if self.home_height < h - 1e-9:
-                raise ConfigError(f"must be at least {h:g} m (an agent's centre cannot go lower), got "
-                                  f"{self.home_height:g}", source=source, field="task.home_height")
+                raise ConfigError(
+                    f"must be at least {h:g} m (an agent's centre cannot go lower), got {self.home_height:g}",
+                    source=source,
+                    field="task.home_height",
+                )
             if top is not None and self.home_height > top - h + 1e-9:
-                raise ConfigError(f"is above the ceiling ({top:g} m less {h:g} m), got {self.home_height:g}",
-                                  source=source, field="task.home_height")
+                raise ConfigError(
+                    f"is above the ceiling ({top:g} m less {h:g} m), got {self.home_height:g}",
+                    source=source,
+                    field="task.home_height",
+                )
 
 
 def _first_close_pair(pts: NDArray[np.float64], radius: float) -> tuple[int, int]:
@@ -101,12 +121,13 @@ def _first_close_pair(pts: NDArray[np.float64], radius: float) -> tuple[int, int
     return int(j), int(k)
 
 
-def segment_point_distances(a: NDArray[np.float64], b: NDArray[np.float64],
-                            points: NDArray[np.float64]) -> NDArray[np.float64]:
+def segment_point_distances(
+    a: NDArray[np.float64], b: NDArray[np.float64], points: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Distances (n, W) m from points (W, 3) m to the segments from a (n, 3) to b (n, 3) m."""
-    d = (b - a)[:, None, :]                                  # (n, 1, 3)
-    w = points[None, :, :] - a[:, None, :]                   # (n, W, 3)
-    dd = np.sum(d * d, axis=2)                               # (n, 1)
+    d = (b - a)[:, None, :]  # (n, 1, 3)
+    w = points[None, :, :] - a[:, None, :]  # (n, W, 3)
+    dd = np.sum(d * d, axis=2)  # (n, 1)
     s = np.where(dd > 0.0, np.sum(w * d, axis=2) / np.where(dd > 0.0, dd, 1.0), 0.0)
     s = np.clip(s, 0.0, 1.0)
     return np.linalg.norm(w - s[:, :, None] * d, axis=2)
@@ -122,18 +143,24 @@ class TourRuntime(TaskBase):
         recorder: the run's recorder (flown paths for the figures), or None.
     """
 
-    def __init__(self, spec: TourTask, starts: NDArray[np.float64], *, a_max: NDArray[np.float64] | None = None,
-                 arena_size: tuple[float, float] | None = None) -> None:
+    def __init__(
+        self,
+        spec: TourTask,
+        starts: NDArray[np.float64],
+        *,
+        a_max: NDArray[np.float64] | None = None,
+        arena_size: tuple[float, float] | None = None,
+    ) -> None:
         self.spec = spec
-        self.points = np.asarray(spec.points, dtype=float)          # (W, 3) m
+        self.points = np.asarray(spec.points, dtype=float)  # (W, 3) m
         self.W = len(self.points)
         self.starts = np.asarray(starts, dtype=float).reshape(-1, 3)
         self.n = len(self.starts)
-        self.homes = self.starts.copy()                             # (n, 3) m
+        self.homes = self.starts.copy()  # (n, 3) m
         self.homes[:, 2] = spec.home_height
         self.visited = np.zeros(self.W, dtype=bool)
-        self.visited_by = np.full(self.W, -1, dtype=np.int64)      # agent that visited each point
-        self.visited_at = np.full(self.W, np.nan)                   # s
+        self.visited_by = np.full(self.W, -1, dtype=np.int64)  # agent that visited each point
+        self.visited_at = np.full(self.W, np.nan)  # s
         self.a_max = None if a_max is None else np.asarray(a_max, dtype=float).reshape(3)
         self.arena_size = arena_size
         self.completed_at: float | None = None
@@ -149,8 +176,11 @@ class TourRuntime(TaskBase):
     # -------------------------------------------------------------- protocol
     def task_info(self) -> dict[str, Any]:
         """Keyword arguments of ``TaskInfo``: the points as ``route`` and the tour's extras."""
-        extra: dict[str, Any] = {"visit_radius": self.spec.visit_radius,
-                                 "return_home": self.spec.return_home, "homes": self.homes.copy()}
+        extra: dict[str, Any] = {
+            "visit_radius": self.spec.visit_radius,
+            "return_home": self.spec.return_home,
+            "homes": self.homes.copy(),
+        }
         if self.a_max is not None:
             extra["a_max"] = self.a_max.copy()
         return {"route": self.points.copy(), "extra": extra}
@@ -162,11 +192,14 @@ class TourRuntime(TaskBase):
         self._prev = p.copy()
         todo = np.flatnonzero(~self.visited)
         if todo.size:
-            d = segment_point_distances(prev, p, self.points[todo])   # (n, w)
+            d = segment_point_distances(prev, p, self.points[todo])  # (n, w)
             agent = np.argmin(d, axis=0)
             best = d[agent, np.arange(todo.size)]
-            for j, i, dist in zip(todo[best <= self.spec.visit_radius], agent[best <= self.spec.visit_radius],
-                                  best[best <= self.spec.visit_radius]):
+            for j, i, dist in zip(
+                todo[best <= self.spec.visit_radius],
+                agent[best <= self.spec.visit_radius],
+                best[best <= self.spec.visit_radius],
+            ):
                 self.visited[j] = True
                 self.visited_by[j] = i
                 self.visited_at[j] = t
@@ -189,16 +222,16 @@ class TourRuntime(TaskBase):
 
     def view(self, t: float) -> TaskView:
         """The points and which of them were visited."""
-        return TaskView(t, np.full(self.n, -1, dtype=np.int64), points=self.points,
-                        points_done=self.visited.copy())
+        return TaskView(t, np.full(self.n, -1, dtype=np.int64), points=self.points, points_done=self.visited.copy())
 
     @property
     def points_visited(self) -> int:
         """Number of points visited so far."""
         return int(np.count_nonzero(self.visited))
 
-    def metrics(self, timeseries: TimeSeries | None = None, planner_artefacts: dict[str, Any] | None = None
-                ) -> dict[str, Any]:
+    def metrics(
+        self, timeseries: TimeSeries | None = None, planner_artefacts: dict[str, Any] | None = None
+    ) -> dict[str, Any]:
         """Tour metrics (plain JSON data): visits, planned (the planner's published ``tour_plan``) and
         flown lengths, completion time."""
         plan = _plan_of(planner_artefacts)
@@ -236,7 +269,9 @@ class TourRuntime(TaskBase):
             "homes": self.homes.tolist() if self.spec.return_home else None,
             "visited_by": self.visited_by.tolist(),
             "visited_at_s": [None if np.isnan(x) else float(x) for x in self.visited_at],
-            "plan": None if plan is None else {
+            "plan": None
+            if plan is None
+            else {
                 "metric": plan.metric,
                 "tour": plan.tour.tolist(),
                 "legs": [leg.tolist() for leg in plan.legs],

@@ -1,4 +1,5 @@
 """The waypoints task: every agent follows a timed list of set-points."""
+
 from __future__ import annotations
 
 from typing import Annotated, Any, Literal
@@ -23,8 +24,8 @@ class _Strict(pydantic.BaseModel):
 class Waypoint(_Strict):
     """A timed set-point."""
 
-    t_s: float = Field(ge=0.0, le=1e5)   # s, when it becomes active
-    position: Vec3                        # m, relative to the agent's start when `relative`
+    t_s: float = Field(ge=0.0, le=1e5)  # s, when it becomes active
+    position: Vec3  # m, relative to the agent's start when `relative`
     yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)
 
 
@@ -34,7 +35,7 @@ class WaypointsTask(_Strict):
     kind: Literal["waypoints"]
     time_limit_s: float = Field(gt=0.0, le=1e5)
     waypoints: Annotated[list[Waypoint], Field(min_length=1)]
-    relative: bool = True                 # positions are offsets from each agent's start
+    relative: bool = True  # positions are offsets from each agent's start
     tolerance_m: float = Field(0.05, gt=0.0, le=100.0)
     hold_s: float = Field(1.0, ge=0.0, le=1e4)
 
@@ -50,7 +51,7 @@ class WaypointsRuntime(TaskBase):
         self.spec = spec
         self.n = starts.shape[0]
         self.times = np.array([w.t_s for w in spec.waypoints])
-        pts = np.array([w.position for w in spec.waypoints], dtype=float)           # (k, 3)
+        pts = np.array([w.position for w in spec.waypoints], dtype=float)  # (k, 3)
         self.points = pts[None, :, :] + (starts[:, None, :] if spec.relative else 0.0)  # (n, k, 3)
         self.yaws = np.radians([w.yaw_deg for w in spec.waypoints])
         self._held_since: float | None = None

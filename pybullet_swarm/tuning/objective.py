@@ -14,6 +14,7 @@ With the default penalty of 500 (in the objective's units) an incomplete run alw
 worse than a completed one of the construction task, whose time limit is 500 s. A run that
 raised (``exit_status = error``) has no score: its trial is recorded as failed.
 """
+
 from __future__ import annotations
 
 import ast
@@ -34,20 +35,28 @@ INCOMPLETE_FILL: Mapping[str, str] = {"completion_time_s": "sim_time_s"}
 """Metrics an incomplete run lacks, and the metric whose value stands in for them."""
 
 _BINOPS: dict[type, Callable[[float, float], float]] = {
-    ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
-    ast.Pow: operator.pow, ast.FloorDiv: operator.floordiv,
+    ast.Add: operator.add,
+    ast.Sub: operator.sub,
+    ast.Mult: operator.mul,
+    ast.Div: operator.truediv,
+    ast.Pow: operator.pow,
+    ast.FloorDiv: operator.floordiv,
 }
 _UNARY: dict[type, Callable[[float], float]] = {ast.USub: operator.neg, ast.UAdd: operator.pos}
-_FUNCTIONS: dict[str, tuple[Callable[..., float], int, int | None]] = {   # name: (function, min args, max args)
-    "min": (min, 2, None), "max": (max, 2, None), "abs": (abs, 1, 1),
-    "sqrt": (math.sqrt, 1, 1), "log": (math.log, 1, 1), "exp": (math.exp, 1, 1),
+_FUNCTIONS: dict[str, tuple[Callable[..., float], int, int | None]] = {  # name: (function, min args, max args)
+    "min": (min, 2, None),
+    "max": (max, 2, None),
+    "abs": (abs, 1, 1),
+    "sqrt": (math.sqrt, 1, 1),
+    "log": (math.log, 1, 1),
+    "exp": (math.exp, 1, 1),
 }
 
 Evaluator = Callable[[Mapping[str, Any]], float]
 
-MAX_CHARS = 2000   # longest objective expression
-MAX_NODES = 500    # most syntax-tree nodes (numbers, names, operators) in one expression
-MAX_DEPTH = 60     # deepest nesting of an expression (compiled and evaluated by recursion)
+MAX_CHARS = 2000  # longest objective expression
+MAX_NODES = 500  # most syntax-tree nodes (numbers, names, operators) in one expression
+MAX_DEPTH = 60  # deepest nesting of an expression (compiled and evaluated by recursion)
 
 
 class Direction(str, enum.Enum):
@@ -109,8 +118,9 @@ class Objective:
         return value + penalty if self.direction is Direction.MINIMIZE else value - penalty
 
 
-def parse_objective(text: str, direction: Direction | str = Direction.MINIMIZE, *,
-                    source: str = "--objective") -> Objective:
+def parse_objective(
+    text: str, direction: Direction | str = Direction.MINIMIZE, *, source: str = "--objective"
+) -> Objective:
     """Parse one expression (whitelisted ``ast`` nodes only).
 
     Raises:
@@ -128,12 +138,14 @@ def parse_objective(text: str, direction: Direction | str = Direction.MINIMIZE, 
         raise ConfigError(f"expression nested too deeply (at most {MAX_DEPTH} levels)", source=source) from None
     nodes, depth = _size(tree.body)
     if nodes > MAX_NODES or depth > MAX_DEPTH:
-        raise ConfigError(f"expression too large: {nodes} terms nested {depth} levels deep, at most {MAX_NODES} "
-                          f"terms and {MAX_DEPTH} levels", source=source)
+        raise ConfigError(
+            f"expression too large: {nodes} terms nested {depth} levels deep, at most {MAX_NODES} "
+            f"terms and {MAX_DEPTH} levels",
+            source=source,
+        )
     names: list[str] = []
     fn = _compile(tree.body, names, source, text)
-    return Objective(text=text.strip(), direction=Direction.parse(direction), names=tuple(dict.fromkeys(names)),
-                     _fn=fn)
+    return Objective(text=text.strip(), direction=Direction.parse(direction), names=tuple(dict.fromkeys(names)), _fn=fn)
 
 
 def _size(root: ast.AST) -> tuple[int, int]:
@@ -184,18 +196,26 @@ def _compile(node: ast.AST, names: list[str], source: str, text: str) -> Evaluat
         uop = _UNARY[type(node.op)]
         operand = _compile(node.operand, names, source, text)
         return lambda m: uop(operand(m))
-    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in _FUNCTIONS \
-            and not node.keywords:
+    if (
+        isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Name)
+        and node.func.id in _FUNCTIONS
+        and not node.keywords
+    ):
         func, lo, hi = _FUNCTIONS[node.func.id]
         if len(node.args) < lo or (hi is not None and len(node.args) > hi):
             want = str(lo) if hi == lo else f"at least {lo}"
-            raise ConfigError(f"{node.func.id}() takes {want} argument(s), got {len(node.args)} in {text!r}",
-                              source=source)
+            raise ConfigError(
+                f"{node.func.id}() takes {want} argument(s), got {len(node.args)} in {text!r}", source=source
+            )
         args = [_compile(a, names, source, text) for a in node.args]
         return lambda m: func(*(a(m) for a in args))
     what = ast.unparse(node) if isinstance(node, ast.expr) else type(node).__name__
-    raise ConfigError(f"not allowed in an objective: {what!r} (use numbers, metric names, + - * / ** and "
-                      f"{', '.join(_FUNCTIONS)}) in {text!r}", source=source)
+    raise ConfigError(
+        f"not allowed in an objective: {what!r} (use numbers, metric names, + - * / ** and "
+        f"{', '.join(_FUNCTIONS)}) in {text!r}",
+        source=source,
+    )
 
 
 def _metric(metrics: Mapping[str, Any], name: str) -> float:
@@ -222,8 +242,12 @@ def split_expressions(text: str) -> list[str]:
     return [p.strip() for p in parts]
 
 
-def parse_objectives(exprs: str | Sequence[str], directions: str | Sequence[Direction | str] | None = None, *,
-                     source: str = "--objectives") -> tuple[Objective, ...]:
+def parse_objectives(
+    exprs: str | Sequence[str],
+    directions: str | Sequence[Direction | str] | None = None,
+    *,
+    source: str = "--objectives",
+) -> tuple[Objective, ...]:
     """Parse one or more objectives (a comma-separated text or a list) with their directions.
 
     Args:
@@ -243,8 +267,9 @@ def parse_objectives(exprs: str | Sequence[str], directions: str | Sequence[Dire
     else:
         dirs = list(directions.split(",")) if isinstance(directions, str) else list(directions)
         if len(dirs) != len(texts):
-            raise ConfigError(f"needs one direction per objective ({len(texts)}), got {len(dirs)}",
-                              source="--directions")
+            raise ConfigError(
+                f"needs one direction per objective ({len(texts)}), got {len(dirs)}", source="--directions"
+            )
     return tuple(parse_objective(t, Direction.parse(d), source=source) for t, d in zip(texts, dirs))
 
 
@@ -259,8 +284,11 @@ def check_names(objectives: Sequence[Objective], known: Iterable[str], *, source
         for name in obj.names:
             if name not in known:
                 close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
-                hint = f"; did you mean {', '.join(close)}?" if close else \
-                    f"; metrics of this run: {', '.join(known[:40])}{' ...' if len(known) > 40 else ''}"
+                hint = (
+                    f"; did you mean {', '.join(close)}?"
+                    if close
+                    else f"; metrics of this run: {', '.join(known[:40])}{' ...' if len(known) > 40 else ''}"
+                )
                 raise ConfigError(f"unknown metric {name!r} in {obj.text!r}{hint}", source=source)
 
 
@@ -269,8 +297,9 @@ def is_completed(row: Mapping[str, Any]) -> bool:
     return row.get("exit_status") == "completed"
 
 
-def score_run(objectives: Sequence[Objective], row: Mapping[str, Any],
-              penalty: float = DEFAULT_PENALTY) -> tuple[float, ...]:
+def score_run(
+    objectives: Sequence[Objective], row: Mapping[str, Any], penalty: float = DEFAULT_PENALTY
+) -> tuple[float, ...]:
     """The objective values of one run (see the module docstring for incomplete runs).
 
     Args:
@@ -292,5 +321,17 @@ def score_run(objectives: Sequence[Objective], row: Mapping[str, Any],
     return tuple(o.worse_by(o.evaluate(filled), penalty) for o in objectives)
 
 
-__all__ = ["DEFAULT_OBJECTIVE", "DEFAULT_PENALTY", "Direction", "INCOMPLETE_FILL", "MissingMetric", "Objective",
-           "check_names", "is_completed", "parse_objective", "parse_objectives", "score_run", "split_expressions"]
+__all__ = [
+    "DEFAULT_OBJECTIVE",
+    "DEFAULT_PENALTY",
+    "Direction",
+    "INCOMPLETE_FILL",
+    "MissingMetric",
+    "Objective",
+    "check_names",
+    "is_completed",
+    "parse_objective",
+    "parse_objectives",
+    "score_run",
+    "split_expressions",
+]

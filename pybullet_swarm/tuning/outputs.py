@@ -5,6 +5,7 @@
 or, key by key, with ``--set key.path=value``. For a multi-objective study it holds the Pareto-optimal
 trial with the best first objective, and ``pareto/trial-<n>.yaml`` holds every Pareto-optimal trial.
 """
+
 from __future__ import annotations
 
 import math
@@ -44,7 +45,7 @@ def trial_records(study: Any, spec: TuneSpec) -> list[dict[str, Any]]:
         rec: dict[str, Any] = {"trial": t.number, "state": t.state.name.lower()}
         values = t.values if t.values is not None else [None] * len(cols)
         rec.update(dict(zip(cols, values)))
-        for p in spec.params:   # type: ignore[union-attr]
+        for p in spec.params:  # type: ignore[union-attr]
             rec[p.key] = t.params.get(p.key)
         rec["completed"] = t.user_attrs.get("completed")
         rec.update({k: v for k, v in t.user_attrs.items() if k.startswith("mean.")})
@@ -82,10 +83,13 @@ def best_overrides(record: Mapping[str, Any], spec: TuneSpec, *, planner: str, a
     from pybullet_swarm.experiment.scenario import parse_override
 
     out: dict[str, Any] = {"planner.name": planner, "avoidance": avoidance}
-    fixed = spec.overrides.items() if isinstance(spec.overrides, Mapping) else (
-        parse_override(o) if isinstance(o, str) else tuple(o) for o in spec.overrides)
+    fixed = (
+        spec.overrides.items()
+        if isinstance(spec.overrides, Mapping)
+        else (parse_override(o) if isinstance(o, str) else tuple(o) for o in spec.overrides)
+    )
     out.update(dict(fixed))
-    for p in spec.params:   # type: ignore[union-attr]
+    for p in spec.params:  # type: ignore[union-attr]
         v = record[p.key]
         out[p.key] = int(v) if p.integer else float(v)
     return out
@@ -109,18 +113,21 @@ def write_trials_csv(path: Path, records: Sequence[Mapping[str, Any]]) -> Path:
     return path
 
 
-def write_best_yaml(path: Path, record: Mapping[str, Any], spec: TuneSpec, *, study_name: str, planner: str,
-                    avoidance: str) -> Path:
+def write_best_yaml(
+    path: Path, record: Mapping[str, Any], spec: TuneSpec, *, study_name: str, planner: str, avoidance: str
+) -> Path:
     """Write one trial as a scenario override file, with how it scored and how to run it as comments."""
     overrides = best_overrides(record, spec, planner=planner, avoidance=avoidance)
     cols = value_columns(spec)
     scores = ", ".join(f"{o.direction.value} {o.text} = {record[c]:.6g}" for o, c in zip(spec.objective_list, cols))
     seeds = record.get("seeds") or ""
     sets = " ".join(f"--set {k}={_yaml_scalar(v)}" for k, v in overrides.items())
-    header = (f"# pybullet-swarm tune: trial {record['trial']} of study {study_name!r} on {spec.scenario}\n"
-              f"# {scores} (mean over seeds {seeds}; {100 * (record.get('completed') or 0):.0f} % of runs completed)\n"
-              f"# apply: pybullet-swarm run {spec.scenario} -c {path.name} --seed {spec.seed_start}\n"
-              f"#    or: pybullet-swarm run {spec.scenario} {sets}\n")
+    header = (
+        f"# pybullet-swarm tune: trial {record['trial']} of study {study_name!r} on {spec.scenario}\n"
+        f"# {scores} (mean over seeds {seeds}; {100 * (record.get('completed') or 0):.0f} % of runs completed)\n"
+        f"# apply: pybullet-swarm run {spec.scenario} -c {path.name} --seed {spec.seed_start}\n"
+        f"#    or: pybullet-swarm run {spec.scenario} {sets}\n"
+    )
     text = header + yaml.safe_dump(overrides, sort_keys=False)
     atomic_write(path, lambda fh: fh.write(text))
     return path
@@ -181,8 +188,10 @@ def param_importances(study: Any, spec: TuneSpec) -> dict[str, dict[str, float]]
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 imp = optuna.importance.get_param_importances(
-                    study, evaluator=optuna.importance.PedAnovaImportanceEvaluator(),
-                    target=(lambda t, i=i: t.values[i]))
+                    study,
+                    evaluator=optuna.importance.PedAnovaImportanceEvaluator(),
+                    target=(lambda t, i=i: t.values[i]),
+                )
         except (RuntimeError, ValueError, ZeroDivisionError, ImportError):
             continue
         vals = {k: float(v) for k, v in imp.items() if math.isfinite(float(v))}
@@ -191,29 +200,48 @@ def param_importances(study: Any, spec: TuneSpec) -> dict[str, dict[str, float]]
     return out
 
 
-def write_outputs(study: Any, spec: TuneSpec, out: Path, *, planner: str, avoidance: str, scenario_name: str,
-                  figures: bool = True) -> list[Path]:
+def write_outputs(
+    study: Any, spec: TuneSpec, out: Path, *, planner: str, avoidance: str, scenario_name: str, figures: bool = True
+) -> list[Path]:
     """Write ``trials.csv``, ``study.json``, ``best.yaml`` (and ``pareto/``) and the figures."""
     records = trial_records(study, spec)
     files = [write_trials_csv(out / TRIALS_CSV, records)]
     best = best_records(study, spec)
     if best:
-        files.append(write_best_yaml(out / BEST_YAML, best[0], spec, study_name=study.study_name, planner=planner,
-                                     avoidance=avoidance))
+        files.append(
+            write_best_yaml(
+                out / BEST_YAML, best[0], spec, study_name=study.study_name, planner=planner, avoidance=avoidance
+            )
+        )
         if spec.multi:
             for rec in best:
-                files.append(write_best_yaml(out / "pareto" / f"trial-{rec['trial']}.yaml", rec, spec,
-                                             study_name=study.study_name, planner=planner, avoidance=avoidance))
+                files.append(
+                    write_best_yaml(
+                        out / "pareto" / f"trial-{rec['trial']}.yaml",
+                        rec,
+                        spec,
+                        study_name=study.study_name,
+                        planner=planner,
+                        avoidance=avoidance,
+                    )
+                )
     importances = param_importances(study, spec) if figures else {}
     summary = {
-        "study": study.study_name, "scenario": str(spec.scenario), "scenario_name": scenario_name,
-        "planner": planner, "avoidance": avoidance, "sampler": spec.sampler.value,  # type: ignore[union-attr]
+        "study": study.study_name,
+        "scenario": str(spec.scenario),
+        "scenario_name": scenario_name,
+        "planner": planner,
+        "avoidance": avoidance,
+        "sampler": spec.sampler.value,  # type: ignore[union-attr]
         "objectives": [{"expression": o.text, "direction": o.direction.value} for o in spec.objective_list],
-        "params": [p.to_json() for p in spec.params],   # type: ignore[union-attr]
-        "seeds": list(spec.seeds), "penalty": spec.penalty, "trials": len(records),
+        "params": [p.to_json() for p in spec.params],  # type: ignore[union-attr]
+        "seeds": list(spec.seeds),
+        "penalty": spec.penalty,
+        "trials": len(records),
         "complete": sum(1 for r in records if r["state"] == "complete"),
         "best": [{k: _plain(v) for k, v in r.items()} for r in best],
-        "importances": importances, "updated": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "importances": importances,
+        "updated": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     }
     write_json(out / STUDY_JSON, summary)
     files.append(out / STUDY_JSON)
@@ -223,13 +251,29 @@ def write_outputs(study: Any, spec: TuneSpec, out: Path, *, planner: str, avoida
         labels = [o.text for o in spec.objective_list]
         minimise = [_sign(spec, i) > 0 for i in range(len(labels))]
         cols = value_columns(spec)
-        files.append(plot_history(records, cols, labels, minimise, out / "plots" / "history.png",
-                                  title=f"{scenario_name}: {planner} ({spec.sampler.value})"))  # type: ignore
+        files.append(
+            plot_history(
+                records,
+                cols,
+                labels,
+                minimise,
+                out / "plots" / "history.png",
+                title=f"{scenario_name}: {planner} ({spec.sampler.value})",
+            )
+        )  # type: ignore
         if importances:
             files.append(plot_importance(importances, out / "plots" / "importance.png", title=f"{planner}"))
         if spec.multi:
-            files.append(plot_pareto(records, cols[:2], labels[:2], minimise[:2], out / "plots" / "pareto.png",
-                                     title=f"{scenario_name}: {planner}, Pareto front"))
+            files.append(
+                plot_pareto(
+                    records,
+                    cols[:2],
+                    labels[:2],
+                    minimise[:2],
+                    out / "plots" / "pareto.png",
+                    title=f"{scenario_name}: {planner}, Pareto front",
+                )
+            )
     return files
 
 
@@ -246,6 +290,18 @@ def runs_table(out: Path) -> RunsTable:
     return RunsTable(Path(out) / RUNS_CSV)
 
 
-__all__ = ["BEST_YAML", "STUDY_JSON", "TRIALS_CSV", "best_overrides", "best_records", "param_importances",
-           "read_overrides_file", "runs_table", "trial_records", "value_columns", "write_best_yaml",
-           "write_outputs", "write_trials_csv"]
+__all__ = [
+    "BEST_YAML",
+    "STUDY_JSON",
+    "TRIALS_CSV",
+    "best_overrides",
+    "best_records",
+    "param_importances",
+    "read_overrides_file",
+    "runs_table",
+    "trial_records",
+    "value_columns",
+    "write_best_yaml",
+    "write_outputs",
+    "write_trials_csv",
+]

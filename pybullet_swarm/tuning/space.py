@@ -1,4 +1,5 @@
 """The search space of a study: ``--param key.path=low:high[:log][:int]``."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -40,8 +41,9 @@ class ParamSpec:
         if self.log and self.low <= 0:
             raise ConfigError(f"a log range needs low > 0, got {self.low!r}", source=src, field=self.key)
         if self.integer and not (float(self.low).is_integer() and float(self.high).is_integer()):
-            raise ConfigError(f"an int range needs integer bounds, got {self.low!r}:{self.high!r}", source=src,
-                              field=self.key)
+            raise ConfigError(
+                f"an int range needs integer bounds, got {self.low!r}:{self.high!r}", source=src, field=self.key
+            )
 
     def distribution(self) -> Any:
         """The Optuna distribution of this parameter."""
@@ -81,8 +83,9 @@ def parse_param(text: str) -> ParamSpec:
     try:
         low, high = float(parts[0]), float(parts[1])
     except ValueError:
-        raise ConfigError(f"low and high must be numbers, got {parts[0]!r}:{parts[1]!r}", source="--param",
-                          field=key) from None
+        raise ConfigError(
+            f"low and high must be numbers, got {parts[0]!r}:{parts[1]!r}", source="--param", field=key
+        ) from None
     return ParamSpec(key=key, low=low, high=high, log="log" in mods, integer="int" in mods)
 
 
@@ -97,7 +100,7 @@ def check_params(params: Sequence[ParamSpec]) -> tuple[ParamSpec, ...]:
         raise ConfigError("needs at least one --param key.path=low:high", source="--param")
     keys = [p.key for p in params]
     for i, k in enumerate(keys):
-        for other in keys[i + 1:]:
+        for other in keys[i + 1 :]:
             if k == other or other.startswith(k + ".") or k.startswith(other + "."):
                 raise ConfigError(f"overlaps {other!r}", source="--param", field=k)
     return params
@@ -118,16 +121,25 @@ def check_ranges(params: Sequence[ParamSpec], lookup: Callable[[str], ParamInfo 
     for p in params:
         info = lookup(p.key)
         if info is None:
-            raise ConfigError("names no field of the scenario, of the planner's parameters or of the avoidance "
-                              "layer's parameters", source="--param", field=p.key)
+            raise ConfigError(
+                "names no field of the scenario, of the planner's parameters or of the avoidance layer's parameters",
+                source="--param",
+                field=p.key,
+            )
         if not info.numeric:
             raise ConfigError(f"is not a number ({info.type}) and cannot be tuned", source="--param", field=p.key)
         if info.integer and not p.integer:
-            raise ConfigError(f"is an integer: give its range with :int, e.g. {p.key}={math.ceil(p.low)}:"
-                              f"{math.floor(p.high)}:int", source="--param", field=p.key)
+            raise ConfigError(
+                f"is an integer: give its range with :int, e.g. {p.key}={math.ceil(p.low)}:{math.floor(p.high)}:int",
+                source="--param",
+                field=p.key,
+            )
         if not (info.contains(p.low) and info.contains(p.high)):
-            raise ConfigError(f"the range {p.low:g}:{p.high:g} leaves the parameter's range {info.range_text()}",
-                              source="--param", field=p.key)
+            raise ConfigError(
+                f"the range {p.low:g}:{p.high:g} leaves the parameter's range {info.range_text()}",
+                source="--param",
+                field=p.key,
+            )
 
 
 __all__ = ["ParamSpec", "check_params", "check_ranges", "parse_param"]

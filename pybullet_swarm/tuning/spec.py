@@ -1,4 +1,5 @@
 """What a study tunes and how its trials are scored (``TuneSpec``), and the samplers it may use."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -8,18 +9,23 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from pybullet_swarm.errors import ConfigError
-from pybullet_swarm.tuning.objective import (DEFAULT_OBJECTIVE, DEFAULT_PENALTY, Objective, parse_objectives,
-                                             split_expressions)
+from pybullet_swarm.tuning.objective import (
+    DEFAULT_OBJECTIVE,
+    DEFAULT_PENALTY,
+    Objective,
+    parse_objectives,
+    split_expressions,
+)
 from pybullet_swarm.tuning.space import ParamSpec, check_params, parse_param
 
 
 class SamplerKind(str, enum.Enum):
     """Optuna samplers a study can use."""
 
-    TPE = "tpe"          # tree-structured Parzen estimator (single and multi-objective)
-    NSGA2 = "nsga2"      # NSGA-II genetic algorithm (multi-objective; single too)
-    CMAES = "cmaes"      # covariance matrix adaptation evolution strategy (single objective)
-    RANDOM = "random"    # uniform random search (the baseline of the others)
+    TPE = "tpe"  # tree-structured Parzen estimator (single and multi-objective)
+    NSGA2 = "nsga2"  # NSGA-II genetic algorithm (multi-objective; single too)
+    CMAES = "cmaes"  # covariance matrix adaptation evolution strategy (single objective)
+    RANDOM = "random"  # uniform random search (the baseline of the others)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,8 +76,9 @@ class TuneSpec:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 - frozen: normalised once, here
         set_("params", check_params([p if isinstance(p, ParamSpec) else parse_param(p) for p in self.params]))
         texts = split_expressions(self.objectives) if isinstance(self.objectives, str) else list(self.objectives)
-        objs = parse_objectives(self.objectives, self.directions,
-                                source="--objectives" if len(texts) > 1 else "--objective")
+        objs = parse_objectives(
+            self.objectives, self.directions, source="--objectives" if len(texts) > 1 else "--objective"
+        )
         set_("_objectives", objs)
         for name, low in (("trials", 1), ("seeds_per_trial", 1), ("seed_start", 0), ("sampler_seed", 0)):
             v = getattr(self, name)
@@ -80,21 +87,24 @@ class TuneSpec:
         try:
             set_("sampler", SamplerKind(self.sampler))
         except ValueError:
-            raise ConfigError(f"must be one of {', '.join(k.value for k in SamplerKind)}, got {self.sampler!r}",
-                              source="--sampler") from None
+            raise ConfigError(
+                f"must be one of {', '.join(k.value for k in SamplerKind)}, got {self.sampler!r}", source="--sampler"
+            ) from None
         if self.sampler is SamplerKind.CMAES and len(objs) > 1:
-            raise ConfigError("CMA-ES optimises one objective; use nsga2 or tpe for --objectives",
-                              source="--sampler")
+            raise ConfigError("CMA-ES optimises one objective; use nsga2 or tpe for --objectives", source="--sampler")
         if not (isinstance(self.penalty, (int, float)) and math.isfinite(self.penalty) and self.penalty >= 0):
             raise ConfigError(f"must be a number >= 0, got {self.penalty!r}", source="--penalty")
-        keys = {p.key for p in self.params}   # type: ignore[union-attr]
+        keys = {p.key for p in self.params}  # type: ignore[union-attr]
         set_("enqueue", tuple(dict(e) for e in self.enqueue))
-        for name, given in (("baseline", [self.baseline] if self.baseline is not None else []),
-                            ("enqueue", self.enqueue)):
+        for name, given in (
+            ("baseline", [self.baseline] if self.baseline is not None else []),
+            ("enqueue", self.enqueue),
+        ):
             for values in given:
                 if set(values) != keys:
-                    raise ConfigError(f"needs a value for exactly the tuned keys {sorted(keys)}, got "
-                                      f"{sorted(values)}", source=name)
+                    raise ConfigError(
+                        f"needs a value for exactly the tuned keys {sorted(keys)}, got {sorted(values)}", source=name
+                    )
 
     @property
     def objective_list(self) -> tuple[Objective, ...]:
@@ -113,7 +123,10 @@ class TuneSpec:
 
     def to_json(self) -> dict[str, Any]:
         """What determines a study's results (stored with it; a resume must match)."""
-        return {"params": [p.to_json() for p in self.params],   # type: ignore[union-attr]
-                "objectives": [o.text for o in self.objective_list],
-                "directions": [o.direction.value for o in self.objective_list],
-                "seeds": list(self.seeds), "penalty": float(self.penalty)}
+        return {
+            "params": [p.to_json() for p in self.params],  # type: ignore[union-attr]
+            "objectives": [o.text for o in self.objective_list],
+            "directions": [o.direction.value for o in self.objective_list],
+            "seeds": list(self.seeds),
+            "penalty": float(self.penalty),
+        }

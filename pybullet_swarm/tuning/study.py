@@ -22,6 +22,7 @@ resumed study does not draw its first points again. NSGA-II's population is
 ``clip(trials // 5, 4, 50)`` (about five generations for the budget); TPE is multivariate with
 ``clip(trials // 3, 1, 10)`` random start-up trials and a constant liar for parallel trials.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -37,7 +38,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.rundir import exclusive_directory
 from pybullet_swarm.experiment.results import RUNS_CSV, Row, RunsTable, RunStatus, read_metrics
-from pybullet_swarm.tuning.objective import (MissingMetric, check_names, is_completed, score_run)
+from pybullet_swarm.tuning.objective import MissingMetric, check_names, is_completed, score_run
 from pybullet_swarm.tuning.space import ParamSpec, check_ranges
 from pybullet_swarm.tuning.spec import SamplerKind, TuneSpec
 
@@ -106,9 +107,14 @@ class _Context:
         """The runs of one configuration (one per seed), validated."""
         from pybullet_swarm.experiment.sweep import Sweep, plan_sweep
 
-        sweep = Sweep(self.spec.scenario, planners=(self.planner,), avoidance=(self.avoidance,),
-                      grid={k: [v] for k, v in values.items()}, seeds=tuple(seeds or self.spec.seeds),
-                      overrides=self.spec.overrides)
+        sweep = Sweep(
+            self.spec.scenario,
+            planners=(self.planner,),
+            avoidance=(self.avoidance,),
+            grid={k: [v] for k, v in values.items()},
+            seeds=tuple(seeds or self.spec.seeds),
+            overrides=self.spec.overrides,
+        )
         return plan_sweep(sweep, self.out).runs
 
 
@@ -120,14 +126,25 @@ def _resolve(spec: TuneSpec, out: Path) -> _Context:
     from pybullet_swarm.experiment.sweep import Sweep, plan_sweep
 
     scenario = load_scenario(spec.scenario, spec.overrides, planner=spec.planner, avoidance=spec.avoidance)
-    check_ranges(spec.params, lambda key: field_info(scenario, key))   # type: ignore[arg-type]  # normalised
-    sweep = Sweep(spec.scenario, planners=(spec.planner,), avoidance=(spec.avoidance,), seeds=(spec.seed_start,),
-                  overrides=spec.overrides)
+    check_ranges(spec.params, lambda key: field_info(scenario, key))  # type: ignore[arg-type]  # normalised
+    sweep = Sweep(
+        spec.scenario,
+        planners=(spec.planner,),
+        avoidance=(spec.avoidance,),
+        seeds=(spec.seed_start,),
+        overrides=spec.overrides,
+    )
     plan = plan_sweep(sweep, out)
-    ctx = _Context(spec=spec, out=out, planner=plan.runs[0].planner, avoidance=plan.runs[0].avoidance,
-                   scenario_name=plan.scenario_name, base_hash=plan.base_hash)
+    ctx = _Context(
+        spec=spec,
+        out=out,
+        planner=plan.runs[0].planner,
+        avoidance=plan.runs[0].avoidance,
+        scenario_name=plan.scenario_name,
+        base_hash=plan.base_hash,
+    )
     for end in ("low", "high"):
-        values = {p.key: _cast(p, getattr(p, end)) for p in spec.params}   # type: ignore[union-attr, arg-type]
+        values = {p.key: _cast(p, getattr(p, end)) for p in spec.params}  # type: ignore[union-attr, arg-type]
         try:
             ctx.plan(values, seeds=(spec.seed_start,))
         except ConfigError as exc:
@@ -155,7 +172,7 @@ def probe_run(spec: RunSpec) -> Row:
 def _metric_names(ctx: _Context, probe: Worker) -> list[str]:
     """Metric names of a run, from one short run at the low end of the ranges (parameters were
     checked by ``_resolve``, against the models)."""
-    values = {p.key: _cast(p, p.low) for p in ctx.spec.params}   # type: ignore[union-attr, arg-type]
+    values = {p.key: _cast(p, p.low) for p in ctx.spec.params}  # type: ignore[union-attr, arg-type]
     row = probe(ctx.plan(values, seeds=(ctx.spec.seed_start,))[0])
     if row.get("exit_status") == RunStatus.ERROR.value:
         raise ConfigError(f"a run at the low end of the ranges fails: {row.get('error')}", source="--param")
@@ -187,17 +204,22 @@ def open_storage(url: str) -> Any:
         _create_sqlite_schema(url)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            retry = getattr(optuna.storages, "RetryHeartbeatStaleTrialCallback", None)   # Optuna >= 4.9
-            callback = ({"heartbeat_stale_trial_callback": retry(max_retry=3)} if retry is not None else
-                        {"failed_trial_callback": optuna.storages.RetryFailedTrialCallback(max_retry=3)})
-            return optuna.storages.RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_PERIOD_S,
-                                              **callback)
+            retry = getattr(optuna.storages, "RetryHeartbeatStaleTrialCallback", None)  # Optuna >= 4.9
+            callback = (
+                {"heartbeat_stale_trial_callback": retry(max_retry=3)}
+                if retry is not None
+                else {"failed_trial_callback": optuna.storages.RetryFailedTrialCallback(max_retry=3)}
+            )
+            return optuna.storages.RDBStorage(
+                url, heartbeat_interval=HEARTBEAT_S, grace_period=GRACE_PERIOD_S, **callback
+            )
     except ImportError as exc:
         raise ConfigError(f"needs a database driver ({exc})", source="--storage") from None
     except Exception as exc:  # noqa: BLE001 - sqlalchemy's ArgumentError, OperationalError, ...
         text = " ".join(str(exc).split())[:300]
-        raise ConfigError(f"cannot open {url!r} as an SQLAlchemy database URL ({type(exc).__name__}: {text})",
-                          source="--storage") from None
+        raise ConfigError(
+            f"cannot open {url!r} as an SQLAlchemy database URL ({type(exc).__name__}: {text})", source="--storage"
+        ) from None
 
 
 def _create_sqlite_schema(url: str) -> None:
@@ -217,8 +239,12 @@ def _create_sqlite_schema(url: str) -> None:
     import sqlalchemy
 
     parsed = sqlalchemy.engine.make_url(url)
-    if not parsed.drivername.startswith("sqlite") or parsed.database in (None, "", ":memory:") \
-            or parsed.query.get("mode") is not None or parsed.database.startswith("file:"):
+    if (
+        not parsed.drivername.startswith("sqlite")
+        or parsed.database in (None, "", ":memory:")
+        or parsed.query.get("mode") is not None
+        or parsed.database.startswith("file:")
+    ):
         return
     path = Path(parsed.database)
     if path.exists():
@@ -231,9 +257,9 @@ def _create_sqlite_schema(url: str) -> None:
         storage.engine.dispose()
         try:
             os.link(tmp, path)
-        except FileExistsError:   # another process published its schema first: use that file
+        except FileExistsError:  # another process published its schema first: use that file
             pass
-        except OSError:           # no hard links on this file system: rename (last one wins, still whole)
+        except OSError:  # no hard links on this file system: rename (last one wins, still whole)
             if not path.exists():
                 os.replace(tmp, path)
     finally:
@@ -248,15 +274,21 @@ def _open_study(ctx: _Context, storage: Any, name: str) -> Any:
     import optuna
 
     spec = ctx.spec
-    stored = {**spec.to_json(), "scenario": str(spec.scenario), "base_hash": ctx.base_hash,
-              "planner": ctx.planner, "avoidance": ctx.avoidance}
+    stored = {
+        **spec.to_json(),
+        "scenario": str(spec.scenario),
+        "base_hash": ctx.base_hash,
+        "planner": ctx.planner,
+        "avoidance": ctx.avoidance,
+    }
     directions = [o.direction.value for o in spec.objective_list]
     study = optuna.create_study(storage=storage, study_name=name, directions=directions, load_if_exists=True)
     old = study.user_attrs.get(SPEC_ATTR)
     if old is None:
         if study.trials:
-            raise ConfigError(f"study {name!r} exists and was not made by pybullet-swarm tune; use another --study",
-                              source="--study")
+            raise ConfigError(
+                f"study {name!r} exists and was not made by pybullet-swarm tune; use another --study", source="--study"
+            )
         study.set_user_attr(SPEC_ATTR, stored)
         if spec.baseline is not None:
             study.enqueue_trial(dict(spec.baseline), user_attrs={"baseline": True})
@@ -266,8 +298,11 @@ def _open_study(ctx: _Context, storage: Any, name: str) -> Any:
     diff = [k for k in stored if old.get(k) != stored[k]]
     if diff or [d.name.lower() for d in study.directions] != directions:
         what = ", ".join(diff) if diff else "directions"
-        raise ConfigError(f"study {name!r} in the storage tunes with other settings ({what} differ); use the "
-                          "same settings to resume it, or another --study", source="--study")
+        raise ConfigError(
+            f"study {name!r} in the storage tunes with other settings ({what} differ); use the "
+            "same settings to resume it, or another --study",
+            source="--study",
+        )
     return study
 
 
@@ -276,7 +311,7 @@ def _requeue_running(study: Any, *, exclusive: bool) -> int:
     import optuna
     from optuna.trial import TrialState
 
-    if not exclusive:   # a shared storage: only trials whose heartbeat stopped (the callback requeues them)
+    if not exclusive:  # a shared storage: only trials whose heartbeat stopped (the callback requeues them)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             before = len(study.get_trials(deepcopy=False, states=(TrialState.WAITING,)))
@@ -303,8 +338,9 @@ def make_sampler(spec: TuneSpec, offset: int = 0) -> Any:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
         if spec.sampler is SamplerKind.TPE:
-            return optuna.samplers.TPESampler(seed=seed, multivariate=True, constant_liar=True,
-                                              n_startup_trials=max(1, min(10, spec.trials // 3)))
+            return optuna.samplers.TPESampler(
+                seed=seed, multivariate=True, constant_liar=True, n_startup_trials=max(1, min(10, spec.trials // 3))
+            )
         if spec.sampler is SamplerKind.NSGA2:
             return optuna.samplers.NSGAIISampler(seed=seed, population_size=max(4, min(50, spec.trials // 5)))
         if spec.sampler is SamplerKind.CMAES:
@@ -340,7 +376,7 @@ class _Heartbeat:
             with self._lock:
                 ids = list(self.ids)
             for trial_id in ids:
-                with contextlib.suppress(Exception):   # a finished trial refuses heartbeats: fine
+                with contextlib.suppress(Exception):  # a finished trial refuses heartbeats: fine
                     self.storage.record_heartbeat(trial_id)
 
     def add(self, trial_id: int) -> None:
@@ -388,7 +424,7 @@ def trial_scores(spec: TuneSpec, rows: Sequence[Row]) -> tuple[tuple[float, ...]
     if not all(math.isfinite(m) for m in means):
         raise MissingMetric(f"an objective is not finite ({', '.join(f'{m:g}' for m in means)})")
     attrs: dict[str, Any] = {
-        "seeds": [int(r["seed"]) for r in rows],                                            # type: ignore[arg-type]
+        "seeds": [int(r["seed"]) for r in rows],  # type: ignore[arg-type]
         "run_ids": [str(r["run_id"]) for r in rows],
         "per_seed": [list(v) for v in per_run],
         "completed": sum(1 for r in rows if is_completed(r)) / len(rows),
@@ -399,10 +435,21 @@ def trial_scores(spec: TuneSpec, rows: Sequence[Row]) -> tuple[tuple[float, ...]
     return means, attrs
 
 
-def run_tuning(spec: TuneSpec, out: str | Path, *, storage: str | None = None, executor: str = "local",
-               workers: int | None = None, address: str | None = None, quiet: bool = True,
-               figures: bool = True, worker: Worker | None = None, probe: Worker | None = None,
-               retries: int = 2, outputs: str | Path | None = None) -> TuneResult:
+def run_tuning(
+    spec: TuneSpec,
+    out: str | Path,
+    *,
+    storage: str | None = None,
+    executor: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+    quiet: bool = True,
+    figures: bool = True,
+    worker: Worker | None = None,
+    probe: Worker | None = None,
+    retries: int = 2,
+    outputs: str | Path | None = None,
+) -> TuneResult:
     """Run (or resume) a study until it holds ``spec.trials`` finished trials; write its outputs.
 
     Args:
@@ -442,8 +489,11 @@ def run_tuning(spec: TuneSpec, out: str | Path, *, storage: str | None = None, e
     if out.exists() and not out.is_dir():
         raise ConfigError("exists and is not a directory", source=str(out))
     ctx = _resolve(spec, out)
-    check_names(spec.objective_list, _metric_names(ctx, probe or (worker if worker is not None else probe_run)),
-                source="--objectives" if spec.multi else "--objective")
+    check_names(
+        spec.objective_list,
+        _metric_names(ctx, probe or (worker if worker is not None else probe_run)),
+        source="--objectives" if spec.multi else "--objective",
+    )
     exclusive = storage is None
     url = storage or default_storage(out)
     say = (lambda msg: None) if quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
@@ -460,18 +510,26 @@ def run_tuning(spec: TuneSpec, out: str | Path, *, storage: str | None = None, e
         done = _n_done(study)
         if done:
             say(f"tune: study {name!r} resumed with {done} of {spec.trials} trials finished")
-        distributions = {p.key: p.distribution() for p in spec.params}   # type: ignore[union-attr]
+        distributions = {p.key: p.distribution() for p in spec.params}  # type: ignore[union-attr]
         table = RunsTable(out / RUNS_CSV)
         n_workers = workers if workers is not None else cpu_count()
         batch_size = max(1, math.ceil(n_workers / spec.seeds_per_trial))
         beat = _Heartbeat(store)
-        bar = tqdm(total=spec.trials, initial=min(done, spec.trials), unit="trial", desc=f"tune {ctx.planner}",
-                   disable=quiet, file=sys.stderr, dynamic_ncols=True)
+        bar = tqdm(
+            total=spec.trials,
+            initial=min(done, spec.trials),
+            unit="trial",
+            desc=f"tune {ctx.planner}",
+            disable=quiet,
+            file=sys.stderr,
+            dynamic_ncols=True,
+        )
         _show_best(bar, study, spec)
         pending: dict[int, Any] = {}
         try:
-            with make_executor(kind, workers=workers, address=address, worker=worker, retries=retries,
-                               quiet=quiet) as ex:
+            with make_executor(
+                kind, workers=workers, address=address, worker=worker, retries=retries, quiet=quiet
+            ) as ex:
                 while done < spec.trials:
                     batch = [study.ask(distributions) for _ in range(min(batch_size, spec.trials - done))]
                     for trial in batch:
@@ -489,7 +547,7 @@ def run_tuning(spec: TuneSpec, out: str | Path, *, storage: str | None = None, e
             interrupted = True
             from optuna.trial import TrialState
 
-            for trial in pending.values():   # their finished runs are in runs.csv: queue them again
+            for trial in pending.values():  # their finished runs are in runs.csv: queue them again
                 with contextlib.suppress(Exception):
                     study.tell(trial, state=TrialState.FAIL)
                     study.enqueue_trial(trial.params, user_attrs={**_carry_attrs(trial), "retry_of": trial.number})
@@ -497,14 +555,32 @@ def run_tuning(spec: TuneSpec, out: str | Path, *, storage: str | None = None, e
             beat.stop()
             bar.close()
         target = Path(outputs).resolve() if outputs is not None else out
-        files = write_outputs(study, spec, target, planner=ctx.planner, avoidance=ctx.avoidance,
-                              scenario_name=ctx.scenario_name, figures=figures and not interrupted)
+        files = write_outputs(
+            study,
+            spec,
+            target,
+            planner=ctx.planner,
+            avoidance=ctx.avoidance,
+            scenario_name=ctx.scenario_name,
+            figures=figures and not interrupted,
+        )
     from pybullet_swarm.tuning.outputs import best_records, trial_records
 
-    return TuneResult(out=out, study_name=name, storage=url, spec=spec, planner=ctx.planner, avoidance=ctx.avoidance,
-                      scenario_name=ctx.scenario_name, trials=tuple(trial_records(study, spec)),
-                      best=tuple(best_records(study, spec)), n_run=n_run, wall_time_s=time.perf_counter() - t0,
-                      files=tuple(files), interrupted=interrupted)
+    return TuneResult(
+        out=out,
+        study_name=name,
+        storage=url,
+        spec=spec,
+        planner=ctx.planner,
+        avoidance=ctx.avoidance,
+        scenario_name=ctx.scenario_name,
+        trials=tuple(trial_records(study, spec)),
+        best=tuple(best_records(study, spec)),
+        n_run=n_run,
+        wall_time_s=time.perf_counter() - t0,
+        files=tuple(files),
+        interrupted=interrupted,
+    )
 
 
 def _run_batch(study: Any, spec: TuneSpec, ctx: _Context, batch: Sequence[Any], table: RunsTable, ex: Any) -> int:
@@ -514,7 +590,7 @@ def _run_batch(study: Any, spec: TuneSpec, ctx: _Context, batch: Sequence[Any], 
 
     specs: dict[int, tuple[RunSpec, ...]] = {}
     for trial in batch:
-        values = {p.key: trial.params[p.key] for p in spec.params}   # type: ignore[union-attr]
+        values = {p.key: trial.params[p.key] for p in spec.params}  # type: ignore[union-attr]
         try:
             specs[trial.number] = ctx.plan(values)
         except ConfigError as exc:
@@ -532,10 +608,12 @@ def _run_batch(study: Any, spec: TuneSpec, ctx: _Context, batch: Sequence[Any], 
     for trial in batch:
         if trial.number not in specs:
             continue
-        rows = [table.get(s.run_id) or {"exit_status": RunStatus.ERROR.value, "error": "no row"}
-                for s in specs[trial.number]]
+        rows = [
+            table.get(s.run_id) or {"exit_status": RunStatus.ERROR.value, "error": "no row"}
+            for s in specs[trial.number]
+        ]
         try:
-            values, attrs = trial_scores(spec, rows)   # type: ignore[arg-type]
+            values, attrs = trial_scores(spec, rows)  # type: ignore[arg-type]
         except MissingMetric as exc:
             trial.set_user_attr("error", str(exc))
             study.tell(trial, state=TrialState.FAIL)
@@ -559,5 +637,16 @@ def _show_best(bar: Any, study: Any, spec: TuneSpec) -> None:
         bar.set_postfix({"best": f"{study.best_value:.4g}", "trial": study.best_trial.number}, refresh=True)
 
 
-__all__ = ["GRACE_PERIOD_S", "HEARTBEAT_S", "SamplerKind", "TuneResult", "TuneSpec", "default_storage",
-           "make_sampler", "open_storage", "probe_run", "run_tuning", "trial_scores"]
+__all__ = [
+    "GRACE_PERIOD_S",
+    "HEARTBEAT_S",
+    "SamplerKind",
+    "TuneResult",
+    "TuneSpec",
+    "default_storage",
+    "make_sampler",
+    "open_storage",
+    "probe_run",
+    "run_tuning",
+    "trial_scores",
+]

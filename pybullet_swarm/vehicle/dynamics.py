@@ -5,6 +5,7 @@ The motor is a first-order lag on rotor speed, integrated exactly over a physics
 thrust ``kf w_i^2`` along body z and a drag torque ``-spin_i km w_i^2`` about body z; the four
 rotors become one body wrench through the mixer.
 """
+
 from __future__ import annotations
 
 import math

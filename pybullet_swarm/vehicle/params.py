@@ -1,4 +1,5 @@
 """Airframe parameters, read by name from the YAML file beside each URDF."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -30,14 +31,14 @@ class _VehicleFile(pydantic.BaseModel):
 
     name: Annotated[str, pydantic.Field(min_length=1, max_length=100)]
     urdf: Annotated[str, pydantic.Field(min_length=1, max_length=1000)]
-    mass: _UpTo1000                                      # kg
-    inertia: tuple[_UpTo1000, _UpTo1000, _UpTo1000]      # kg m^2, principal moments
-    arm_length: _UpTo10                                  # m
+    mass: _UpTo1000  # kg
+    inertia: tuple[_UpTo1000, _UpTo1000, _UpTo1000]  # kg m^2, principal moments
+    arm_length: _UpTo10  # m
     configuration: Literal["x", "plus"] = "x"
-    kf: _UpTo1                                           # N/(rad/s)^2
-    km: _UpTo1                                           # N m/(rad/s)^2
-    motor_time_constant: _UpTo10                         # s
-    max_rotor_speed: _UpTo1e5                            # rad/s
+    kf: _UpTo1  # N/(rad/s)^2
+    km: _UpTo1  # N m/(rad/s)^2
+    motor_time_constant: _UpTo10  # s
+    max_rotor_speed: _UpTo1e5  # rad/s
     collision_size: tuple[_UpTo100, _UpTo100, _UpTo100]  # m
 
     @pydantic.field_validator("inertia")
@@ -46,12 +47,14 @@ class _VehicleFile(pydantic.BaseModel):
         # principal moments of a rigid body: each at most the sum of the other two
         for k in range(3):
             if value[k] > value[(k + 1) % 3] + value[(k + 2) % 3] * (1 + 1e-9):
-                raise ValueError(f"principal moments of a rigid body must each be at most the sum of the other two, "
-                                 f"got {list(value)}")
+                raise ValueError(
+                    f"principal moments of a rigid body must each be at most the sum of the other two, "
+                    f"got {list(value)}"
+                )
         return value
 
 
-MAX_URDF_BYTES = 10 << 20   # bytes
+MAX_URDF_BYTES = 10 << 20  # bytes
 
 
 def check_urdf(urdf: Path, *, source: str) -> None:
@@ -85,8 +88,10 @@ def check_urdf(urdf: Path, *, source: str) -> None:
         raise bad("it has no <link>")
     for joint in root.iter("joint"):
         if joint.get("type") != "fixed":
-            raise bad(f"a vehicle is one rigid body, but joint {joint.get('name')!r} is {joint.get('type')!r} "
-                      f"(only fixed joints)")
+            raise bad(
+                f"a vehicle is one rigid body, but joint {joint.get('name')!r} is {joint.get('type')!r} "
+                f"(only fixed joints)"
+            )
     for mesh in root.iter("mesh"):
         name = mesh.get("filename") or ""
         if name and "://" not in name and not (urdf.parent / name).is_file():
@@ -108,16 +113,16 @@ class VehicleParams:
 
     name: str
     urdf_path: Path
-    mass: float                          # kg
+    mass: float  # kg
     inertia: tuple[float, float, float]  # kg m^2, principal moments (x, y, z)
-    arm_length: float                    # m, centre to rotor axis
-    configuration: str                   # 'x' or 'plus'
-    kf: float                            # thrust coefficient, N/(rad/s)^2
-    km: float                            # drag-torque coefficient, N m/(rad/s)^2
-    motor_time_constant: float           # s
-    max_rotor_speed: float               # rad/s
+    arm_length: float  # m, centre to rotor axis
+    configuration: str  # 'x' or 'plus'
+    kf: float  # thrust coefficient, N/(rad/s)^2
+    km: float  # drag-torque coefficient, N m/(rad/s)^2
+    motor_time_constant: float  # s
+    max_rotor_speed: float  # rad/s
     collision_size: tuple[float, float, float]  # m, box extents (x, y, z)
-    param_file: Path | None = None       # the YAML these parameters were read from (for error messages)
+    param_file: Path | None = None  # the YAML these parameters were read from (for error messages)
 
     @property
     def rotor_xy(self) -> NDArray[np.float64]:
@@ -138,12 +143,14 @@ class VehicleParams:
         A rotor spinning counter-clockwise drags the body clockwise: its yaw torque is -km w^2.
         """
         xy = self.rotor_xy
-        return np.stack([
-            np.full(4, self.kf),
-            self.kf * xy[:, 1],
-            -self.kf * xy[:, 0],
-            -self.km * self.spin,
-        ])
+        return np.stack(
+            [
+                np.full(4, self.kf),
+                self.kf * xy[:, 1],
+                -self.kf * xy[:, 0],
+                -self.km * self.spin,
+            ]
+        )
 
     @functools.cached_property
     def mixer_inverse(self) -> NDArray[np.float64]:
@@ -177,7 +184,7 @@ def _resolve(name_or_path: str | Path) -> Path:
         candidate = urdf_dir() / f"{name_or_path}.yaml"
         if candidate.is_file():
             return candidate
-    except OSError:   # e.g. a name too long for the file system
+    except OSError:  # e.g. a name too long for the file system
         pass
     raise ConfigError(
         f"unknown vehicle {str(name_or_path)!r}, expected one of {', '.join(bundled_vehicles())} "
@@ -195,10 +202,12 @@ def _load(path: Path, stamp: tuple[int, int] = (0, 0)) -> VehicleParams:
     urdf = path.parent / data.urdf
     try:
         found = urdf.is_file()
-    except (OSError, ValueError):   # a name the file system refuses (too long, a NUL character)
+    except (OSError, ValueError):  # a name the file system refuses (too long, a NUL character)
         found = False
     if not found:
-        raise ConfigError(f"URDF file {data.urdf!r} not found beside the parameter file", source=path.name, field="urdf")
+        raise ConfigError(
+            f"URDF file {data.urdf!r} not found beside the parameter file", source=path.name, field="urdf"
+        )
     check_urdf(urdf, source=path.name)
     fields = data.model_dump()
     fields.pop("urdf")

@@ -3,6 +3,7 @@
 Pure geometry (numpy only): ``World.render``, the GUI's camera (``World.set_camera``), the replay's
 perspective views and the learning environments' frames all frame the arena with ``camera_for_arena``.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -67,8 +68,9 @@ def _box_corners(lx: float, ly: float, height: float) -> NDArray[np.float64]:
     return np.array([[x, y, z] for x in (0.0, lx) for y in (0.0, ly) for z in (0.0, height)])
 
 
-def _fit_distance(points: NDArray[np.float64], target: NDArray[np.float64], yaw: float, pitch: float,
-                  half_tan: tuple[float, float]) -> float:
+def _fit_distance(
+    points: NDArray[np.float64], target: NDArray[np.float64], yaw: float, pitch: float, half_tan: tuple[float, float]
+) -> float:
     """Smallest distance, m, at which ``points`` (k, 3) m project within ``half_tan`` (x, y).
 
     A point q (relative to the target) is in view when |q.r| <= tx (q.f + d) and
@@ -81,8 +83,9 @@ def _fit_distance(points: NDArray[np.float64], target: NDArray[np.float64], yaw:
     return float(need.max())
 
 
-def _centre_vertically(points: NDArray[np.float64], target: NDArray[np.float64], distance: float, yaw: float,
-                       pitch: float) -> NDArray[np.float64]:
+def _centre_vertically(
+    points: NDArray[np.float64], target: NDArray[np.float64], distance: float, yaw: float, pitch: float
+) -> NDArray[np.float64]:
     """Target (3,) m moved along the camera's up axis so ``points`` (k, 3) are centred vertically.
 
     The move leaves depths and horizontal positions in the image unchanged.
@@ -101,8 +104,15 @@ def _centre_vertically(points: NDArray[np.float64], target: NDArray[np.float64],
     return target + 0.5 * (lo + hi) * up
 
 
-def camera_for_arena(size_xy: Sequence[float], height: float = 1.0, *, pitch: float = -45.0,
-                     aspect: float = 16.0 / 9.0, fill: float = 0.92, fov_deg: float = RENDER_FOV_DEG) -> Camera:
+def camera_for_arena(
+    size_xy: Sequence[float],
+    height: float = 1.0,
+    *,
+    pitch: float = -45.0,
+    aspect: float = 16.0 / 9.0,
+    fill: float = 0.92,
+    fov_deg: float = RENDER_FOV_DEG,
+) -> Camera:
     """Camera that frames the arena [0, Lx] x [0, Ly] x [0, height] from the side and above.
 
     The longer side of the arena runs across the image. The camera is as close as possible
@@ -137,11 +147,11 @@ def camera_for_arena(size_xy: Sequence[float], height: float = 1.0, *, pitch: fl
     target = np.array([lx / 2.0, ly / 2.0, 0.0])
 
     def distance_for(t: NDArray[np.float64]) -> float:
-        return max(_fit_distance(floor, t, yaw, pitch, (fill * tan_y * aspect, fill * tan_y)),
-                   _fit_distance(volume, t, yaw, pitch, (tan_y * aspect, tan_y)))
+        return max(
+            _fit_distance(floor, t, yaw, pitch, (fill * tan_y * aspect, fill * tan_y)),
+            _fit_distance(volume, t, yaw, pitch, (tan_y * aspect, tan_y)),
+        )
 
     for _ in range(4):
         target = _centre_vertically(volume, target, distance_for(target), yaw, pitch)
     return Camera(tuple(target.tolist()), distance_for(target), yaw, pitch)  # type: ignore[arg-type]
-
-

@@ -3,6 +3,7 @@
 This module is the only importer of ``pybullet``. Callers hold integer handles (agent indices,
 body handles) and numpy arrays; the client id never leaves this class.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -40,7 +41,6 @@ def _quiet_stdout(stream: Any = None) -> Iterator[None]:
 
 with _quiet_stdout(), _quiet_stdout(sys.stderr):
     import pybullet as pb
-
 
 
 _NO_PAIRS: frozenset[tuple[int, int]] = frozenset()
@@ -121,8 +121,9 @@ class World:
         shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=cid)
         visual = pb.createVisualShape(pb.GEOM_BOX, halfExtents=half, rgbaColor=list(color), physicsClientId=cid)
         orn = pb.getQuaternionFromEuler([0.0, 0.0, yaw])
-        body = pb.createMultiBody(float(mass), shape, visual, basePosition=list(map(float, center)),
-                                  baseOrientation=orn, physicsClientId=cid)
+        body = pb.createMultiBody(
+            float(mass), shape, visual, basePosition=list(map(float, center)), baseOrientation=orn, physicsClientId=cid
+        )
         pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=cid)
         if mass > 0.0:
             # resting boxes fall asleep and cost nothing until something touches them
@@ -134,13 +135,24 @@ class World:
         """Wake a sleeping body up (before attaching it, for example)."""
         pb.changeDynamics(body, -1, activationState=pb.ACTIVATION_STATE_WAKE_UP, physicsClientId=self._cid)
 
-    def add_cylinder(self, center: Sequence[float], radius: float, height: float, *, name: str = "",
-                     kind: BodyKind = BodyKind.OBSTACLE, color: Sequence[float] = (0.5, 0.5, 0.5, 1.0)) -> int:
+    def add_cylinder(
+        self,
+        center: Sequence[float],
+        radius: float,
+        height: float,
+        *,
+        name: str = "",
+        kind: BodyKind = BodyKind.OBSTACLE,
+        color: Sequence[float] = (0.5, 0.5, 0.5, 1.0),
+    ) -> int:
         """Add a static vertical cylinder (a pillar); returns its body handle."""
         cid = self._cid
-        shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=float(radius), height=float(height), physicsClientId=cid)
-        visual = pb.createVisualShape(pb.GEOM_CYLINDER, radius=float(radius), length=float(height),
-                                      rgbaColor=list(color), physicsClientId=cid)
+        shape = pb.createCollisionShape(
+            pb.GEOM_CYLINDER, radius=float(radius), height=float(height), physicsClientId=cid
+        )
+        visual = pb.createVisualShape(
+            pb.GEOM_CYLINDER, radius=float(radius), length=float(height), rgbaColor=list(color), physicsClientId=cid
+        )
         body = pb.createMultiBody(0.0, shape, visual, basePosition=list(map(float, center)), physicsClientId=cid)
         self._register(body, kind, name or f"{kind.value}{body}")
         return body
@@ -155,8 +167,10 @@ class World:
             ((-t / 2, ly / 2, h / 2), (t, ly, h)),
             ((lx + t / 2, ly / 2, h / 2), (t, ly, h)),
         ]
-        return [self.add_box(c, s, kind=BodyKind.WALL, name=f"wall{i}", color=(0.7, 0.7, 0.75, 0.4))
-                for i, (c, s) in enumerate(specs)]
+        return [
+            self.add_box(c, s, kind=BodyKind.WALL, name=f"wall{i}", color=(0.7, 0.7, 0.75, 0.4))
+            for i, (c, s) in enumerate(specs)
+        ]
 
     def add_agents(
         self,
@@ -181,14 +195,23 @@ class World:
         for i in range(n):
             orn = pb.getQuaternionFromEuler([0.0, 0.0, float(yaws[i])])
             with _quiet_stdout():
-                body = pb.loadURDF(str(urdf), basePosition=positions[i].tolist(), baseOrientation=orn,
-                                   flags=flags, physicsClientId=cid)
+                body = pb.loadURDF(
+                    str(urdf), basePosition=positions[i].tolist(), baseOrientation=orn, flags=flags, physicsClientId=cid
+                )
             # Low friction and compliant contacts (as with propeller guards): a bump pushes an
             # airframe aside instead of levering it over in one physics step.
-            pb.changeDynamics(body, -1, mass=float(mass), localInertiaDiagonal=[float(v) for v in inertia],
-                              linearDamping=0.0, angularDamping=0.0, lateralFriction=0.2,
-                              contactStiffness=contact_stiffness, contactDamping=contact_damping,
-                              physicsClientId=cid)
+            pb.changeDynamics(
+                body,
+                -1,
+                mass=float(mass),
+                localInertiaDiagonal=[float(v) for v in inertia],
+                linearDamping=0.0,
+                angularDamping=0.0,
+                lateralFriction=0.2,
+                contactStiffness=contact_stiffness,
+                contactDamping=contact_damping,
+                physicsClientId=cid,
+            )
             self._agents.append(body)
             self._register(body, BodyKind.AGENT, f"agent{i}")
         self._poses = [self._get_pose(b, cid)[0] for b in self._agents]
@@ -265,8 +288,14 @@ class World:
             return _NO_PAIRS
         return {(p[1], p[2]) if p[1] < p[2] else (p[2], p[1]) for p in pts}
 
-    def reset_agent(self, index: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1),
-                    velocity: Sequence[float] = (0, 0, 0), angular_velocity: Sequence[float] = (0, 0, 0)) -> None:
+    def reset_agent(
+        self,
+        index: int,
+        position: Sequence[float],
+        quaternion: Sequence[float] = (0, 0, 0, 1),
+        velocity: Sequence[float] = (0, 0, 0),
+        angular_velocity: Sequence[float] = (0, 0, 0),
+    ) -> None:
         """Teleport an agent to a state (for tests and environment resets)."""
         b = self._agents[index]
         pb.resetBasePositionAndOrientation(b, list(position), list(quaternion), physicsClientId=self._cid)
@@ -274,8 +303,9 @@ class World:
 
     def reset_body(self, body: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1)) -> None:
         """Teleport any body to a pose, at rest."""
-        pb.resetBasePositionAndOrientation(body, list(map(float, position)), list(map(float, quaternion)),
-                                           physicsClientId=self._cid)
+        pb.resetBasePositionAndOrientation(
+            body, list(map(float, position)), list(map(float, quaternion)), physicsClientId=self._cid
+        )
         pb.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=self._cid)
 
     def body_pose(self, body: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -313,8 +343,18 @@ class World:
         rel_p, rel_o = pb.multiplyTransforms(ip, io, cp, co)
         if square:
             rel_o = _nearest_quarter_turn(rel_o)
-        c = pb.createConstraint(parent, -1, child, -1, pb.JOINT_FIXED, [0, 0, 0], rel_p, [0, 0, 0],
-                                parentFrameOrientation=rel_o, physicsClientId=cid)
+        c = pb.createConstraint(
+            parent,
+            -1,
+            child,
+            -1,
+            pb.JOINT_FIXED,
+            [0, 0, 0],
+            rel_p,
+            [0, 0, 0],
+            parentFrameOrientation=rel_o,
+            physicsClientId=cid,
+        )
         pb.changeConstraint(c, maxForce=float(max_force), physicsClientId=cid)
         return c
 
@@ -331,7 +371,9 @@ class World:
         pb.removeConstraint(constraint, physicsClientId=self._cid)
 
     # --------------------------------------------------------------- sensing
-    def ray_cast(self, starts: NDArray[np.float64], ends: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    def ray_cast(
+        self, starts: NDArray[np.float64], ends: NDArray[np.float64]
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         """Cast rays in one batched call; returns hit body handles (m,) (-1 for none) and hit fractions (m,)."""
         out = pb.rayTestBatch(starts.tolist(), ends.tolist(), physicsClientId=self._cid)
         hits = np.fromiter((r[0] for r in out), dtype=np.int64, count=len(out))
@@ -339,14 +381,23 @@ class World:
         return hits, frac
 
     # ------------------------------------------------------------- rendering
-    def render(self, width: int, height: int, *, target: Sequence[float], distance: float, yaw: float,
-               pitch: float) -> NDArray[np.uint8]:
+    def render(
+        self, width: int, height: int, *, target: Sequence[float], distance: float, yaw: float, pitch: float
+    ) -> NDArray[np.uint8]:
         """Render an RGB frame (height, width, 3) with the tiny software renderer (works in DIRECT)."""
         cid = self._cid
         view = pb.computeViewMatrixFromYawPitchRoll(list(target), distance, yaw, pitch, 0.0, 2, physicsClientId=cid)
         proj = pb.computeProjectionMatrixFOV(50.0, width / height, 0.05, 50.0, physicsClientId=cid)
-        img = pb.getCameraImage(width, height, view, proj, renderer=pb.ER_TINY_RENDERER, shadow=0,
-                                flags=pb.ER_NO_SEGMENTATION_MASK, physicsClientId=cid)
+        img = pb.getCameraImage(
+            width,
+            height,
+            view,
+            proj,
+            renderer=pb.ER_TINY_RENDERER,
+            shadow=0,
+            flags=pb.ER_NO_SEGMENTATION_MASK,
+            physicsClientId=cid,
+        )
         rgba = np.reshape(np.asarray(img[2], dtype=np.uint8), (height, width, 4))
         return rgba[:, :, :3]
 
@@ -355,42 +406,84 @@ class World:
         """Point the GUI's camera at ``target`` (3,) m from ``distance`` m, ``yaw`` and ``pitch`` deg
         (Bullet's convention: yaw 0 looks along +y); nothing happens in DIRECT mode."""
         if self.gui:
-            pb.resetDebugVisualizerCamera(float(distance), float(yaw), float(pitch), [float(v) for v in target],
-                                          physicsClientId=self._cid)
+            pb.resetDebugVisualizerCamera(
+                float(distance), float(yaw), float(pitch), [float(v) for v in target], physicsClientId=self._cid
+            )
 
     def set_color(self, body: int, rgba: Sequence[float]) -> None:
         """Colour every visual shape of a body (RGBA in [0, 1])."""
         pb.changeVisualShape(body, -1, rgbaColor=[float(v) for v in rgba], physicsClientId=self._cid)
 
-    def debug_text(self, text: str, position: Sequence[float], *, color: Sequence[float] = (0.0, 0.0, 0.0),
-                   size: float = 1.4, replace: int = -1) -> int:
+    def debug_text(
+        self,
+        text: str,
+        position: Sequence[float],
+        *,
+        color: Sequence[float] = (0.0, 0.0, 0.0),
+        size: float = 1.4,
+        replace: int = -1,
+    ) -> int:
         """Show ``text`` at ``position`` (3,) m in the GUI (replacing the item ``replace``); returns the
         item's id, -1 in DIRECT mode (where nothing is drawn)."""
         if not self.gui:
             return -1
         kw = {"replaceItemUniqueId": replace} if replace >= 0 else {}
-        return int(pb.addUserDebugText(text, [float(v) for v in position], textColorRGB=[float(c) for c in color[:3]],
-                                       textSize=float(size), physicsClientId=self._cid, **kw))
+        return int(
+            pb.addUserDebugText(
+                text,
+                [float(v) for v in position],
+                textColorRGB=[float(c) for c in color[:3]],
+                textSize=float(size),
+                physicsClientId=self._cid,
+                **kw,
+            )
+        )
 
-    def debug_line(self, start: Sequence[float], end: Sequence[float], *, color: Sequence[float] = (1.0, 0.0, 0.0),
-                   width: float = 2.0, lifetime: float = 0.0) -> int:
+    def debug_line(
+        self,
+        start: Sequence[float],
+        end: Sequence[float],
+        *,
+        color: Sequence[float] = (1.0, 0.0, 0.0),
+        width: float = 2.0,
+        lifetime: float = 0.0,
+    ) -> int:
         """Draw a line from ``start`` to ``end`` (3,) m in the GUI for ``lifetime`` s of wall-clock time (0:
         until removed); returns its id, -1 in DIRECT mode (where nothing is drawn)."""
         if not self.gui:
             return -1
-        return int(pb.addUserDebugLine([float(v) for v in start], [float(v) for v in end],
-                                       lineColorRGB=[float(c) for c in color[:3]], lineWidth=float(width),
-                                       lifeTime=float(lifetime), physicsClientId=self._cid))
+        return int(
+            pb.addUserDebugLine(
+                [float(v) for v in start],
+                [float(v) for v in end],
+                lineColorRGB=[float(c) for c in color[:3]],
+                lineWidth=float(width),
+                lifeTime=float(lifetime),
+                physicsClientId=self._cid,
+            )
+        )
 
-    def debug_points(self, points: NDArray[np.float64], colors: Sequence[Sequence[float]], *, size: float = 4.0,
-                     lifetime: float = 0.0) -> int:
+    def debug_points(
+        self,
+        points: NDArray[np.float64],
+        colors: Sequence[Sequence[float]],
+        *,
+        size: float = 4.0,
+        lifetime: float = 0.0,
+    ) -> int:
         """Draw points (k, 3) m in RGB ``colors`` (k, 3) in the GUI for ``lifetime`` s of wall-clock time (0:
         until removed), in one call; returns the item's id, -1 in DIRECT mode (where nothing is drawn)."""
         if not self.gui or len(points) == 0:
             return -1
-        return int(pb.addUserDebugPoints(np.asarray(points, dtype=float).tolist(),
-                                         [[float(c) for c in rgb[:3]] for rgb in colors], pointSize=float(size),
-                                         lifeTime=float(lifetime), physicsClientId=self._cid))
+        return int(
+            pb.addUserDebugPoints(
+                np.asarray(points, dtype=float).tolist(),
+                [[float(c) for c in rgb[:3]] for rgb in colors],
+                pointSize=float(size),
+                lifeTime=float(lifetime),
+                physicsClientId=self._cid,
+            )
+        )
 
     def close(self) -> None:
         """Disconnect the client (idempotent)."""
@@ -422,11 +515,11 @@ def _nearest_quarter_turn(q: Any) -> tuple[float, float, float, float]:
     R = np.array(pb.getMatrixFromQuaternion(q)).reshape(3, 3)
     S = np.zeros((3, 3))
     rows, cols = [0, 1, 2], [0, 1, 2]
-    for _ in range(3):   # greedily give each box axis the parent axis it is most parallel to
+    for _ in range(3):  # greedily give each box axis the parent axis it is most parallel to
         a, b = np.unravel_index(int(np.argmax(np.abs(R[np.ix_(rows, cols)]))), (len(rows), len(cols)))
         r, c = rows.pop(a), cols.pop(b)
         S[r, c] = 1.0 if R[r, c] >= 0.0 else -1.0
-    if np.linalg.det(S) < 0.0:   # a tie near 45 deg: flip the least certain of the three choices
+    if np.linalg.det(S) < 0.0:  # a tie near 45 deg: flip the least certain of the three choices
         r, c = min(zip(*np.nonzero(S)), key=lambda rc: abs(R[rc]))
         S[r, c] = -S[r, c]
     x, y, z, w = Rotation.from_matrix(S).as_quat()

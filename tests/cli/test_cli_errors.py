@@ -5,6 +5,7 @@ exit code. A property-based test mutates the bundled ``hover.yaml`` in ways that
 invalid (wrong types, deleted required fields, unknown keys, out-of-range numbers, broken YAML)
 and a generic fuzz test in arbitrary ways (exit 0 or 2, never 1).
 """
+
 from __future__ import annotations
 
 import copy
@@ -27,8 +28,12 @@ HOVER = scenarios_dir() / "hover.yaml"
 HOVER_TEXT = HOVER.read_text(encoding="utf-8")
 BASE: dict[str, Any] = yaml.safe_load(HOVER_TEXT)
 
-FUZZ = settings(max_examples=150, deadline=None, database=None,
-                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=150,
+    deadline=None,
+    database=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 
 
 def run_cli(capsys: pytest.CaptureFixture[str], argv: list[str]) -> tuple[int, str, str]:
@@ -106,8 +111,8 @@ REQUIRED += [p for p, _ in LEAVES if len(p) == 5 and p[3] == "position"]
 
 texts = st.text(max_size=12)
 finite = st.floats(allow_nan=False, allow_infinity=False)
-numbers = st.one_of(st.integers(-10**9, 10**9), finite)
-text_lists = st.lists(texts, max_size=4)                   # never a valid list of numbers or records
+numbers = st.one_of(st.integers(-(10**9), 10**9), finite)
+text_lists = st.lists(texts, max_size=4)  # never a valid list of numbers or records
 non_empty_dicts = st.dictionaries(texts, texts, min_size=1, max_size=3)
 
 
@@ -115,15 +120,15 @@ def wrong_type(path: Path_, value: Any) -> st.SearchStrategy[Any]:
     """Values of a type the field at ``path`` (now holding ``value``) cannot take."""
     if isinstance(value, bool):
         options = [numbers, texts, text_lists, non_empty_dicts, st.none()]
-    elif isinstance(value, (int, float)):   # an int where a float is expected is valid: no numbers
+    elif isinstance(value, (int, float)):  # an int where a float is expected is valid: no numbers
         options = [texts, st.booleans(), text_lists, non_empty_dicts]
         if path not in NULLABLE:
             options.append(st.none())
     elif isinstance(value, str):
         options = [numbers, st.booleans(), text_lists, non_empty_dicts, st.none()]
-    elif isinstance(value, list):           # arena.size, waypoints, positions
+    elif isinstance(value, list):  # arena.size, waypoints, positions
         options = [numbers, texts, st.booleans(), non_empty_dicts, st.none(), st.just([])]
-    else:                                   # a section or a waypoint record ({} would be valid)
+    else:  # a section or a waypoint record ({} would be valid)
         options = [numbers, texts, st.booleans(), st.lists(texts, min_size=1, max_size=3)]
     return st.one_of(*options)
 
@@ -131,20 +136,25 @@ def wrong_type(path: Path_, value: Any) -> st.SearchStrategy[Any]:
 def _below(bound: float, *, strict: bool) -> st.SearchStrategy[Any]:
     """Numbers < bound (strict) or <= bound, as ints and floats (including -inf)."""
     top = bound - 1e-9 if strict else bound
-    return st.one_of(st.floats(max_value=top, allow_nan=False),
-                     st.integers(min_value=-10**30, max_value=math.ceil(top) - 1 if strict else math.floor(top)))
+    return st.one_of(
+        st.floats(max_value=top, allow_nan=False),
+        st.integers(min_value=-(10**30), max_value=math.ceil(top) - 1 if strict else math.floor(top)),
+    )
 
 
 def _above(bound: float) -> st.SearchStrategy[Any]:
-    return st.one_of(st.floats(min_value=bound * (1 + 1e-9) + 1e-9), st.integers(min_value=int(bound) + 1,
-                                                                                 max_value=10**30))
+    return st.one_of(
+        st.floats(min_value=bound * (1 + 1e-9) + 1e-9), st.integers(min_value=int(bound) + 1, max_value=10**30)
+    )
 
 
 # field -> numbers outside its declared bounds (ge/gt/le of scenario.py)
 OUT_OF_RANGE: dict[Path_, st.SearchStrategy[Any]] = {
-    ("seed",): st.one_of(st.integers(max_value=-1, min_value=-10**30), st.integers(min_value=2**63, max_value=10**30)),
-    ("agents", "count"): st.one_of(st.integers(min_value=-10**30, max_value=0), st.integers(2001, 10**30)),
-    ("sim", "physics_hz"): st.one_of(st.integers(min_value=-10**30, max_value=59), st.integers(10_001, 10**30)),
+    ("seed",): st.one_of(
+        st.integers(max_value=-1, min_value=-(10**30)), st.integers(min_value=2**63, max_value=10**30)
+    ),
+    ("agents", "count"): st.one_of(st.integers(min_value=-(10**30), max_value=0), st.integers(2001, 10**30)),
+    ("sim", "physics_hz"): st.one_of(st.integers(min_value=-(10**30), max_value=59), st.integers(10_001, 10**30)),
     ("sim", "gravity"): st.one_of(_below(0.0, strict=True), _above(100.0), st.just(math.nan)),
     ("arena", "size", 0): st.one_of(_below(0.0, strict=False), _above(1e4)),
     ("arena", "size", 1): st.one_of(_below(0.0, strict=False), _above(1e4)),
@@ -155,8 +165,9 @@ OUT_OF_RANGE: dict[Path_, st.SearchStrategy[Any]] = {
     ("task", "hold_s"): st.one_of(_below(0.0, strict=True), _above(1e4)),
 }
 for _rate in ("control_hz", "planner_hz", "record_hz"):
-    OUT_OF_RANGE[("sim", _rate)] = st.one_of(st.integers(min_value=-10**30, max_value=0),
-                                             st.integers(241, 10**30))   # > physics_hz or > le
+    OUT_OF_RANGE[("sim", _rate)] = st.one_of(
+        st.integers(min_value=-(10**30), max_value=0), st.integers(241, 10**30)
+    )  # > physics_hz or > le
 for _p, _ in LEAVES:
     if len(_p) == 4 and _p[3] == "t_s":
         OUT_OF_RANGE[_p] = st.one_of(_below(0.0, strict=True), _above(1e5))
@@ -195,13 +206,35 @@ def invalid_scenarios(draw: Callable[..., Any]) -> tuple[str, str]:
 
 # a JSON-like value of any shape, for the generic fuzz
 any_value = st.recursive(
-    st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6), st.floats(), st.text(max_size=8)),
+    st.one_of(st.none(), st.booleans(), st.integers(-(10**6), 10**6), st.floats(), st.text(max_size=8)),
     lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=6), inner, max_size=3)),
     max_leaves=8,
 )
 
-BREAKERS = ["[", "]", "{", "}", "'", '"', "\t", ": ", "- ", "&a ", "*a", "!!int ", "%", "@", "`", "|", ">", ",",
-            "\n  ", "\n", "#", "? "]
+BREAKERS = [
+    "[",
+    "]",
+    "{",
+    "}",
+    "'",
+    '"',
+    "\t",
+    ": ",
+    "- ",
+    "&a ",
+    "*a",
+    "!!int ",
+    "%",
+    "@",
+    "`",
+    "|",
+    ">",
+    ",",
+    "\n  ",
+    "\n",
+    "#",
+    "? ",
+]
 
 
 @st.composite
@@ -228,6 +261,7 @@ def any_scenarios(draw: Callable[..., Any]) -> tuple[str, str]:
 # -------------------------------------------------------- explicit bad YAML
 def _mut(**changes: Any) -> Callable[[], str]:
     """Text of hover.yaml with dotted paths set (value ...) or deleted (value DELETE)."""
+
     def build() -> str:
         data = copy.deepcopy(BASE)
         for key, value in changes.items():
@@ -237,11 +271,12 @@ def _mut(**changes: Any) -> Callable[[], str]:
             else:
                 set_at(data, path, value)
         return dump(data)
+
     return build
 
 
 DELETE = object()
-COUNT_LINE = HOVER_TEXT.splitlines().index("  count: 1") + 1   # 1-based line of agents.count
+COUNT_LINE = HOVER_TEXT.splitlines().index("  count: 1") + 1  # 1-based line of agents.count
 
 EXPLICIT: list[tuple[str, Callable[[], str], list[str], str | tuple[str, ...]]] = [
     ("count_zero", _mut(agents__count=0), [], "bad.yaml: agents.count: must be >= 1, got 0"),
@@ -250,59 +285,156 @@ EXPLICIT: list[tuple[str, Callable[[], str], list[str], str | tuple[str, ...]]] 
     ("unknown_nested", _mut(sim__phyics_hz=240), [], "bad.yaml: sim.phyics_hz: unknown field, got 240"),
     ("missing_task", _mut(task=DELETE), [], "bad.yaml: task: is required"),
     ("missing_time_limit", _mut(task__time_limit_s=DELETE), [], "bad.yaml: task.time_limit_s: is required"),
-    ("unknown_task_kind", _mut(task__kind="dance"), [], "bad.yaml: task.kind: must be one of construction, route, tour, waypoints, got 'dance'"),
-    ("task_kind_list", _mut(task__kind=["waypoints"]), [],
-     "bad.yaml: task.kind: must be one of construction, route, tour, waypoints, got ['waypoints']"),
-    ("control_50", _mut(sim__control_hz=50), [],
-     "bad.yaml: sim.control_hz: must divide sim.physics_hz (240) into an integer ratio, got 50"),
-    ("record_7", _mut(sim__record_hz=7), [],
-     "bad.yaml: sim.record_hz: must divide sim.physics_hz (240) into an integer ratio, got 7"),
+    (
+        "unknown_task_kind",
+        _mut(task__kind="dance"),
+        [],
+        "bad.yaml: task.kind: must be one of construction, route, tour, waypoints, got 'dance'",
+    ),
+    (
+        "task_kind_list",
+        _mut(task__kind=["waypoints"]),
+        [],
+        "bad.yaml: task.kind: must be one of construction, route, tour, waypoints, got ['waypoints']",
+    ),
+    (
+        "control_50",
+        _mut(sim__control_hz=50),
+        [],
+        "bad.yaml: sim.control_hz: must divide sim.physics_hz (240) into an integer ratio, got 50",
+    ),
+    (
+        "record_7",
+        _mut(sim__record_hz=7),
+        [],
+        "bad.yaml: sim.record_hz: must divide sim.physics_hz (240) into an integer ratio, got 7",
+    ),
     ("velocity_negative", _mut(limits__velocity=-1), [], "bad.yaml: limits.velocity: must be >= 0.001, got -1"),
-    ("velocity_short", _mut(limits__velocity=[1, 2]), [],
-     "bad.yaml: limits.velocity: must have at least 3 items, got [1, 2]"),
+    (
+        "velocity_short",
+        _mut(limits__velocity=[1, 2]),
+        [],
+        "bad.yaml: limits.velocity: must have at least 3 items, got [1, 2]",
+    ),
     ("velocity_item", _mut(limits__velocity=[1, 0, 1]), [], "bad.yaml: limits.velocity[1]: must be >= 0.001, got 0"),
-    ("start_count", _mut(agents__count=2, agents__start=[[1.0, 1.0, 0.1]]), [],
-     "bad.yaml: agents.start: must hold agents.count (2) positions, got 1"),
-    ("outside_arena", _mut(agents__start=[[3.5, 1.0, 0.1]]), [],
-     ("bad.yaml: agents.start[0]: agent 0 starts at (3.5, 1), outside the arena",)),
+    (
+        "start_count",
+        _mut(agents__count=2, agents__start=[[1.0, 1.0, 0.1]]),
+        [],
+        "bad.yaml: agents.start: must hold agents.count (2) positions, got 1",
+    ),
+    (
+        "outside_arena",
+        _mut(agents__start=[[3.5, 1.0, 0.1]]),
+        [],
+        ("bad.yaml: agents.start[0]: agent 0 starts at (3.5, 1), outside the arena",),
+    ),
     ("layout_outside_arena", _mut(agents__count=400), [], ("bad.yaml: agents.count: ", "outside the arena")),
-    ("overlapping", _mut(agents__count=2, agents__start=[[1.0, 1.0, 0.1], [1.0, 1.02, 0.1]]), [],
-     ("bad.yaml: agents.start: agents 0 and 1 start overlapping",)),
-    ("unknown_vehicle", _mut(agents__vehicle="quad999"), [],
-     ("bad.yaml: agents.vehicle: unknown vehicle 'quad999', expected one of", "quad150")),
-    ("decreasing_times", _mut(task__waypoints__2__t_s=3), [],
-     "bad.yaml: task.waypoints[2].t_s: waypoint times must not decrease, got 3 after 8"),
-    ("nan_waypoint", _mut(task__waypoints__1__position=[math.nan, 0.0, 1.0]), [],
-     "bad.yaml: task.waypoints[1].position[0]: must be a finite number, got nan"),
-    ("unclosed_bracket", lambda: HOVER_TEXT.replace("size: [3.0, 3.0]", "size: [3.0, 3.0"), [],
-     ("bad.yaml: malformed YAML at line ", "expected ',' or ']'")),
-    ("unclosed_brace", lambda: "sim: {physics_hz: 240\n", [],
-     ("bad.yaml: malformed YAML at line 2, column 1: expected ',' or '}', but got '<stream end>'",)),
-    ("tab_indent", lambda: HOVER_TEXT.replace("\n  count: 1", "\n\tcount: 1"), [],
-     (f"bad.yaml: malformed YAML at line {COUNT_LINE}, column 1: found character '\\t' that cannot start any token",)),
-    ("duplicate_key", lambda: HOVER_TEXT + "seed: 1\n", [], ("bad.yaml: malformed YAML at line", "duplicate key 'seed'")),
-    ("bad_date", lambda: HOVER_TEXT.replace("seed: 0", "seed: 2024-02-30"), [],
-     ("bad.yaml: seed: cannot read !!timestamp '2024-02-30' (day is out of range for month) (line ",)),
+    (
+        "overlapping",
+        _mut(agents__count=2, agents__start=[[1.0, 1.0, 0.1], [1.0, 1.02, 0.1]]),
+        [],
+        ("bad.yaml: agents.start: agents 0 and 1 start overlapping",),
+    ),
+    (
+        "unknown_vehicle",
+        _mut(agents__vehicle="quad999"),
+        [],
+        ("bad.yaml: agents.vehicle: unknown vehicle 'quad999', expected one of", "quad150"),
+    ),
+    (
+        "decreasing_times",
+        _mut(task__waypoints__2__t_s=3),
+        [],
+        "bad.yaml: task.waypoints[2].t_s: waypoint times must not decrease, got 3 after 8",
+    ),
+    (
+        "nan_waypoint",
+        _mut(task__waypoints__1__position=[math.nan, 0.0, 1.0]),
+        [],
+        "bad.yaml: task.waypoints[1].position[0]: must be a finite number, got nan",
+    ),
+    (
+        "unclosed_bracket",
+        lambda: HOVER_TEXT.replace("size: [3.0, 3.0]", "size: [3.0, 3.0"),
+        [],
+        ("bad.yaml: malformed YAML at line ", "expected ',' or ']'"),
+    ),
+    (
+        "unclosed_brace",
+        lambda: "sim: {physics_hz: 240\n",
+        [],
+        ("bad.yaml: malformed YAML at line 2, column 1: expected ',' or '}', but got '<stream end>'",),
+    ),
+    (
+        "tab_indent",
+        lambda: HOVER_TEXT.replace("\n  count: 1", "\n\tcount: 1"),
+        [],
+        (
+            f"bad.yaml: malformed YAML at line {COUNT_LINE}, column 1: found character '\\t' that cannot start any token",
+        ),
+    ),
+    (
+        "duplicate_key",
+        lambda: HOVER_TEXT + "seed: 1\n",
+        [],
+        ("bad.yaml: malformed YAML at line", "duplicate key 'seed'"),
+    ),
+    (
+        "bad_date",
+        lambda: HOVER_TEXT.replace("seed: 0", "seed: 2024-02-30"),
+        [],
+        ("bad.yaml: seed: cannot read !!timestamp '2024-02-30' (day is out of range for month) (line ",),
+    ),
     ("empty", lambda: "", [], "bad.yaml: must be a mapping of scenario sections, got NoneType"),
-    ("top_level_list", lambda: "- name: hover\n- seed: 0\n", [],
-     "bad.yaml: must be a mapping of scenario sections, got list"),
+    (
+        "top_level_list",
+        lambda: "- name: hover\n- seed: 0\n",
+        [],
+        "bad.yaml: must be a mapping of scenario sections, got list",
+    ),
     ("top_level_scalar", lambda: "hover\n", [], "bad.yaml: must be a mapping of scenario sections, got str"),
-    ("set_without_equals", lambda: HOVER_TEXT, ["--set", "agents.count"],
-     "--set: expected key.path=value, got 'agents.count'"),
-    ("set_not_a_number", lambda: HOVER_TEXT, ["--set", "agents.count=abc"],
-     "bad.yaml: agents.count: must be a valid integer, got 'abc'"),
-    ("set_inside_scalar", lambda: HOVER_TEXT, ["--set", "sim.physics_hz.x=1"],
-     "bad.yaml: sim.physics_hz: must be a mapping to set sim.physics_hz.x inside it, got 240"),
-    ("set_bad_yaml", lambda: HOVER_TEXT, ["--set", "agents.count=[1"],
-     "--set: agents.count: value is not valid YAML, got '[1'"),
-    ("set_rate", lambda: HOVER_TEXT, ["--set", "sim.record_hz=7"],
-     "bad.yaml: sim.record_hz: must divide sim.physics_hz (240) into an integer ratio, got 7"),
+    (
+        "set_without_equals",
+        lambda: HOVER_TEXT,
+        ["--set", "agents.count"],
+        "--set: expected key.path=value, got 'agents.count'",
+    ),
+    (
+        "set_not_a_number",
+        lambda: HOVER_TEXT,
+        ["--set", "agents.count=abc"],
+        "bad.yaml: agents.count: must be a valid integer, got 'abc'",
+    ),
+    (
+        "set_inside_scalar",
+        lambda: HOVER_TEXT,
+        ["--set", "sim.physics_hz.x=1"],
+        "bad.yaml: sim.physics_hz: must be a mapping to set sim.physics_hz.x inside it, got 240",
+    ),
+    (
+        "set_bad_yaml",
+        lambda: HOVER_TEXT,
+        ["--set", "agents.count=[1"],
+        "--set: agents.count: value is not valid YAML, got '[1'",
+    ),
+    (
+        "set_rate",
+        lambda: HOVER_TEXT,
+        ["--set", "sim.record_hz=7"],
+        "bad.yaml: sim.record_hz: must divide sim.physics_hz (240) into an integer ratio, got 7",
+    ),
 ]
 
 
 @pytest.mark.parametrize(("build", "extra", "expected"), [c[1:] for c in EXPLICIT], ids=[c[0] for c in EXPLICIT])
-def test_explicit_bad_scenarios(tmp_path: Path, capsys: pytest.CaptureFixture[str], build: Callable[[], str],
-                                extra: list[str], expected: str | tuple[str, ...]) -> None:
+def test_explicit_bad_scenarios(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    build: Callable[[], str],
+    extra: list[str],
+    expected: str | tuple[str, ...],
+) -> None:
     path = tmp_path / "bad.yaml"
     path.write_text(build(), encoding="utf-8")
     code, out, err = check_file(capsys, path, *extra)
@@ -322,14 +454,23 @@ def test_file_that_does_not_exist(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 @pytest.mark.parametrize("name", ["nosuch", "x" * 300])
 def test_unknown_bundled_name(capsys: pytest.CaptureFixture[str], name: str) -> None:
-    assert_one_line_error(*run_cli(capsys, ["check", name]), f"{name}: no scenario file or bundled scenario named",
-                          "bundled: ")
+    assert_one_line_error(
+        *run_cli(capsys, ["check", name]), f"{name}: no scenario file or bundled scenario named", "bundled: "
+    )
 
 
 @pytest.mark.parametrize(
     "argv",
-    [[], ["frobnicate"], ["check"], ["check", "hover", "--bogus"], ["run", "hover", "--seed", "abc"],
-     ["run", "hover", "--seed", "-1"], ["design", "--vehicle", "nosuch"], ["design", "--vehicle", "v" * 300]],
+    [
+        [],
+        ["frobnicate"],
+        ["check"],
+        ["check", "hover", "--bogus"],
+        ["run", "hover", "--seed", "abc"],
+        ["run", "hover", "--seed", "-1"],
+        ["design", "--vehicle", "nosuch"],
+        ["design", "--vehicle", "v" * 300],
+    ],
 )
 def test_usage_errors_are_one_line(capsys: pytest.CaptureFixture[str], argv: list[str]) -> None:
     assert_one_line_error(*run_cli(capsys, argv))
@@ -347,8 +488,9 @@ def test_binary_and_directory_inputs(tmp_path: Path, capsys: pytest.CaptureFixtu
 # ------------------------------------------------------------- property tests
 @FUZZ
 @given(case=invalid_scenarios())
-def test_guaranteed_invalid_mutations_exit_2_with_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                           case: tuple[str, str]) -> None:
+def test_guaranteed_invalid_mutations_exit_2_with_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], case: tuple[str, str]
+) -> None:
     what, text = case
     path = tmp_path / "mutant.yaml"
     path.write_text(text, encoding="utf-8")
@@ -359,9 +501,12 @@ def test_guaranteed_invalid_mutations_exit_2_with_one_line(tmp_path: Path, capsy
 
 
 @FUZZ
-@given(line=st.integers(0, len(HOVER_TEXT.splitlines()) - 1), piece=st.sampled_from(["\t", "'", '"', "[", "{", "]", "}"]))
-def test_broken_yaml_at_a_line_start_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str], line: int,
-                                            piece: str) -> None:
+@given(
+    line=st.integers(0, len(HOVER_TEXT.splitlines()) - 1), piece=st.sampled_from(["\t", "'", '"', "[", "{", "]", "}"])
+)
+def test_broken_yaml_at_a_line_start_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], line: int, piece: str
+) -> None:
     assert "'" not in HOVER_TEXT and '"' not in HOVER_TEXT  # a quote is never closed
     lines = HOVER_TEXT.splitlines(keepends=True)
     lines[line] = piece + lines[line]
@@ -372,8 +517,9 @@ def test_broken_yaml_at_a_line_start_exit_2(tmp_path: Path, capsys: pytest.Captu
 
 @FUZZ
 @given(case=any_scenarios())
-def test_any_mutation_exits_0_or_2_never_1(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                           case: tuple[str, str]) -> None:
+def test_any_mutation_exits_0_or_2_never_1(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], case: tuple[str, str]
+) -> None:
     what, text = case
     path = tmp_path / "fuzz.yaml"
     path.write_text(text, encoding="utf-8")
@@ -388,9 +534,13 @@ def test_any_mutation_exits_0_or_2_never_1(tmp_path: Path, capsys: pytest.Captur
 
 
 @FUZZ
-@given(key=st.sampled_from([".".join(map(str, p)) for p, _ in LEAVES if all(isinstance(k, str) for k in p)]
-                           + ["sim.physics_hz.x", "task.waypoints.0", "zz", "agents.start"]),
-       raw=st.one_of(st.text(max_size=15), st.sampled_from(["[1", "{", "'", "null", "-1", "1e999", "[1, 2]", ".nan"])))
+@given(
+    key=st.sampled_from(
+        [".".join(map(str, p)) for p, _ in LEAVES if all(isinstance(k, str) for k in p)]
+        + ["sim.physics_hz.x", "task.waypoints.0", "zz", "agents.start"]
+    ),
+    raw=st.one_of(st.text(max_size=15), st.sampled_from(["[1", "{", "'", "null", "-1", "1e999", "[1, 2]", ".nan"])),
+)
 def test_any_override_exits_0_or_2_never_1(capsys: pytest.CaptureFixture[str], key: str, raw: str) -> None:
     code, out, err = run_cli(capsys, ["check", "hover", "--set", f"{key}={raw}"])
     assert code in (0, 2), (key, raw, code, err)
@@ -401,9 +551,14 @@ def test_any_override_exits_0_or_2_never_1(capsys: pytest.CaptureFixture[str], k
 
 
 # ------------------------------------------------------------- check output
-@pytest.mark.parametrize(("argv", "count"), [(["check", "hover"], 1),
-                                             (["check", "hover", "--set", "agents.count=3"], 3),
-                                             (["check", "hover_swarm", "--set", "agents.count=25"], 25)])
+@pytest.mark.parametrize(
+    ("argv", "count"),
+    [
+        (["check", "hover"], 1),
+        (["check", "hover", "--set", "agents.count=3"], 3),
+        (["check", "hover_swarm", "--set", "agents.count=25"], 25),
+    ],
+)
 def test_check_prints_the_resolved_scenario(capsys: pytest.CaptureFixture[str], argv: list[str], count: int) -> None:
     code, out, err = run_cli(capsys, argv)
     assert (code, err) == (0, "")
@@ -432,39 +587,67 @@ STIGMERGY = ["construction", "--set", "planner.name=stigmergy"]
 ORCA = ["hover", "--set", "avoidance=orca"]
 
 
-@pytest.mark.parametrize(("argv", "expected"), [
-    # the issue's case: an unknown parameter
-    ([*STIGMERGY, "--set", "planner.params.no_such_parameter=1"],
-     "construction.yaml: planner.params.no_such_parameter: unknown field, got 1"),
-    ([*STIGMERGY, "--set", "planner.params.fatigue=fast"],
-     "construction.yaml: planner.params.fatigue: must be a valid number, got 'fast'"),
-    ([*STIGMERGY, "--set", "planner.params.fatigue=true"],
-     "construction.yaml: planner.params.fatigue: must be a valid number, got True"),
-    ([*STIGMERGY, "--set", "planner.params.fatigue=-1"],
-     "construction.yaml: planner.params.fatigue: must be >= 0.0, got -1"),
-    ([*STIGMERGY, "--set", "planner.params.cell_size=.nan"],
-     "construction.yaml: planner.params.cell_size: must be a finite number, got nan"),
-    ([*STIGMERGY, "--set", "planner.params.ties=last"],
-     "construction.yaml: planner.params.ties: must be 'random', 'nearest' or 'first', got 'last'"),
-    ([*ORCA, "--set", "avoidance_params.horizon=2"], "hover.yaml: avoidance_params.horizon: unknown field, got 2"),
-    ([*ORCA, "--set", "avoidance_params.max_neighbours=2.5"],
-     "hover.yaml: avoidance_params.max_neighbours: must be a valid integer, got 2.5"),
-    ([*ORCA, "--set", "avoidance_params.max_neighbours=100000"],
-     "hover.yaml: avoidance_params.max_neighbours: must be <= 100, got 100000"),
-    ([*ORCA, "--set", "avoidance_params.responsibility=0"],
-     "hover.yaml: avoidance_params.responsibility: must be > 0.0, got 0"),
-    (["formation", "--set", "avoidance_params.off_threshold=0.9"],
-     "formation.yaml: avoidance_params.off_threshold: must be <= on_threshold (0.55), got 0.9"),
-    (["hover", "--set", "avoidance_params.time_horizon=1"],     # the default layer, none, has no parameters
-     "hover.yaml: avoidance_params.time_horizon: unknown field, got 1"),
-    (["hover", "--set", "planner.params.x=1"], "hover.yaml: planner.params.x: unknown field, got 1"),
-    (["hover", "--set", "planner.name=nosuch"], "hover.yaml: planner.name: must be one of "),
-    (["hover", "--set", "planner.name=stigmergy"],
-     "hover.yaml: planner.name: planner 'stigmergy' does not solve 'waypoints' tasks (it solves construction)"),
-    (["hover", "--set", "avoidance=nosuch"], "hover.yaml: avoidance: must be one of braitenberg, none, orca"),
-])
-def test_check_refuses_bad_planner_and_avoidance_parameters(capsys: pytest.CaptureFixture[str], argv: list[str],
-                                                            expected: str) -> None:
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        # the issue's case: an unknown parameter
+        (
+            [*STIGMERGY, "--set", "planner.params.no_such_parameter=1"],
+            "construction.yaml: planner.params.no_such_parameter: unknown field, got 1",
+        ),
+        (
+            [*STIGMERGY, "--set", "planner.params.fatigue=fast"],
+            "construction.yaml: planner.params.fatigue: must be a valid number, got 'fast'",
+        ),
+        (
+            [*STIGMERGY, "--set", "planner.params.fatigue=true"],
+            "construction.yaml: planner.params.fatigue: must be a valid number, got True",
+        ),
+        (
+            [*STIGMERGY, "--set", "planner.params.fatigue=-1"],
+            "construction.yaml: planner.params.fatigue: must be >= 0.0, got -1",
+        ),
+        (
+            [*STIGMERGY, "--set", "planner.params.cell_size=.nan"],
+            "construction.yaml: planner.params.cell_size: must be a finite number, got nan",
+        ),
+        (
+            [*STIGMERGY, "--set", "planner.params.ties=last"],
+            "construction.yaml: planner.params.ties: must be 'random', 'nearest' or 'first', got 'last'",
+        ),
+        ([*ORCA, "--set", "avoidance_params.horizon=2"], "hover.yaml: avoidance_params.horizon: unknown field, got 2"),
+        (
+            [*ORCA, "--set", "avoidance_params.max_neighbours=2.5"],
+            "hover.yaml: avoidance_params.max_neighbours: must be a valid integer, got 2.5",
+        ),
+        (
+            [*ORCA, "--set", "avoidance_params.max_neighbours=100000"],
+            "hover.yaml: avoidance_params.max_neighbours: must be <= 100, got 100000",
+        ),
+        (
+            [*ORCA, "--set", "avoidance_params.responsibility=0"],
+            "hover.yaml: avoidance_params.responsibility: must be > 0.0, got 0",
+        ),
+        (
+            ["formation", "--set", "avoidance_params.off_threshold=0.9"],
+            "formation.yaml: avoidance_params.off_threshold: must be <= on_threshold (0.55), got 0.9",
+        ),
+        (
+            ["hover", "--set", "avoidance_params.time_horizon=1"],  # the default layer, none, has no parameters
+            "hover.yaml: avoidance_params.time_horizon: unknown field, got 1",
+        ),
+        (["hover", "--set", "planner.params.x=1"], "hover.yaml: planner.params.x: unknown field, got 1"),
+        (["hover", "--set", "planner.name=nosuch"], "hover.yaml: planner.name: must be one of "),
+        (
+            ["hover", "--set", "planner.name=stigmergy"],
+            "hover.yaml: planner.name: planner 'stigmergy' does not solve 'waypoints' tasks (it solves construction)",
+        ),
+        (["hover", "--set", "avoidance=nosuch"], "hover.yaml: avoidance: must be one of braitenberg, none, orca"),
+    ],
+)
+def test_check_refuses_bad_planner_and_avoidance_parameters(
+    capsys: pytest.CaptureFixture[str], argv: list[str], expected: str
+) -> None:
     assert_one_line_error(*run_cli(capsys, ["check", *argv]), PREFIX + expected)
     # run refuses the same, before anything is simulated
     assert_one_line_error(*run_cli(capsys, ["run", *argv, "--out", "/nonexistent/never"]), PREFIX + expected)
@@ -474,29 +657,58 @@ def test_check_prints_every_parameter_resolved(capsys: pytest.CaptureFixture[str
     from pybullet_swarm.planning.orca import OrcaParams
     from pybullet_swarm.planning.stigmergy import StigmergyParams
 
-    code, out, err = run_cli(capsys, ["check", "construction", "--set", "planner.name=stigmergy", "--set",
-                                      "planner.params.fatigue=0.5", "--set", "avoidance=orca"])
+    code, out, err = run_cli(
+        capsys,
+        [
+            "check",
+            "construction",
+            "--set",
+            "planner.name=stigmergy",
+            "--set",
+            "planner.params.fatigue=0.5",
+            "--set",
+            "avoidance=orca",
+        ],
+    )
     assert (code, err) == (0, "")
     data = yaml.safe_load(out)
-    assert data["planner"] == {"name": "stigmergy",
-                               "params": {**StigmergyParams().model_dump(mode="json"), "fatigue": 0.5}}
+    assert data["planner"] == {
+        "name": "stigmergy",
+        "params": {**StigmergyParams().model_dump(mode="json"), "fatigue": 0.5},
+    }
     assert data["avoidance"] == "orca" and data["avoidance_params"] == OrcaParams().model_dump(mode="json")
-    code, out, _ = run_cli(capsys, ["check", "construction"])   # no planner named: the task's default, resolved
-    assert yaml.safe_load(out)["planner"] == {"name": "shortest_path", "params": {
-        "preset": None, "arrive_tol": 0.01, "release_clearance": 0.004, "altitude_step": 0.2, "release_tol": 0.005,
-        "retry_slots": True}}
+    code, out, _ = run_cli(capsys, ["check", "construction"])  # no planner named: the task's default, resolved
+    assert yaml.safe_load(out)["planner"] == {
+        "name": "shortest_path",
+        "params": {
+            "preset": None,
+            "arrive_tol": 0.01,
+            "release_clearance": 0.004,
+            "altitude_step": 0.2,
+            "release_tol": 0.005,
+            "retry_slots": True,
+        },
+    }
 
 
 # ------------------------------------------------------------ real processes
 def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "pybullet_swarm.cli.main", *args], cwd=cwd, capture_output=True,
-                          text=True, timeout=120, check=False)
+    return subprocess.run(
+        [sys.executable, "-m", "pybullet_swarm.cli.main", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
 
 
 @pytest.mark.parametrize(
     ("args", "expected"),
-    [(("run", "hover", "--set", "agents.count=0"), "hover.yaml: agents.count: must be >= 1, got 0"),
-     (("run", "nosuch"), "nosuch: no scenario file or bundled scenario named 'nosuch'")],
+    [
+        (("run", "hover", "--set", "agents.count=0"), "hover.yaml: agents.count: must be >= 1, got 0"),
+        (("run", "nosuch"), "nosuch: no scenario file or bundled scenario named 'nosuch'"),
+    ],
 )
 def test_exit_code_of_the_real_process(tmp_path: Path, args: tuple[str, ...], expected: str) -> None:
     proc = _cli(*args, cwd=tmp_path)

@@ -3,6 +3,7 @@
 Every case exits 2 with exactly one ``pybullet-swarm: error:`` line naming the file (or option)
 and the field, before any simulation starts, or is handled as the README documents.
 """
+
 from __future__ import annotations
 
 import json
@@ -23,7 +24,10 @@ PREFIX = "pybullet-swarm: error: "
 
 # one agent, half a second: the smallest complete run
 TINY: dict[str, Any] = {
-    "name": "tiny", "seed": 0, "arena": {"size": [2.0, 2.0]}, "agents": {"count": 1},
+    "name": "tiny",
+    "seed": 0,
+    "arena": {"size": [2.0, 2.0]},
+    "agents": {"count": 1},
     "task": {"kind": "waypoints", "time_limit_s": 0.5, "waypoints": [{"t_s": 0, "position": [0.0, 0.0, 0.3]}]},
 }
 
@@ -53,6 +57,7 @@ def write(path: Path, data: Any) -> Path:
 @pytest.fixture
 def no_simulation(monkeypatch: pytest.MonkeyPatch) -> None:
     """Fail the test if a simulation is started."""
+
     def refuse(*args: Any, **kwargs: Any) -> None:
         raise AssertionError("a simulation started")
 
@@ -108,19 +113,22 @@ def test_1_set_value_is_bounded_too(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 # ------------------------------------------------ 3. --out that cannot be used
-def test_3_replay_out_must_be_a_file_in_a_writable_directory(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                              run_dir: Path) -> None:
+def test_3_replay_out_must_be_a_file_in_a_writable_directory(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], run_dir: Path
+) -> None:
     existing = tmp_path / "EXISTING_FILE"
     existing.write_text("not a directory\n")
-    one_line(cli(capsys, "replay", run_dir, "--out", existing / "video.mp4"),
-             f"--out {existing}: exists and is not a directory")
+    one_line(
+        cli(capsys, "replay", run_dir, "--out", existing / "video.mp4"),
+        f"--out {existing}: exists and is not a directory",
+    )
     one_line(cli(capsys, "replay", run_dir, "--out", tmp_path), f"--out {tmp_path}: is a directory; give a file name")
 
 
 @pytest.mark.parametrize("command", ["run", "sweep", "plot", "compare", "design", "tune"])
-def test_3_out_that_is_a_file_is_refused_before_anything_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                              no_simulation: None, run_dir: Path,
-                                                              command: str) -> None:
+def test_3_out_that_is_a_file_is_refused_before_anything_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], no_simulation: None, run_dir: Path, command: str
+) -> None:
     existing = tmp_path / "EXISTING_FILE"
     existing.write_text("not a directory\n")
     argv = {
@@ -137,9 +145,10 @@ def test_3_out_that_is_a_file_is_refused_before_anything_runs(tmp_path: Path, ca
 
 
 @pytest.mark.parametrize("command", ["run", "sweep", "plot", "compare", "design"])
-def test_3_unwritable_out_is_refused_before_anything_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                          no_simulation: None, run_dir: Path, command: str) -> None:
-    if os.geteuid() == 0:   # root writes anywhere: a directory under /proc cannot be created by anyone
+def test_3_unwritable_out_is_refused_before_anything_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], no_simulation: None, run_dir: Path, command: str
+) -> None:
+    if os.geteuid() == 0:  # root writes anywhere: a directory under /proc cannot be created by anyone
         target = Path("/proc/pybullet-swarm-test/out")
     else:
         locked = tmp_path / "locked"
@@ -159,8 +168,9 @@ def test_3_unwritable_out_is_refused_before_anything_runs(tmp_path: Path, capsys
 
 # ------------------------------------------- 4. scenario names and run directories
 @pytest.mark.parametrize("name", ["/some/abs/path", "../../../x", "..", "a/../../b", "", "\x00", "ok name"])
-def test_4_run_directory_stays_inside_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                           monkeypatch: pytest.MonkeyPatch, name: str) -> None:
+def test_4_run_directory_stays_inside_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, name: str
+) -> None:
     work = tmp_path / "deep" / "er" / "work"
     work.mkdir(parents=True)
     monkeypatch.chdir(work)
@@ -183,25 +193,35 @@ def test_4_sweep_directory_name_is_sanitised(tmp_path: Path) -> None:
     assert out.parent == tmp_path / "runs" and out.name.startswith("sweep-etc_x-")
 
 
-def test_4_run_into_a_previous_run_directory_replaces_it(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                         run_dir: Path) -> None:
+def test_4_run_into_a_previous_run_directory_replaces_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], run_dir: Path
+) -> None:
     again = tmp_path / "again"
     shutil.copytree(run_dir, again)
     (again / "plots" / "stale.png").write_bytes(b"old figure")
     (again / "video.gif").write_bytes(b"old video")
     code, _, err = cli(capsys, "run", write(tmp_path / "tiny.yaml", TINY), "--out", again, "--quiet", "--no-plots")
     assert (code, err) == (0, "")
-    assert sorted(p.name for p in again.iterdir()) == ["events.csv", "metrics.json", "report.html", "scenario.yaml",
-                                                        "timeseries.npz"]
+    assert sorted(p.name for p in again.iterdir()) == [
+        "events.csv",
+        "metrics.json",
+        "report.html",
+        "scenario.yaml",
+        "timeseries.npz",
+    ]
 
 
-def test_4_run_into_a_foreign_non_empty_directory_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                             no_simulation: None) -> None:
+def test_4_run_into_a_foreign_non_empty_directory_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], no_simulation: None
+) -> None:
     folder = tmp_path / "notes"
     folder.mkdir()
     (folder / "thesis.tex").write_text("precious")
-    one_line(cli(capsys, "run", "hover", "--out", folder), f"--out {folder}: is not empty and not a run directory",
-             "thesis.tex")
+    one_line(
+        cli(capsys, "run", "hover", "--out", folder),
+        f"--out {folder}: is not empty and not a run directory",
+        "thesis.tex",
+    )
     assert (folder / "thesis.tex").read_text() == "precious"
 
 
@@ -214,108 +234,213 @@ def _vehicle(tmp_path: Path, **changes: Any) -> Path:
     return write(tmp_path / "veh.yaml", data)
 
 
-@pytest.mark.parametrize(("overrides", "parts"), [
-    (["task.boxes=[[0.25, 0.25, .nan]]"], ["construction.yaml: task.boxes[0][2]: must be a finite number, got nan"]),
-    (["task.structure=[[2.5, 0.5, .nan]]"], ["construction.yaml: task.structure[0][2]: must be a finite number"]),
-    (["task.box_size=.inf"], ["construction.yaml: task.box_size: must be a finite number, got inf"]),
-    (["sim.gravity=0"], ["construction.yaml: sim.gravity: must be >= 0.1 m/s^2 (the hover controller"]),
-    (["planner.name=stigmergy", "planner.params.cell_size=0.001"],
-     ["construction.yaml: planner.params.cell_size: must be >= 0.01, got 0.001"]),
-    (["planner.name=stigmergy", "planner.params.grid_height=1e6"],
-     ["construction.yaml: planner.params.grid_height: must be <= 20.0, got 1000000.0"]),
-    (["planner.name=layered_stigmergy", "arena.size=[100.0, 100.0]", "planner.params.cell_size=0.01",
-      "planner.params.grid_height=20"],
-     ["construction.yaml: planner.params.cell_size: a pheromone grid of 10000 x 10000 x 2000 cells (2 layer(s), with "
-      "its snapshots) would need about", "TiB, above the memory budget of 4 GiB (set PYBULLET_SWARM_MEMORY_BUDGET"]),
-], ids=["nan_box", "nan_slot", "inf_box_size", "zero_gravity", "stigmergy_cells", "stigmergy_height",
-        "stigmergy_memory"])
-def test_5_construction_values_are_refused_at_check(capsys: pytest.CaptureFixture[str],
-                                                    monkeypatch: pytest.MonkeyPatch, overrides: list[str],
-                                                    parts: list[str]) -> None:
+@pytest.mark.parametrize(
+    ("overrides", "parts"),
+    [
+        (
+            ["task.boxes=[[0.25, 0.25, .nan]]"],
+            ["construction.yaml: task.boxes[0][2]: must be a finite number, got nan"],
+        ),
+        (["task.structure=[[2.5, 0.5, .nan]]"], ["construction.yaml: task.structure[0][2]: must be a finite number"]),
+        (["task.box_size=.inf"], ["construction.yaml: task.box_size: must be a finite number, got inf"]),
+        (["sim.gravity=0"], ["construction.yaml: sim.gravity: must be >= 0.1 m/s^2 (the hover controller"]),
+        (
+            ["planner.name=stigmergy", "planner.params.cell_size=0.001"],
+            ["construction.yaml: planner.params.cell_size: must be >= 0.01, got 0.001"],
+        ),
+        (
+            ["planner.name=stigmergy", "planner.params.grid_height=1e6"],
+            ["construction.yaml: planner.params.grid_height: must be <= 20.0, got 1000000.0"],
+        ),
+        (
+            [
+                "planner.name=layered_stigmergy",
+                "arena.size=[100.0, 100.0]",
+                "planner.params.cell_size=0.01",
+                "planner.params.grid_height=20",
+            ],
+            [
+                "construction.yaml: planner.params.cell_size: a pheromone grid of 10000 x 10000 x 2000 cells (2 layer(s), with "
+                "its snapshots) would need about",
+                "TiB, above the memory budget of 4 GiB (set PYBULLET_SWARM_MEMORY_BUDGET",
+            ],
+        ),
+    ],
+    ids=[
+        "nan_box",
+        "nan_slot",
+        "inf_box_size",
+        "zero_gravity",
+        "stigmergy_cells",
+        "stigmergy_height",
+        "stigmergy_memory",
+    ],
+)
+def test_5_construction_values_are_refused_at_check(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, overrides: list[str], parts: list[str]
+) -> None:
     monkeypatch.delenv("PYBULLET_SWARM_MEMORY_BUDGET", raising=False)
     argv = ["check", "construction"] + [x for o in overrides for x in ("--set", o)]
     one_line(cli(capsys, *argv), *parts)
 
 
-def test_5_run_with_planner_option_checks_its_budget(capsys: pytest.CaptureFixture[str], no_simulation: None,
-                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+def test_5_run_with_planner_option_checks_its_budget(
+    capsys: pytest.CaptureFixture[str], no_simulation: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.delenv("PYBULLET_SWARM_MEMORY_BUDGET", raising=False)
-    one_line(cli(capsys, "run", "construction", "--planner", "stigmergy", "--set", "arena.size=[100.0, 100.0]",
-                 "--set", "planner.params.cell_size=0.01"), "construction.yaml: planner.params.cell_size: a pheromone grid")
+    one_line(
+        cli(
+            capsys,
+            "run",
+            "construction",
+            "--planner",
+            "stigmergy",
+            "--set",
+            "arena.size=[100.0, 100.0]",
+            "--set",
+            "planner.params.cell_size=0.01",
+        ),
+        "construction.yaml: planner.params.cell_size: a pheromone grid",
+    )
 
 
 def test_5_memory_budget_is_configurable(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("PYBULLET_SWARM_MEMORY_BUDGET", "64M")
     # 300 x 100 x 100 cells (1 cm) need about 96 MiB: refused under 64 MiB, accepted under the default
-    one_line(cli(capsys, "check", "construction", "--set", "planner.name=stigmergy", "--set",
-                 "planner.params.cell_size=0.01"), "above the memory budget of 64 MiB")
+    one_line(
+        cli(
+            capsys, "check", "construction", "--set", "planner.name=stigmergy", "--set", "planner.params.cell_size=0.01"
+        ),
+        "above the memory budget of 64 MiB",
+    )
     monkeypatch.delenv("PYBULLET_SWARM_MEMORY_BUDGET")
-    assert cli(capsys, "check", "construction", "--quiet", "--set", "planner.name=stigmergy", "--set",
-               "planner.params.cell_size=0.01")[0] == 0
+    assert (
+        cli(
+            capsys,
+            "check",
+            "construction",
+            "--quiet",
+            "--set",
+            "planner.name=stigmergy",
+            "--set",
+            "planner.params.cell_size=0.01",
+        )[0]
+        == 0
+    )
     monkeypatch.setenv("PYBULLET_SWARM_MEMORY_BUDGET", "lots")
     one_line(cli(capsys, "check", "construction"), "PYBULLET_SWARM_MEMORY_BUDGET: must be a size such as 8192")
 
 
-def test_5_aco_tour_iterations_and_tour_size(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                             monkeypatch: pytest.MonkeyPatch) -> None:
+def test_5_aco_tour_iterations_and_tour_size(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.delenv("PYBULLET_SWARM_MEMORY_BUDGET", raising=False)
-    one_line(cli(capsys, "check", "tour", "--set", "planner.params.iterations=1000000000"),
-             "tour.yaml: planner.params.iterations: must be <= 100000, got 1000000000")
+    one_line(
+        cli(capsys, "check", "tour", "--set", "planner.params.iterations=1000000000"),
+        "tour.yaml: planner.params.iterations: must be <= 100000, got 1000000000",
+    )
     tour = yaml.safe_load((scenarios_dir() / "tour.yaml").read_text())
     g = np.arange(100) * 0.5 + 0.5
     tour["arena"]["size"] = [51.0, 51.0]
-    tour["task"]["points"] = [[float(x), float(y), 1.0] for x in g for y in g]   # 10,000 points
-    one_line(cli(capsys, "check", write(tmp_path / "big_tour.yaml", tour)),
-             "big_tour.yaml: task.points: an ant colony on 10000 points", "GiB, above the memory budget")
+    tour["task"]["points"] = [[float(x), float(y), 1.0] for x in g for y in g]  # 10,000 points
+    one_line(
+        cli(capsys, "check", write(tmp_path / "big_tour.yaml", tour)),
+        "big_tour.yaml: task.points: an ant colony on 10000 points",
+        "GiB, above the memory budget",
+    )
 
 
 def test_5_vehicle_files_are_validated(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    one_line(cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, mass=float('inf'))}"),
-             "hover.yaml: agents.vehicle: veh.yaml: mass: must be a finite number, got inf")
-    one_line(cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, kf=-1e-7)}"),
-             "hover.yaml: agents.vehicle: veh.yaml: kf: must be > 0")
-    one_line(cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, motor_time_constant=5.0)}"),
-             "hover.yaml: agents.vehicle: veh.yaml: roll/pitch: no gains: not even w_n = ")
-    one_line(cli(capsys, "design", "--vehicle", _vehicle(tmp_path, motor_time_constant=5.0)),
-             "veh.yaml: roll/pitch: no gains: not even w_n = ")
+    one_line(
+        cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, mass=float('inf'))}"),
+        "hover.yaml: agents.vehicle: veh.yaml: mass: must be a finite number, got inf",
+    )
+    one_line(
+        cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, kf=-1e-7)}"),
+        "hover.yaml: agents.vehicle: veh.yaml: kf: must be > 0",
+    )
+    one_line(
+        cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, motor_time_constant=5.0)}"),
+        "hover.yaml: agents.vehicle: veh.yaml: roll/pitch: no gains: not even w_n = ",
+    )
+    one_line(
+        cli(capsys, "design", "--vehicle", _vehicle(tmp_path, motor_time_constant=5.0)),
+        "veh.yaml: roll/pitch: no gains: not even w_n = ",
+    )
     (tmp_path / "notes.txt").write_text("not a robot")
-    one_line(cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, urdf='notes.txt')}"),
-             "hover.yaml: agents.vehicle: veh.yaml: urdf: notes.txt is not a usable URDF: not well-formed XML")
+    one_line(
+        cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, urdf='notes.txt')}"),
+        "hover.yaml: agents.vehicle: veh.yaml: urdf: notes.txt is not a usable URDF: not well-formed XML",
+    )
     (tmp_path / "other.urdf").write_text("<model><link name='a'/></model>")
-    one_line(cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, urdf='other.urdf')}"),
-             "veh.yaml: urdf: other.urdf is not a usable URDF: its root element must be <robot>, got <model>")
+    one_line(
+        cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, urdf='other.urdf')}"),
+        "veh.yaml: urdf: other.urdf is not a usable URDF: its root element must be <robot>, got <model>",
+    )
     (tmp_path / "empty.urdf").write_text("<robot name='r'/>")
-    one_line(cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, urdf='empty.urdf')}"),
-             "veh.yaml: urdf: empty.urdf is not a usable URDF: it has no <link>")
+    one_line(
+        cli(capsys, "check", "hover", "--set", f"agents.vehicle={_vehicle(tmp_path, urdf='empty.urdf')}"),
+        "veh.yaml: urdf: empty.urdf is not a usable URDF: it has no <link>",
+    )
 
 
-def test_5_tsp_seed_and_size(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                             monkeypatch: pytest.MonkeyPatch) -> None:
+def test_5_tsp_seed_and_size(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.delenv("PYBULLET_SWARM_MEMORY_BUDGET", raising=False)
     one_line(cli(capsys, "tsp", "eil51", "--seed", "-1"), "--seed: expected an integer in [0,")
     rng = np.random.default_rng(0)
     n = 30_000
     nodes = "\n".join(f"{i + 1} {x:.1f} {y:.1f}" for i, (x, y) in enumerate(rng.uniform(0, 1e5, (n, 2))))
     big = tmp_path / "big.tsp"
-    big.write_text(f"NAME: big\nTYPE: TSP\nDIMENSION: {n}\nEDGE_WEIGHT_TYPE: EUC_2D\nNODE_COORD_SECTION\n{nodes}\nEOF\n")
-    one_line(cli(capsys, "tsp", big, "--runs", "1"), "big: DIMENSION: an ant colony on 30000 nodes", "GiB, above the "
-             "memory budget")
+    big.write_text(
+        f"NAME: big\nTYPE: TSP\nDIMENSION: {n}\nEDGE_WEIGHT_TYPE: EUC_2D\nNODE_COORD_SECTION\n{nodes}\nEOF\n"
+    )
+    one_line(
+        cli(capsys, "tsp", big, "--runs", "1"),
+        "big: DIMENSION: an ant colony on 30000 nodes",
+        "GiB, above the memory budget",
+    )
 
 
 def test_5_tune_objective_size_is_bounded(capsys: pytest.CaptureFixture[str], no_simulation: None) -> None:
     huge = " + ".join(["sim_time_s"] * 6000)
-    one_line(cli(capsys, "tune", "hover", "--planner", "waypoints", "--param", "task.tolerance_m=0.01:0.1",
-                 "--objective", huge), "--objective: expression too long")
+    one_line(
+        cli(
+            capsys,
+            "tune",
+            "hover",
+            "--planner",
+            "waypoints",
+            "--param",
+            "task.tolerance_m=0.01:0.1",
+            "--objective",
+            huge,
+        ),
+        "--objective: expression too long",
+    )
     deep = " + ".join(["sim_time_s"] * 100)
-    one_line(cli(capsys, "tune", "hover", "--planner", "waypoints", "--param", "task.tolerance_m=0.01:0.1",
-                 "--objective", deep), "--objective: expression too large")
+    one_line(
+        cli(
+            capsys,
+            "tune",
+            "hover",
+            "--planner",
+            "waypoints",
+            "--param",
+            "task.tolerance_m=0.01:0.1",
+            "--objective",
+            deep,
+        ),
+        "--objective: expression too large",
+    )
 
 
 # ------------------------------------------------ 6. corrupt saved results
 def _corrupt(path: Path, how: str) -> None:
     if how == "empty":
         path.write_bytes(b"")
-    elif how == "truncated":   # a quarter is left: a scenario.yaml without its task, a zip without its directory
+    elif how == "truncated":  # a quarter is left: a scenario.yaml without its task, a zip without its directory
         data = path.read_bytes()
         path.write_bytes(data[: len(data) // 4])
     elif how == "garbage":
@@ -327,25 +452,29 @@ def _corrupt(path: Path, how: str) -> None:
 @pytest.mark.parametrize("how", ["empty", "truncated", "garbage", "binary"])
 @pytest.mark.parametrize("name", ["metrics.json", "timeseries.npz", "scenario.yaml", "events.csv"])
 @pytest.mark.parametrize("command", ["plot", "replay", "report"])
-def test_6_a_corrupt_run_file_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str], run_dir: Path,
-                                         command: str, name: str, how: str) -> None:
+def test_6_a_corrupt_run_file_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], run_dir: Path, command: str, name: str, how: str
+) -> None:
     if name == "events.csv" and how != "binary" and command != "plot":
         pytest.skip("an event log with unreadable rows is drawn (its rows are skipped): tested with plot")
     broken = tmp_path / "broken"
     shutil.copytree(run_dir, broken)
     _corrupt(broken / name, how)
-    argv = {"plot": ["plot", broken, "--out", tmp_path / "figs"],
-            "replay": ["replay", broken, "--frame", "0.1", "--out", tmp_path / "frame.png", "--quiet"],
-            "report": ["report", broken, "--quiet"]}[command]
+    argv = {
+        "plot": ["plot", broken, "--out", tmp_path / "figs"],
+        "replay": ["replay", broken, "--frame", "0.1", "--out", tmp_path / "frame.png", "--quiet"],
+        "report": ["report", broken, "--quiet"],
+    }[command]
     code, out, err = cli(capsys, *argv)
     if name == "events.csv" and how != "binary":
-        assert (code, err) == (0, "")   # unreadable rows of the event log are skipped (documented)
+        assert (code, err) == (0, "")  # unreadable rows of the event log are skipped (documented)
         return
     one_line((code, out, err), f"{broken / name}: ")
 
 
-def test_6_timeseries_with_inconsistent_arrays(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                               run_dir: Path) -> None:
+def test_6_timeseries_with_inconsistent_arrays(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], run_dir: Path
+) -> None:
     broken = tmp_path / "broken"
     shutil.copytree(run_dir, broken)
     with np.load(broken / "timeseries.npz") as z:
@@ -362,14 +491,23 @@ def _sweep_dir(tmp_path: Path, run_dir: Path) -> Path:
     sweep = tmp_path / "sweep"
     sweep.mkdir()
     metrics = json.loads((run_dir / "metrics.json").read_text())
-    RunsTable(sweep / "runs.csv").append({"run_id": "r0", "planner": "waypoints", "avoidance": "none", "seed": 0,
-                                          "exit_status": metrics["exit_status"], **metrics_row(metrics)})
+    RunsTable(sweep / "runs.csv").append(
+        {
+            "run_id": "r0",
+            "planner": "waypoints",
+            "avoidance": "none",
+            "seed": 0,
+            "exit_status": metrics["exit_status"],
+            **metrics_row(metrics),
+        }
+    )
     return sweep
 
 
 @pytest.mark.parametrize("command", ["plot", "compare", "report"])
-def test_6_binary_runs_csv_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str], run_dir: Path,
-                                      command: str) -> None:
+def test_6_binary_runs_csv_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], run_dir: Path, command: str
+) -> None:
     sweep = _sweep_dir(tmp_path, run_dir)
     out = [] if command == "report" else ["--out", tmp_path / "figs"]
     assert cli(capsys, command, sweep, *out)[0] == 0
@@ -378,8 +516,9 @@ def test_6_binary_runs_csv_is_refused(tmp_path: Path, capsys: pytest.CaptureFixt
 
 
 @pytest.mark.parametrize("how", ["garbage", "binary"])
-def test_6_report_refuses_a_corrupt_summary(tmp_path: Path, capsys: pytest.CaptureFixture[str], run_dir: Path,
-                                            how: str) -> None:
+def test_6_report_refuses_a_corrupt_summary(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], run_dir: Path, how: str
+) -> None:
     sweep = _sweep_dir(tmp_path, run_dir)
     _corrupt(sweep / "summary.csv", how)
     one_line(cli(capsys, "report", sweep, "--quiet"), f"{sweep / 'summary.csv'}: ")
@@ -402,20 +541,26 @@ def test_7_agent_inside_a_raised_obstacle_is_refused(tmp_path: Path, capsys: pyt
     data["agents"]["start"] = [[1.0, 1.0, 1.0]]
     data["agents"].pop("start_jitter", None)
     data["arena"]["obstacles"] = [{"shape": "box", "size": [0.4, 0.4, 0.4], "position": [1.0, 1.0, 1.0]}]
-    one_line(cli(capsys, "check", write(tmp_path / "inside.yaml", data)),
-             "inside.yaml: arena.obstacles[0]: agent 0 starts inside this obstacle")
-    data["agents"]["start"] = [[1.0, 1.0, 0.011]]   # under the raised box: allowed
+    one_line(
+        cli(capsys, "check", write(tmp_path / "inside.yaml", data)),
+        "inside.yaml: arena.obstacles[0]: agent 0 starts inside this obstacle",
+    )
+    data["agents"]["start"] = [[1.0, 1.0, 0.011]]  # under the raised box: allowed
     code, _, err = cli(capsys, "check", write(tmp_path / "under.yaml", data), "--quiet")
     assert (code, err) == (0, "")
 
 
 def test_7_waypoint_above_the_ceiling_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    one_line(cli(capsys, "check", "hover", "--set", "arena.height=0.5"),
-             "hover.yaml: task.waypoints[0].position: set-point above the ceiling (arena.height 0.5 m")
+    one_line(
+        cli(capsys, "check", "hover", "--set", "arena.height=0.5"),
+        "hover.yaml: task.waypoints[0].position: set-point above the ceiling (arena.height 0.5 m",
+    )
     data = {**TINY, "arena": {"size": [2.0, 2.0], "height": 0.5}}
     data["task"] = {**TINY["task"], "relative": False, "waypoints": [{"t_s": 0, "position": [1.0, 1.0, 1.52]}]}
-    one_line(cli(capsys, "check", write(tmp_path / "low.yaml", data)),
-             "low.yaml: task.waypoints[0].position: set-point above the ceiling")
+    one_line(
+        cli(capsys, "check", write(tmp_path / "low.yaml", data)),
+        "low.yaml: task.waypoints[0].position: set-point above the ceiling",
+    )
 
 
 # --------------------------------------------------------------- 8. smaller
@@ -435,8 +580,9 @@ def test_8_no_warning_text_on_an_infinite_coordinate(capsys: pytest.CaptureFixtu
     assert [str(w.message) for w in caught] == []
 
 
-def test_8_gui_without_a_display(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
-                                 no_simulation: None) -> None:
+def test_8_gui_without_a_display(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, no_simulation: None
+) -> None:
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setattr("sys.platform", "linux")
@@ -444,8 +590,10 @@ def test_8_gui_without_a_display(capsys: pytest.CaptureFixture[str], monkeypatch
 
 
 def test_8_errors_name_the_right_field(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    one_line(cli(capsys, "check", "hover", "--set", "agents.origin=[100.0, 1.0]"),
-             "hover.yaml: agents.origin: layout centre (100, 1) is outside the arena")
+    one_line(
+        cli(capsys, "check", "hover", "--set", "agents.origin=[100.0, 1.0]"),
+        "hover.yaml: agents.origin: layout centre (100, 1) is outside the arena",
+    )
     one_line(cli(capsys, "design", "--physics-hz", "inf"), "--physics-hz: must be a rate in (0, 100000] Hz, got inf")
     one_line(cli(capsys, "design", "--control-hz", "nan"), "--control-hz: must be a rate")
     path = tmp_path / "tagged.yaml"
@@ -453,10 +601,12 @@ def test_8_errors_name_the_right_field(tmp_path: Path, capsys: pytest.CaptureFix
     one_line(cli(capsys, "check", path), "tagged.yaml: agents.count: cannot read !!int 'abc'")
 
 
-def test_8_compare_refuses_an_unknown_metric(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                             run_dir: Path) -> None:
-    one_line(cli(capsys, "compare", run_dir, "--metrics", "foo", "--out", tmp_path / "c"),
-             "--metrics: unknown metric 'foo'")
-    one_line(cli(capsys, "compare", run_dir, "--metrics", "sim_time", "--out", tmp_path / "c"),
-             "--metrics: unknown metric 'sim_time'; did you mean sim_time_s")
+def test_8_compare_refuses_an_unknown_metric(tmp_path: Path, capsys: pytest.CaptureFixture[str], run_dir: Path) -> None:
+    one_line(
+        cli(capsys, "compare", run_dir, "--metrics", "foo", "--out", tmp_path / "c"), "--metrics: unknown metric 'foo'"
+    )
+    one_line(
+        cli(capsys, "compare", run_dir, "--metrics", "sim_time", "--out", tmp_path / "c"),
+        "--metrics: unknown metric 'sim_time'; did you mean sim_time_s",
+    )
     assert cli(capsys, "compare", run_dir, "--metrics", "sim_time_s", "--out", tmp_path / "c")[0] == 0

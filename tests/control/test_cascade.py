@@ -1,4 +1,5 @@
 """The runtime cascade against the python-control design, payload rejection, and limits."""
+
 from __future__ import annotations
 
 import math
@@ -49,11 +50,13 @@ def _design_step(sys: control.StateSpace, amp: float, n: int) -> np.ndarray:
 def _continuous_closed_loop(design, loop: str) -> control.TransferFunction:
     """The same gains on the continuous-time plant (motor lag, no sampling, no holds): the model a
     design that ignored the sample-and-hold would predict."""
+
     def closed(plant, gains):
         kp, kd, ki = gains
         num, den = np.asarray(plant.num[0][0], float), np.asarray(plant.den[0][0], float)
-        return control.tf(np.polymul(num, [kp, ki]),
-                          np.polyadd(np.polymul(den, [1.0, 0.0]), np.polymul(num, [kd, kp, ki])))
+        return control.tf(
+            np.polymul(num, [kp, ki]), np.polyadd(np.polymul(den, [1.0, 0.0]), np.polymul(num, [kd, kp, ki]))
+        )
 
     att = control.tf([1.0], [design.motor_time_constant, 1.0, 0.0, 0.0])
     if loop == "x":
@@ -78,16 +81,16 @@ def test_position_step_response_matches_design_model(make_sim, vehicle, axis):
     n = int(8.0 * sim.scenario.sim.control_hz)
     y = np.empty(n)
     for k in range(n):
-        sim.step()          # one control period
+        sim.step()  # one control period
         y[k] = sim.state.positions[0, axis] - base
     loop = "xyz"[axis]
     design = sim.controller.design
     err = _nrmse(y, _design_step(design.closed_loop(loop), amp, n), amp)
-    print(f"{vehicle} {loop} step: NRMSE {100 * err:.4f} %")      # shown with pytest -s
+    print(f"{vehicle} {loop} step: NRMSE {100 * err:.4f} %")  # shown with pytest -s
     assert err < NRMSE_TOL, f"{vehicle} {loop}: normalised RMS error {err:.2e}"
     unsampled = _nrmse(y, _continuous_step(_continuous_closed_loop(design, loop), 1 / design.position_hz, amp, n), amp)
     print(f"{vehicle} {loop} step: NRMSE from a continuous-time model without sampling {100 * unsampled:.3f} %")
-    assert unsampled > 2 * NRMSE_TOL      # the tolerance is tight enough to tell the sampling apart
+    assert unsampled > 2 * NRMSE_TOL  # the tolerance is tight enough to tell the sampling apart
 
 
 def _roll_step(vehicle: str, amp: float, n: int) -> tuple[np.ndarray, CascadeController]:
@@ -135,7 +138,7 @@ def test_roll_step_response_matches_design_model(vehicle):
 def test_yaw_step_response_matches_design_model(make_sim, vehicle):
     sim, start = _hovering_sim(make_sim, vehicle)
     amp, n = 0.1, 240
-    assert sim.step_count % sim.control_every == 0      # the step enters with the next position tick
+    assert sim.step_count % sim.control_every == 0  # the step enters with the next position tick
     sim.set_targets(start, yaw=np.array([amp]))
     yaw = np.empty(n)
     for k in range(n):
@@ -153,7 +156,7 @@ def test_the_runtime_uses_exactly_the_designed_gains(make_sim):
     ctrl = sim.controller
     design = design_controller(sim.params, physics_hz=sim.physics_hz, position_hz=sim.scenario.sim.control_hz)
     assert ctrl.design is design
-    np.testing.assert_array_equal(ctrl.const[kernels.K_GAINS:kernels.K_GAINS + 9], design.attitude_gains.ravel())
+    np.testing.assert_array_equal(ctrl.const[kernels.K_GAINS : kernels.K_GAINS + 9], design.attitude_gains.ravel())
     np.testing.assert_array_equal(ctrl.pos_gains, design.position_gains)
 
 
@@ -180,7 +183,7 @@ def test_the_design_predicts_the_rotor_speed_a_yaw_step_asks_for(make_sim):
     measured = peak / sim.params.max_rotor_speed
     assert measured <= predicted
     assert measured > 0.97 * predicted
-    assert measured < 1.0                # below the limit: the mixer did not have to scale yaw down
+    assert measured < 1.0  # below the limit: the mixer did not have to scale yaw down
 
 
 @pytest.mark.parametrize("vehicle", ["quad150", "cf2x"])
@@ -198,8 +201,7 @@ def test_payload_of_20_percent_settles_within_1cm(make_sim, vehicle):
 
 
 def test_shaped_references_respect_limits(make_sim):
-    sim = make_sim(physics_scenario(start_z=1.0, **{"limits.velocity": [0.15, 0.15, 0.1],
-                                                    "limits.acceleration": 0.5}))
+    sim = make_sim(physics_scenario(start_z=1.0, **{"limits.velocity": [0.15, 0.15, 0.1], "limits.acceleration": 0.5}))
     w = sim.params.hover_rotor_speed()
     sim.controller.rotor_speeds[:] = w
     start = sim.state.positions.copy()
@@ -245,14 +247,16 @@ def test_shaped_velocity_step_follows_the_prefiltered_design_model(make_sim, axi
     two-degree-of-freedom prefilter), not with the overshoot of the position loop catching up."""
     v, v_ref, design = _velocity_step(make_sim, axis, prefilter=True)
     hz = design.position_hz
-    path = design.acceleration_path("xyz"[axis])      # discrete, at the control period
+    path = design.acceleration_path("xyz"[axis])  # discrete, at the control period
     assert path.dt == pytest.approx(1.0 / hz)
     model = np.asarray(control.forced_response(path, np.arange(v.size) / hz, v_ref).outputs).ravel()
     rms = float(np.sqrt(np.mean((v - model) ** 2)))
     raw, _, _ = _velocity_step(make_sim, axis, prefilter=False)
-    print(f"axis {'xyz'[axis]}: RMS from the model {rms:.2e} m/s; peak {v.max() / 0.15:.3f} x the command "
-          f"with the prefilter, {raw.max() / 0.15:.3f} x without")
-    assert rms < 0.005 * 0.15                       # references fed one period ahead: 0.03 x 0.15
-    assert v.max() < raw.max() - 0.03 * 0.15        # the prefilter takes the position loop's overshoot out
-    assert v.max() < 1.3 * 0.15                     # what is left is the acceleration path's own
+    print(
+        f"axis {'xyz'[axis]}: RMS from the model {rms:.2e} m/s; peak {v.max() / 0.15:.3f} x the command "
+        f"with the prefilter, {raw.max() / 0.15:.3f} x without"
+    )
+    assert rms < 0.005 * 0.15  # references fed one period ahead: 0.03 x 0.15
+    assert v.max() < raw.max() - 0.03 * 0.15  # the prefilter takes the position loop's overshoot out
+    assert v.max() < 1.3 * 0.15  # what is left is the acceleration path's own
     assert abs(v[-1] - 0.15) < 0.01

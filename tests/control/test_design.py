@@ -1,4 +1,5 @@
 """Tests of pybullet_swarm.control.design: the sampled-data models, placement, margins, saturation, reports."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -86,8 +87,11 @@ def test_placed_poles_are_poles_of_the_full_sampled_model(design: ControllerDesi
         rep = design.report(loop)
         wn = rep.natural_frequency_rad_s
         zeta, ratio = design.spec.damping, design.spec.integral_pole_ratio
-        expected = [wn * complex(-zeta, math.sqrt(1 - zeta**2)), wn * complex(-zeta, -math.sqrt(1 - zeta**2)),
-                    complex(-ratio * wn, 0.0)]
+        expected = [
+            wn * complex(-zeta, math.sqrt(1 - zeta**2)),
+            wn * complex(-zeta, -math.sqrt(1 - zeta**2)),
+            complex(-ratio * wn, 0.0),
+        ]
         np.testing.assert_allclose(rep.placed_poles, expected, rtol=1e-12)
         model = _s_poles(design.closed_loop(loop))
         assert len(rep.achieved_poles) == len(model) == (7 if loop in (Loop.X, Loop.Y) else 4), loop
@@ -151,10 +155,10 @@ def _runtime_attitude_step(gains: NDArray[np.float64], tau: float, h: float, n: 
     out = np.empty(n)
     for k in range(n):
         e = theta - 1.0
-        c = -kp * e - kd * w - ki * integral       # attitude law, integral of the previous steps
+        c = -kp * e - kd * w - ki * integral  # attitude law, integral of the previous steps
         integral += e * h
-        applied += (c - applied) * alpha           # motor lag, exact over a step; applied at once
-        w += h * applied                           # semi-implicit Euler: velocity first
+        applied += (c - applied) * alpha  # motor lag, exact over a step; applied at once
+        w += h * applied  # semi-implicit Euler: velocity first
         theta += h * w
         out[k] = theta
     return out
@@ -170,14 +174,14 @@ def _runtime_x_step(design: ControllerDesign, n_periods: int) -> NDArray[np.floa
     out = np.empty(n_periods)
     for j in range(n_periods):
         e = x - 1.0
-        theta_ref = (-kp * e - kd * v - ki * i_pos) / _G      # a_cmd / g, held for the period
+        theta_ref = (-kp * e - kd * v - ki * i_pos) / _G  # a_cmd / g, held for the period
         i_pos += e * h * n_sub
         for _ in range(n_sub):
             e_a = theta - theta_ref
             c = -kp_a * e_a - kd_a * w - ki_a * i_att
             i_att += e_a * h
             applied += (c - applied) * alpha
-            v_next = v + h * _G * theta                      # thrust tilted by the attitude at the step's start
+            v_next = v + h * _G * theta  # thrust tilted by the attitude at the step's start
             w += h * applied
             theta += h * w
             v = v_next
@@ -192,8 +196,9 @@ def test_sampled_models_equal_the_runtime_order_of_operations(vehicle: str) -> N
     n = 480
     t = np.arange(n + 1) / d.physics_hz
     model = np.asarray(control.step_response(d.closed_loop("roll"), T=t).outputs).ravel()[1:]
-    np.testing.assert_allclose(model, _runtime_attitude_step(d.gains("roll"), d.motor_time_constant,
-                                                             1 / d.physics_hz, n), atol=1e-11)
+    np.testing.assert_allclose(
+        model, _runtime_attitude_step(d.gains("roll"), d.motor_time_constant, 1 / d.physics_hz, n), atol=1e-11
+    )
     m = 400
     t = np.arange(m + 1) / d.position_hz
     model = np.asarray(control.step_response(d.closed_loop("x"), T=t).outputs).ravel()[1:]
@@ -216,7 +221,7 @@ def test_margins_agree_with_a_dense_frequency_sweep(design: ControllerDesign) ->
     """The reported margins are those of L(e^{jwT}) on a dense grid up to and including the Nyquist
     frequency (upper gain margin, not the lower one of the conditionally stable loop)."""
     for loop in (Loop.ROLL, Loop.YAW, Loop.X, Loop.Z):
-        sys = control.tf(design.open_loop(loop))     # polynomials, evaluated independently of the design's solver
+        sys = control.tf(design.open_loop(loop))  # polynomials, evaluated independently of the design's solver
         num, den = np.asarray(sys.num[0][0], dtype=float), np.asarray(sys.den[0][0], dtype=float)
         nyq = math.pi / sys.dt
         w = np.append(np.logspace(math.log10(nyq) - 3, math.log10(nyq), 400001)[:-1], nyq)
@@ -227,12 +232,12 @@ def test_margins_agree_with_a_dense_frequency_sweep(design: ControllerDesign) ->
         pm = 180.0 + np.degrees(np.angle(resp[gain_cross]))
         phase_cross = list(np.nonzero((np.diff(np.sign(resp.imag)) != 0) & (resp.real[:-1] < 0.0))[0])
         gm = [-20.0 * np.log10(mag[i]) for i in phase_cross]
-        if resp[-1].real < 0:                       # L is real at the Nyquist frequency
+        if resp[-1].real < 0:  # L is real at the Nyquist frequency
             gm.append(-20.0 * np.log10(mag[-1]))
         rep = design.report(loop)
         assert rep.phase_margin_deg == pytest.approx(pm.min(), abs=0.02), loop
         assert rep.gain_margin_db == pytest.approx(min(g for g in gm if g > 0), abs=0.02), loop
-        assert min(gm) < -10.0   # PID on a double integrator: conditionally stable, lower margin too
+        assert min(gm) < -10.0  # PID on a double integrator: conditionally stable, lower margin too
 
 
 def test_bandwidth_is_where_the_closed_loop_falls_3_db(design: ControllerDesign) -> None:
@@ -264,8 +269,7 @@ def test_a_vertical_acceleration_step_asks_for_the_closed_form_rotor_speed() -> 
     assert sat.hover_fraction == pytest.approx(p.hover_rotor_speed(_G) / p.max_rotor_speed, rel=1e-12)
     assert sat.peak_fraction == pytest.approx(sat.alone["z"], rel=1e-12)
     # the step may go either way: a descent step of 2 m/s^2 slows every rotor to sqrt(m (g - a) / (4 kf))
-    assert sat.min_fraction == pytest.approx(math.sqrt(p.mass * (_G - 2.0) / (4 * p.kf)) / p.max_rotor_speed,
-                                             rel=1e-12)
+    assert sat.min_fraction == pytest.approx(math.sqrt(p.mass * (_G - 2.0) / (4 * p.kf)) / p.max_rotor_speed, rel=1e-12)
 
 
 def test_the_yaw_loop_takes_the_headroom_the_rotor_speed_limit_leaves() -> None:
@@ -313,8 +317,7 @@ def test_a_design_that_saturates_is_refused_naming_the_file_and_the_loop(tmp_pat
     assert err.value.source == "weak.yaml"
     assert err.value.field == "z"
     assert "% of max_rotor_speed" in str(err.value)
-    ok = design_controller(weak, step=ReferenceStep(acceleration=(0.2, 0.2, 0.2), position=(0.0, 0.0, 0.0),
-                                                     yaw=0.05))
+    ok = design_controller(weak, step=ReferenceStep(acceleration=(0.2, 0.2, 0.2), position=(0.0, 0.0, 0.0), yaw=0.05))
     assert ok.saturation.ok
     with pytest.raises(ConfigError, match=r"heavy.yaml: z: cannot hover"):
         design_controller(load_vehicle(_write_vehicle(tmp_path, "heavy.yaml", mass=0.4)))
@@ -323,7 +326,7 @@ def test_a_design_that_saturates_is_refused_naming_the_file_and_the_loop(tmp_pat
 def test_a_scenario_step_is_checked_against_the_designed_gains() -> None:
     d = design_controller(_vehicle("quad150"))
     shaped = ReferenceStep.from_limits([0.5, 0.5, 0.5], [1.0, 1.0, 1.0])
-    rep = d.check_step(shaped)             # the bundled scenarios' limits: within the design's own step
+    rep = d.check_step(shaped)  # the bundled scenarios' limits: within the design's own step
     assert rep.ok and rep.peak_fraction < d.saturation.peak_fraction
     with pytest.raises(ConfigError, match=r"^quad150.yaml: z: the controller cannot follow the reference step"):
         d.check_step(ReferenceStep.from_limits([0.5, 0.5, 0.5], [1.0, 1.0, 10.0], yaw=0.0))
@@ -355,8 +358,14 @@ def test_json_contract(design: ControllerDesign) -> None:
     assert set(data["position"]) == {"x", "y", "z"}
     for group in ("attitude", "position"):
         for name, rep in data[group].items():
-            assert {"gain_margin_db", "phase_margin_deg", "bandwidth_rad_s", "placed_poles",
-                    "achieved_poles", "gains"} <= set(rep)
+            assert {
+                "gain_margin_db",
+                "phase_margin_deg",
+                "bandwidth_rad_s",
+                "placed_poles",
+                "achieved_poles",
+                "gains",
+            } <= set(rep)
             assert len(rep["placed_poles"]) == 3
             assert all(len(p) == 2 and all(type(v) is float for v in p) for p in rep["achieved_poles"])
             assert rep["achieved_poles"] == [[p.real, p.imag] for p in design.report(name).achieved_poles]
@@ -368,7 +377,7 @@ def test_table_lists_every_loop_with_its_poles(design: ControllerDesign) -> None
     table = format_table(design)
     lines = [line for line in table.splitlines() if line.strip()]
     for loop in Loop:
-        assert sum(line.split()[0] == loop.value for line in lines) == 2     # gains row and poles row
+        assert sum(line.split()[0] == loop.value for line in lines) == 2  # gains row and poles row
     assert "placed" in table and "achieved" in table and "saturation" in table
     assert "all met" in table
 
@@ -414,7 +423,7 @@ def test_payload_is_rejected_by_the_sampled_altitude_loop(design: ControllerDesi
     # the payload enters as an acceleration on the velocity: over one period, v += T d, z += ~T^2 d
     dist = np.zeros(a_cl.shape[0])
     h, n = 1 / design.physics_hz, design.substeps
-    dist[0], dist[1] = h * h * n * (n + 1) / 2, n * h      # semi-implicit Euler over n physics steps
+    dist[0], dist[1] = h * h * n * (n + 1) / 2, n * h  # semi-implicit Euler over n physics steps
     x = np.zeros(a_cl.shape[0])
     zs = []
     for _ in range(int(40.0 * design.position_hz)):

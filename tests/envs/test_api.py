@@ -1,4 +1,5 @@
 """The two API checkers: Gymnasium's ``check_env`` and PettingZoo's ``parallel_api_test``, warning-free."""
+
 from __future__ import annotations
 
 import subprocess
@@ -47,11 +48,11 @@ def test_registered_ids_and_spaces() -> None:
     env = gym.make("pybullet_swarm/Hover-v0")
     try:
         assert env.spec is not None and env.spec.id == "pybullet_swarm/Hover-v0"
-        assert env.observation_space.shape == (17,)          # own 14 + goal 3, one agent has no neighbours
+        assert env.observation_space.shape == (17,)  # own 14 + goal 3, one agent has no neighbours
         assert env.action_space.shape == (3,)
         rotor = gym.make("pybullet_swarm/Hover-v0", action_type="rotor_speed")
         assert rotor.action_space.shape == (4,)
-        assert rotor.unwrapped.dt == pytest.approx(1.0 / 48.0)   # rotor speeds default to the control period
+        assert rotor.unwrapped.dt == pytest.approx(1.0 / 48.0)  # rotor speeds default to the control period
         rotor.close()
     finally:
         env.close()
@@ -68,7 +69,7 @@ def test_parallel_api_test_passes_on_the_swarm() -> None:
 def test_parallel_api_test_passes_on_construction() -> None:
     env = SwarmParallelEnv("construction", overrides={"task.time_limit_s": 5.0}, action_type="waypoint")
     try:
-        assert env.action_space("agent_0").shape == (4,)     # waypoint + gripper
+        assert env.action_space("agent_0").shape == (4,)  # waypoint + gripper
         names = [b["name"] for b in env.layout.describe()]
         assert names == ["own", "neighbours", "boxes", "slots"]
         _no_warnings(parallel_api_test, env, num_cycles=1000)

@@ -1,4 +1,5 @@
 """Episodes: determinism, identical metrics to ``run``, rewards, collisions and crashes in infos, bad input."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -45,7 +46,7 @@ def test_same_seed_same_actions_identical_observations() -> None:
         env.close()
     assert np.array_equal(runs[0][0], runs[1][0])
     assert np.array_equal(runs[0][1], runs[1][1])
-    assert not np.array_equal(runs[0][0][0], runs[0][0][-1])     # the agents did move
+    assert not np.array_equal(runs[0][0][0], runs[0][0][-1])  # the agents did move
 
 
 def test_reset_seed_is_the_run_seed_and_unseeded_resets_follow_the_generator() -> None:
@@ -60,16 +61,19 @@ def test_reset_seed_is_the_run_seed_and_unseeded_resets_follow_the_generator() -
         assert np.array_equal(a["agent_0"], c["agent_0"])
         d, _ = env.reset()
         assert env.sim.seed == seed_b and np.array_equal(b["agent_0"], d["agent_0"])
-        assert not np.array_equal(a["agent_0"][:3], b["agent_0"][:3])   # jittered starts differ by seed
+        assert not np.array_equal(a["agent_0"][:3], b["agent_0"][:3])  # jittered starts differ by seed
     finally:
         env.close()
 
 
 # ---------------------------------------------------------- metrics equal `run`
-@pytest.mark.parametrize("name,overrides,period", [
-    ("hover", {}, "planner"),
-    ("hover_swarm", {"agents.count": 3, "agents.start_jitter": 0.03}, "control"),
-])
+@pytest.mark.parametrize(
+    "name,overrides,period",
+    [
+        ("hover", {}, "planner"),
+        ("hover_swarm", {"agents.count": 3, "agents.start_jitter": 0.03}, "control"),
+    ],
+)
 def test_episode_metrics_equal_the_plain_run(name: str, overrides: dict, period: str) -> None:
     sc = ps.load_scenario(name, overrides)
     plain = ps.run(sc, seed=4)
@@ -89,10 +93,16 @@ def test_episode_metrics_equal_the_plain_run(name: str, overrides: dict, period:
 @pytest.mark.slow
 def test_construction_episode_with_scripted_grasps_equals_the_plain_run() -> None:
     """The shortest-path baseline as an outside policy (waypoints + gripper) reproduces `run` exactly."""
-    sc = ps.load_scenario("construction", {
-        "agents.count": 2, "agents.start": [[0.12, 0.3, 0.011], [0.12, 0.5, 0.011]],
-        "task.boxes": [[0.4, 0.3, 0.05], [0.4, 0.5, 0.05]],
-        "task.structure": [[1.2, 0.3, 0.05], [1.2, 0.5, 0.05]], "task.time_limit_s": 80})
+    sc = ps.load_scenario(
+        "construction",
+        {
+            "agents.count": 2,
+            "agents.start": [[0.12, 0.3, 0.011], [0.12, 0.5, 0.011]],
+            "task.boxes": [[0.4, 0.3, 0.05], [0.4, 0.5, 0.05]],
+            "task.structure": [[1.2, 0.3, 0.05], [1.2, 0.5, 0.05]],
+            "task.time_limit_s": 80,
+        },
+    )
     plain = ps.run(sc, seed=1)
     env = SwarmParallelEnv(sc, action_type="waypoint", normalize_actions=False)
     try:
@@ -140,7 +150,7 @@ def test_flying_to_the_waypoint_is_rewarded_and_away_is_punished() -> None:
     try:
         towards = _fly(env, +1.0, 15)
         assert sum(towards) > 0.5 and min(towards) >= 0.0
-        away = _fly(env, -1.0, 15)          # away from a set-point 1 m above: into the ground, then sideways
+        away = _fly(env, -1.0, 15)  # away from a set-point 1 m above: into the ground, then sideways
         assert sum(away) < 0.0
     finally:
         env.close()
@@ -200,10 +210,15 @@ def test_time_limit_truncates() -> None:
 
 # --------------------------------------------------------- collisions and crash
 def _collision_env(penalty: float) -> SwarmParallelEnv:
-    sc = ps.load_scenario("hover_swarm", {"agents.count": 2, "agents.start": [[1.0, 1.0, 1.0], [1.4, 1.0, 1.0]],
-                                          "collisions": "physical"})
-    return SwarmParallelEnv(sc, action_type="waypoint", normalize_actions=False,
-                            rewards={"collision_penalty": penalty, "goal_progress": 0.0})
+    sc = ps.load_scenario(
+        "hover_swarm", {"agents.count": 2, "agents.start": [[1.0, 1.0, 1.0], [1.4, 1.0, 1.0]], "collisions": "physical"}
+    )
+    return SwarmParallelEnv(
+        sc,
+        action_type="waypoint",
+        normalize_actions=False,
+        rewards={"collision_penalty": penalty, "goal_progress": 0.0},
+    )
 
 
 def test_a_collision_shows_in_infos_and_in_the_reward() -> None:
@@ -233,32 +248,39 @@ def test_a_collision_shows_in_infos_and_in_the_reward() -> None:
 
 
 def test_a_crash_terminates_and_is_penalised() -> None:
-    env = HoverEnv(overrides={"agents.start": [[1.5, 1.5, 1.5]]}, action_type=ActionType.ROTOR_SPEED,
-                   normalize_actions=False, rewards={"goal_progress": 0.0, "crash_penalty": 7.0})
+    env = HoverEnv(
+        overrides={"agents.start": [[1.5, 1.5, 1.5]]},
+        action_type=ActionType.ROTOR_SPEED,
+        normalize_actions=False,
+        rewards={"goal_progress": 0.0, "crash_penalty": 7.0},
+    )
     try:
         env.reset(seed=0)
         term, r, info = False, 0.0, {}
         for _ in range(200):
-            _, r, term, trunc, info = env.step(np.zeros(4))      # rotors off: free fall from 1.5 m
+            _, r, term, trunc, info = env.step(np.zeros(4))  # rotors off: free fall from 1.5 m
             if term or trunc:
                 break
         assert term and info["metrics"]["exit_status"] == "crashed"
-        assert [e["kind"] for e in info["collisions"]] == ["agent_ground"]   # the impact itself is a contact
+        assert [e["kind"] for e in info["collisions"]] == ["agent_ground"]  # the impact itself is a contact
         assert r == pytest.approx(-7.0 - RewardWeights().collision_penalty)
     finally:
         env.close()
 
 
 # -------------------------------------------------------------------- bad input
-@pytest.mark.parametrize("kwargs,field", [
-    ({"action_type": "rotor"}, "env.action_type"),
-    ({"period": 0.1}, "env.period"),
-    ({"rewards": {"collision": 1.0}}, "env.rewards.collision"),
-    ({"rewards": {"crash_penalty": -1.0}}, "env.rewards.crash_penalty"),
-    ({"neighbours": -1}, "env.neighbours"),
-    ({"render_mode": "human"}, "env.render_mode"),
-    ({"unknown_option": 1}, "env.unknown_option"),
-])
+@pytest.mark.parametrize(
+    "kwargs,field",
+    [
+        ({"action_type": "rotor"}, "env.action_type"),
+        ({"period": 0.1}, "env.period"),
+        ({"rewards": {"collision": 1.0}}, "env.rewards.collision"),
+        ({"rewards": {"crash_penalty": -1.0}}, "env.rewards.crash_penalty"),
+        ({"neighbours": -1}, "env.neighbours"),
+        ({"render_mode": "human"}, "env.render_mode"),
+        ({"unknown_option": 1}, "env.unknown_option"),
+    ],
+)
 def test_bad_options_are_one_line_config_errors(kwargs: dict, field: str) -> None:
     with pytest.raises(ConfigError) as err:
         SwarmParallelEnv("hover_swarm", **kwargs)
@@ -280,6 +302,6 @@ def test_rgb_array_render_from_direct_mode() -> None:
         env.reset(seed=0)
         frame = env.render()
         assert isinstance(frame, np.ndarray) and frame.shape == (90, 160, 3) and frame.dtype == np.uint8
-        assert frame.reshape(-1, 3).std(axis=0).max() > 1.0       # not a blank image
+        assert frame.reshape(-1, 3).std(axis=0).max() > 1.0  # not a blank image
     finally:
         env.close()

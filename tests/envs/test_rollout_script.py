@@ -1,4 +1,5 @@
 """The example script: a scripted rollout of the swarm environment prints and writes the episode metrics."""
+
 from __future__ import annotations
 
 import importlib.util

@@ -1,4 +1,5 @@
 """The documented observation layout and the action mapping, against hand-computed values."""
+
 from __future__ import annotations
 
 import math
@@ -21,8 +22,8 @@ def test_own_block_and_neighbours_of_a_known_grid() -> None:
         own = o[lay.slice("own")]
         starts = env.sim.starts
         assert np.allclose(own[0:3], starts[0], atol=1e-6)
-        assert np.allclose(own[3:12], 0.0, atol=1e-6)          # at rest, level, no rates
-        assert own[12] == 0.0 and own[13] == 0.0                # not carrying, t = 0
+        assert np.allclose(own[3:12], 0.0, atol=1e-6)  # at rest, level, no rates
+        assert own[12] == 0.0 and own[13] == 0.0  # not carrying, t = 0
         nb = o[lay.slice("neighbours")].reshape(3, 7)
         dist = np.linalg.norm(nb[:, :3], axis=1)
         assert np.allclose(dist, [0.4, 0.4, 0.4 * math.sqrt(2)], atol=1e-6)
@@ -41,7 +42,7 @@ def test_neighbours_outside_the_sensing_radius_are_absent() -> None:
     try:
         obs, _ = env.reset(seed=0)
         nb = obs["agent_0"][env.layout.slice("neighbours")].reshape(3, 7)
-        assert nb[:, 6].tolist() == [1.0, 1.0, 0.0]             # the diagonal one is out of range
+        assert nb[:, 6].tolist() == [1.0, 1.0, 0.0]  # the diagonal one is out of range
         assert np.all(nb[2] == 0.0)
     finally:
         env.close()
@@ -62,8 +63,8 @@ def test_construction_observes_boxes_and_slots_in_view() -> None:
             in_view = c.in_view(rel + [0.0, 0.0, c.grasp_height])
             block = obs[a][lay.slice("boxes")].reshape(2, 4)
             expected = rel[in_view][np.argsort(np.einsum("ij,ij->i", rel[in_view], rel[in_view]))][:2]
-            assert int(block[:, 3].sum()) == len(expected)           # exactly the boxes in view, nearest first
-            assert np.allclose(block[:len(expected), :3], expected, atol=1e-6)
+            assert int(block[:, 3].sum()) == len(expected)  # exactly the boxes in view, nearest first
+            assert np.allclose(block[: len(expected), :3], expected, atol=1e-6)
             seen_any |= len(expected) > 0
             # the structure (x = 2.7 m) is far from the depot edge where the agents start
             assert np.all(obs[a][lay.slice("slots")] == 0.0)
@@ -76,14 +77,13 @@ def test_construction_observes_boxes_and_slots_in_view() -> None:
 
 
 def test_normalised_waypoints_map_onto_the_arena() -> None:
-    env = SwarmParallelEnv("hover_swarm", overrides={"agents.count": 1}, action_type="waypoint",
-                           waypoint_ceiling=3.0)
+    env = SwarmParallelEnv("hover_swarm", overrides={"agents.count": 1}, action_type="waypoint", waypoint_ceiling=3.0)
     try:
         m = env._episode.mapper
         cmd, grip = m.to_physical(np.array([[0.0, -1.0, 1.0]]))
         assert grip is None
-        assert np.allclose(cmd, [[10.0, 0.0, 3.0]])             # 20 m x 20 m arena, 3 m ceiling
-        cmd, _ = m.to_physical(np.array([[5.0, -5.0, 0.0]]))     # out of range: clipped
+        assert np.allclose(cmd, [[10.0, 0.0, 3.0]])  # 20 m x 20 m arena, 3 m ceiling
+        cmd, _ = m.to_physical(np.array([[5.0, -5.0, 0.0]]))  # out of range: clipped
         assert np.allclose(cmd, [[20.0, 0.0, 1.5]])
         env.reset(seed=0)
         hold = env.neutral_actions()["agent_0"]
@@ -95,8 +95,13 @@ def test_normalised_waypoints_map_onto_the_arena() -> None:
 
 @pytest.mark.parametrize("normalize", [True, False])
 def test_rotor_actions_centre_on_hover(normalize: bool) -> None:
-    env = SwarmParallelEnv("hover_swarm", overrides={"agents.count": 1}, action_type="rotor_speed",
-                           normalize_actions=normalize, rotor_span=0.2)
+    env = SwarmParallelEnv(
+        "hover_swarm",
+        overrides={"agents.count": 1},
+        action_type="rotor_speed",
+        normalize_actions=normalize,
+        rotor_span=0.2,
+    )
     try:
         m = env._episode.mapper
         w_hover = env.sim.params.hover_rotor_speed(env.sim.scenario.sim.gravity)
@@ -117,20 +122,21 @@ def test_gripper_column_thresholds() -> None:
         acts = np.zeros((5, 4))
         acts[:, 3] = [1.0, 0.6, 0.4, -0.6, -1.0]
         _, grip = m.to_physical(acts)
-        assert grip.tolist() == [1, 1, 0, 2, 2]                  # GRASP, GRASP, NONE, RELEASE, RELEASE
+        assert grip.tolist() == [1, 1, 0, 2, 2]  # GRASP, GRASP, NONE, RELEASE, RELEASE
     finally:
         env.close()
 
 
 def test_missing_agents_hold_and_unknown_agents_are_refused() -> None:
-    env = SwarmParallelEnv("hover_swarm", overrides={"agents.count": 2}, action_type="waypoint",
-                           normalize_actions=False)
+    env = SwarmParallelEnv(
+        "hover_swarm", overrides={"agents.count": 2}, action_type="waypoint", normalize_actions=False
+    )
     try:
         env.reset(seed=0)
         start = env.sim.state_array[:, :3].copy()
         for _ in range(10):
             env.step({"agent_0": start[0] + [0.0, 0.0, 0.5]})
-        assert np.linalg.norm(env.sim.state_array[1, :3] - start[1]) < 0.05   # agent_1 held where it was
+        assert np.linalg.norm(env.sim.state_array[1, :3] - start[1]) < 0.05  # agent_1 held where it was
         assert env.sim.state_array[0, 2] > start[0, 2] + 0.3
         with pytest.raises(KeyError, match="unknown agent"):
             env.step({"agent_7": start[0]})

@@ -19,6 +19,7 @@ validated at load against each plug-in's model: besides the generic mutations, `
 picks a registered planner or avoidance layer and sets one of its parameters to a value at, inside
 or beyond the bounds of its model (a new kind of plug-in adds its mutation there).
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -40,7 +41,7 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.resources import bundled_scenarios, scenarios_dir
 
 PREFIX = "pybullet-swarm: error: "
-RUN_SECONDS = 0.3   # s, time limit of the short run of an accepted mutant
+RUN_SECONDS = 0.3  # s, time limit of the short run of an accepted mutant
 FILE = "mutant.yaml"
 
 Path_ = tuple[Any, ...]
@@ -173,21 +174,52 @@ def nested_bomb(depth: int, width: int) -> list[Any]:
 
 
 # --------------------------------------------------------------- mutations
-WRONG_TYPES = st.one_of(st.text(max_size=8), st.booleans(), st.none(), st.lists(st.text(max_size=4), max_size=3),
-                        st.dictionaries(st.text(max_size=4), st.integers(), min_size=1, max_size=2))
+WRONG_TYPES = st.one_of(
+    st.text(max_size=8),
+    st.booleans(),
+    st.none(),
+    st.lists(st.text(max_size=4), max_size=3),
+    st.dictionaries(st.text(max_size=4), st.integers(), min_size=1, max_size=2),
+)
 NON_FINITE = st.sampled_from([math.nan, math.inf, -math.inf])
 HUGE = st.sampled_from([1e308, -1e308, 1e30, -1e30, 10**30, -(10**30), 2**63, 1e15, 1e6, -1e6, 10**4000])
 TINY = st.sampled_from([1e-300, -1e-300, 5e-324, 1e-13, 1e-12, 1e-9, 0, 0.0, -0.0, 1, -1])
 FACTORS = st.sampled_from([-1.0, 0.5, 2.0, 10.0, 100.0, 1000.0])
-TAGS = st.sampled_from(["!!int abc", "!!float x", "!!binary AAAA", "!!python/object:os.system ls", "!!timestamp 1",
-                        "!!set {a}", "!!omap [a: 1]", "!!str 1", "!!null ''", "!!bool maybe"])
+TAGS = st.sampled_from(
+    [
+        "!!int abc",
+        "!!float x",
+        "!!binary AAAA",
+        "!!python/object:os.system ls",
+        "!!timestamp 1",
+        "!!set {a}",
+        "!!omap [a: 1]",
+        "!!str 1",
+        "!!null ''",
+        "!!bool maybe",
+    ]
+)
 NEAR = st.one_of(st.floats(-1e3, 1e3, allow_nan=False), st.integers(-10, 3000), st.floats(0, 2, allow_nan=False))
-KINDS = ("type", "nonfinite", "huge", "tiny", "scale", "near", "unknown", "delete", "alias_share", "alias_bomb",
-         "alias_cycle", "tag", "plugin")
+KINDS = (
+    "type",
+    "nonfinite",
+    "huge",
+    "tiny",
+    "scale",
+    "near",
+    "unknown",
+    "delete",
+    "alias_share",
+    "alias_bomb",
+    "alias_cycle",
+    "tag",
+    "plugin",
+)
 
 
-def _mutate_once(draw: Callable[..., Any], data: dict[str, Any], tags: list[str],
-                 kinds: tuple[str, ...] = KINDS) -> tuple[str, str]:
+def _mutate_once(
+    draw: Callable[..., Any], data: dict[str, Any], tags: list[str], kinds: tuple[str, ...] = KINDS
+) -> tuple[str, str]:
     """Apply one drawn mutation (of one of ``kinds``) to ``data`` in place; returns (kind, what was done).
 
     A YAML tag is written as a placeholder ``@@TAGk@@`` whose text ``tags[k]`` replaces it after dumping.
@@ -227,7 +259,7 @@ def _mutate_once(draw: Callable[..., Any], data: dict[str, Any], tags: list[str]
         source = draw(st.sampled_from(containers)) if containers else target
         if target[: len(source)] == source:
             return kind, f"{dotted(target)} left (inside {dotted(source)})"
-        set_at(data, target, get_at(data, source))   # the same object twice: dumped as &anchor / *alias
+        set_at(data, target, get_at(data, source))  # the same object twice: dumped as &anchor / *alias
         return kind, f"{dotted(target)} = *{dotted(source)}"
     if kind == "alias_bomb":
         path = draw(st.sampled_from([p for p, _ in everything]))
@@ -240,7 +272,7 @@ def _mutate_once(draw: Callable[..., Any], data: dict[str, Any], tags: list[str]
         loop.append(loop)
         set_at(data, path, loop)
         return kind, f"{dotted(path)} = recursive alias"
-    path, _ = draw(st.sampled_from(leaves))   # a YAML tag where a value was
+    path, _ = draw(st.sampled_from(leaves))  # a YAML tag where a value was
     tags.append(draw(TAGS))
     set_at(data, path, f"@@TAG{len(tags) - 1}@@")
     return "tag", f"{dotted(path)} = {tags[-1]}"
@@ -270,15 +302,18 @@ class Outcome:
     err: str
     out: str
     check_warnings: list[str]
-    run: str | None = None            # exit status of the short run, or None when not run
+    run: str | None = None  # exit status of the short run, or None when not run
     run_error: BaseException | None = None
     run_warnings: list[str] = dataclasses.field(default_factory=list)
 
 
 def _visible(caught: list[warnings.WarningMessage]) -> list[str]:
     """Warnings a user would see (deprecations are for developers)."""
-    return [f"{w.category.__name__}: {w.message}" for w in caught
-            if not issubclass(w.category, (DeprecationWarning, PendingDeprecationWarning))]
+    return [
+        f"{w.category.__name__}: {w.message}"
+        for w in caught
+        if not issubclass(w.category, (DeprecationWarning, PendingDeprecationWarning))
+    ]
 
 
 def try_mutant(text: str, workdir: Path, *, plots: bool = False) -> Outcome:
@@ -291,8 +326,11 @@ def try_mutant(text: str, workdir: Path, *, plots: bool = False) -> Outcome:
     # real files (with a file descriptor), as a terminal or a pipe would be: what Bullet's C code
     # prints is silenced at the descriptor, as in the command
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stdout(out), \
-                contextlib.redirect_stderr(err):
+        with (
+            warnings.catch_warnings(record=True) as caught,
+            contextlib.redirect_stdout(out),
+            contextlib.redirect_stderr(err),
+        ):
             warnings.simplefilter("always")
             code = main(["check", str(path), "--quiet"])
         out.seek(0)
@@ -330,8 +368,12 @@ def assert_property(what: str, o: Outcome) -> None:
 
 # a fixed seed: the same examples on every run (no flaky test), drawn at random rather than
 # simplest-first (derandomize=True keeps to the first values of every choice)
-FUZZ = settings(max_examples=60, deadline=None, database=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+FUZZ = settings(
+    max_examples=60,
+    deadline=None,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 
 
 #: Mutations that often leave a valid scenario: the short run is exercised mostly by these.
@@ -341,8 +383,9 @@ PLAUSIBLE = ("near", "scale", "tiny", "delete", "plugin", "alias_share")
 @seed(23)
 @FUZZ
 @given(case=mutants(max_mutations=3))
-def test_mutated_bundled_scenarios_check_in_one_line_and_run(tmp_path_factory: pytest.TempPathFactory,
-                                                             case: tuple[str, str, str]) -> None:
+def test_mutated_bundled_scenarios_check_in_one_line_and_run(
+    tmp_path_factory: pytest.TempPathFactory, case: tuple[str, str, str]
+) -> None:
     _, what, text = case
     assert_property(what, try_mutant(text, tmp_path_factory.mktemp("fuzz")))
 
@@ -350,8 +393,9 @@ def test_mutated_bundled_scenarios_check_in_one_line_and_run(tmp_path_factory: p
 @seed(2)
 @settings(FUZZ, max_examples=40)
 @given(case=mutants(kinds=PLAUSIBLE))
-def test_plausible_mutations_that_check_accepts_run(tmp_path_factory: pytest.TempPathFactory,
-                                                    case: tuple[str, str, str]) -> None:
+def test_plausible_mutations_that_check_accepts_run(
+    tmp_path_factory: pytest.TempPathFactory, case: tuple[str, str, str]
+) -> None:
     _, what, text = case
     assert_property(what, try_mutant(text, tmp_path_factory.mktemp("fuzz")))
 
@@ -367,8 +411,12 @@ def test_every_bundled_scenario_passes_unmutated(tmp_path: Path, name: str) -> N
 def test_every_kind_of_mutation_is_drawn() -> None:
     seen: set[str] = set()
 
-    @settings(max_examples=300, database=None, derandomize=True,
-              suppress_health_check=[HealthCheck.data_too_large, HealthCheck.too_slow])
+    @settings(
+        max_examples=300,
+        database=None,
+        derandomize=True,
+        suppress_health_check=[HealthCheck.data_too_large, HealthCheck.too_slow],
+    )
     @given(case=mutants())
     def collect(case: tuple[str, str, str]) -> None:
         seen.add(case[1].split(": ")[1])

@@ -1,5 +1,6 @@
 """Hostile input through the Python API (issue 23): YAML limits, finiteness, physical ranges, memory
 budgets, run directories and saved results. The command-line side is ``tests/cli/test_hostile_input.py``."""
+
 from __future__ import annotations
 
 import copy
@@ -59,13 +60,13 @@ def test_1_expanded_size_is_counted_exactly(levels: int) -> None:
 
 def test_1_billion_laughs_is_refused_before_construction() -> None:
     lines = ["a0: &a0 [lol, lol, lol, lol, lol, lol, lol, lol, lol]"]
-    lines += [f"a{k}: &a{k} [{', '.join([f'*a{k - 1}'] * 9)}]" for k in range(1, 10)]   # 9^10 = 3.5e9 values
+    lines += [f"a{k}: &a{k} [{', '.join([f'*a{k - 1}'] * 9)}]" for k in range(1, 10)]  # 9^10 = 3.5e9 values
     tracemalloc.start()
     with pytest.raises(ConfigError, match=f"x.yaml: too large: the document expands to more than {MAX_NODES}"):
         parse_yaml("\n".join(lines), source="x.yaml")
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    assert peak < 5 << 20   # bytes: the graph of the text, never its expansion
+    assert peak < 5 << 20  # bytes: the graph of the text, never its expansion
 
 
 def test_1_shared_aliases_below_the_limit_are_fine() -> None:
@@ -73,21 +74,37 @@ def test_1_shared_aliases_below_the_limit_are_fine() -> None:
     assert data == {"a": [1, 2, 3], "b": [1, 2, 3], "c": {"x": 1, "y": 2}}
 
 
-@pytest.mark.parametrize(("text", "value"), [("1e6", 1e6), ("-2E-3", -2e-3), (".5e1", 5.0), ("1.5e+3", 1500.0),
-                                             ("1_000", 1000), ("12", 12), ("1e", "1e"), ("e5", "e5"),
-                                             ("0x10", 16), ("1.0", 1.0), (".inf", float("inf"))])
+@pytest.mark.parametrize(
+    ("text", "value"),
+    [
+        ("1e6", 1e6),
+        ("-2E-3", -2e-3),
+        (".5e1", 5.0),
+        ("1.5e+3", 1500.0),
+        ("1_000", 1000),
+        ("12", 12),
+        ("1e", "1e"),
+        ("e5", "e5"),
+        ("0x10", 16),
+        ("1.0", 1.0),
+        (".inf", float("inf")),
+    ],
+)
 def test_1_numbers_are_read_as_people_write_them(text: str, value: Any) -> None:
     got = parse_yaml(f"v: {text}", source="n.yaml")["v"]
     assert got == value and type(got) is type(value)
 
 
 # ---------------------------------------------------- 2. finite and physical
-@pytest.mark.parametrize(("key", "value", "field"), [
-    ("task__boxes", [[0.25, 0.25, float("nan")]], "task.boxes[0][2]"),
-    ("task__structure", [[2.5, 0.5, float("inf")]], "task.structure[0][2]"),
-    ("task__box_size", float("nan"), "task.box_size"),
-    ("avoidance_params__zz", float("-inf"), "avoidance_params.zz"),
-])
+@pytest.mark.parametrize(
+    ("key", "value", "field"),
+    [
+        ("task__boxes", [[0.25, 0.25, float("nan")]], "task.boxes[0][2]"),
+        ("task__structure", [[2.5, 0.5, float("inf")]], "task.structure[0][2]"),
+        ("task__box_size", float("nan"), "task.box_size"),
+        ("avoidance_params__zz", float("-inf"), "avoidance_params.zz"),
+    ],
+)
 def test_2_non_finite_numbers_are_refused_anywhere(key: str, value: Any, field: str) -> None:
     err = bad(with_(CONSTRUCTION, **{key: value}))
     assert err.field == field and "must be a finite number" in err.detail
@@ -135,15 +152,28 @@ def test_2_raised_obstacle_compares_vertical_extents() -> None:
 
 
 def test_2_start_above_the_ceiling() -> None:
-    err = bad(with_(HOVER, arena__height=2.0, agents__start=[[1.0, 1.0, 2.5]],
-                    task__waypoints=[{"t_s": 0, "position": [0.0, 0.0, -1.0]}]))
+    err = bad(
+        with_(
+            HOVER,
+            arena__height=2.0,
+            agents__start=[[1.0, 1.0, 2.5]],
+            task__waypoints=[{"t_s": 0, "position": [0.0, 0.0, -1.0]}],
+        )
+    )
     assert err.field == "agents.start[0]" and "above the ceiling" in err.detail
 
 
 # ------------------------------------------------------------ memory budget
 def test_2_budget_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
-    for text, size in (("", memory.DEFAULT_BUDGET), ("512", 512 << 20), ("512M", 512 << 20), ("16G", 16 << 30),
-                       ("16GiB", 16 << 30), ("1.5g", 3 << 29), ("100k", 100 << 10)):
+    for text, size in (
+        ("", memory.DEFAULT_BUDGET),
+        ("512", 512 << 20),
+        ("512M", 512 << 20),
+        ("16G", 16 << 30),
+        ("16GiB", 16 << 30),
+        ("1.5g", 3 << 29),
+        ("100k", 100 << 10),
+    ):
         monkeypatch.setenv(memory.ENV_VAR, text)
         assert memory.memory_budget() == size
     for text in ("lots", "-1", "0", "1e400", "12 parsecs"):
@@ -158,7 +188,7 @@ def test_2_colony_estimate_bounds_the_measured_peak() -> None:
     rng = np.random.default_rng(0)
     warm = rng.random((20, 2))
     solve_tsp(np.linalg.norm(warm[:, None] - warm[None], axis=2), ACOParams(iterations=1, local_search="none"), seed=0)
-    n = 600   # after the compiled kernels are loaded: the colony's own arrays only
+    n = 600  # after the compiled kernels are loaded: the colony's own arrays only
     pts = rng.random((n, 2))
     dist = np.linalg.norm(pts[:, None] - pts[None], axis=2)
     tracemalloc.start()
@@ -179,12 +209,19 @@ def test_2_grid_estimate_is_its_arrays() -> None:
 
 def test_2_budget_names_the_field_and_the_size(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(memory.ENV_VAR, raising=False)
-    err = bad(with_(CONSTRUCTION, arena__size=[30.0, 10.0],
-                    planner={"name": "layered_stigmergy", "params": {"cell_size": 0.01, "grid_height": 2.0}}))
+    err = bad(
+        with_(
+            CONSTRUCTION,
+            arena__size=[30.0, 10.0],
+            planner={"name": "layered_stigmergy", "params": {"cell_size": 0.01, "grid_height": 2.0}},
+        )
+    )
     assert err.field == "planner.params.cell_size"
     # 2 layers x (3000 x 1000 x 200 cells x 16 B + 501 snapshots x 3000 x 1000 columns x 4 B) = 29.1 GiB
-    assert "a pheromone grid of 3000 x 1000 x 200 cells (2 layer(s), with its snapshots) would need about 29.1 GiB, " \
-           "above the memory budget of 4 GiB" in err.detail
+    assert (
+        "a pheromone grid of 3000 x 1000 x 200 cells (2 layer(s), with its snapshots) would need about 29.1 GiB, "
+        "above the memory budget of 4 GiB" in err.detail
+    )
     err = bad(with_(HOVER, agents__count=2, task__time_limit_s=1e5, sim__record_hz=240))
     assert err.field == "sim.record_hz" and "recording 24000002 samples of 2 agents" in err.detail
 
@@ -195,9 +232,12 @@ def test_3_vehicle_errors_name_the_vehicle_file_and_field(tmp_path: Path) -> Non
 
     shutil.copy(urdf_dir() / "quad150.urdf", tmp_path / "quad150.urdf")
     params = yaml.safe_load((urdf_dir() / "quad150.yaml").read_text())
-    cases = [("mass", float("inf"), "mass: must be a finite number"), ("inertia", [1e-4, 1e-4, 5e-4],
-             "inertia: principal moments of a rigid body"), ("max_rotor_speed", 0, "max_rotor_speed: must be > 0"),
-             ("collision_size", [0.1, 0.1], "collision_size[2]: is required")]
+    cases = [
+        ("mass", float("inf"), "mass: must be a finite number"),
+        ("inertia", [1e-4, 1e-4, 5e-4], "inertia: principal moments of a rigid body"),
+        ("max_rotor_speed", 0, "max_rotor_speed: must be > 0"),
+        ("collision_size", [0.1, 0.1], "collision_size[2]: is required"),
+    ]
     for k, (key, value, expected) in enumerate(cases):
         path = tmp_path / f"v{k}.yaml"
         path.write_text(yaml.safe_dump({**params, key: value}))
@@ -205,13 +245,18 @@ def test_3_vehicle_errors_name_the_vehicle_file_and_field(tmp_path: Path) -> Non
         assert err.field == "agents.vehicle" and err.detail.startswith(f"v{k}.yaml: {expected}"), err.detail
 
 
-@pytest.mark.parametrize(("urdf", "why"), [
-    ("<robot name='r'><link name='a'/><joint name='j' type='revolute'/></robot>", "joint 'j' is 'revolute'"),
-    ("<robot name='r'><link name='a'><visual><geometry><mesh filename='gone.stl'/></geometry></visual></link></robot>",
-     "mesh file 'gone.stl' not found"),
-    ("<!DOCTYPE r [<!ENTITY a 'aaaa'>]><robot name='r'><link name='&a;'/></robot>", "XML entities"),
-    ("\x00\x01", "not well-formed XML"),
-])
+@pytest.mark.parametrize(
+    ("urdf", "why"),
+    [
+        ("<robot name='r'><link name='a'/><joint name='j' type='revolute'/></robot>", "joint 'j' is 'revolute'"),
+        (
+            "<robot name='r'><link name='a'><visual><geometry><mesh filename='gone.stl'/></geometry></visual></link></robot>",
+            "mesh file 'gone.stl' not found",
+        ),
+        ("<!DOCTYPE r [<!ENTITY a 'aaaa'>]><robot name='r'><link name='&a;'/></robot>", "XML entities"),
+        ("\x00\x01", "not well-formed XML"),
+    ],
+)
 def test_3_urdf_must_be_one_rigid_body(tmp_path: Path, urdf: str, why: str) -> None:
     from pybullet_swarm.resources import urdf_dir
     from pybullet_swarm.vehicle import load_vehicle
@@ -225,9 +270,19 @@ def test_3_urdf_must_be_one_rigid_body(tmp_path: Path, urdf: str, why: str) -> N
 
 
 # ------------------------------------------------------ 4. run directories
-@pytest.mark.parametrize(("name", "safe"), [("../../../x", "x"), ("/some/abs/path", "some_abs_path"), ("..", "scenario"),
-                                            ("", "scenario"), (".hidden", "hidden"), ("-rf", "rf"),
-                                            ("hover_swarm", "hover_swarm"), ("a b\nc", "a_b_c")])
+@pytest.mark.parametrize(
+    ("name", "safe"),
+    [
+        ("../../../x", "x"),
+        ("/some/abs/path", "some_abs_path"),
+        ("..", "scenario"),
+        ("", "scenario"),
+        (".hidden", "hidden"),
+        ("-rf", "rf"),
+        ("hover_swarm", "hover_swarm"),
+        ("a b\nc", "a_b_c"),
+    ],
+)
 def test_4_safe_names(name: str, safe: str) -> None:
     assert safe_name(name) == safe
 
@@ -264,9 +319,15 @@ def test_6_saved_results_are_checked(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="unreadable: not JSON"):
         read_metrics(tmp_path)
     m = 5
-    arrays = {"t": np.arange(m, dtype=np.float32), "positions": np.zeros((m, 2, 3)), "quaternions": np.zeros((m, 2, 4)),
-              "velocities": np.zeros((m, 2, 3)), "rotor_speeds": np.zeros((m, 2, 4)),
-              "ref_positions": np.zeros((m, 2, 3)), "ref_velocities": np.zeros((m, 2, 3))}
+    arrays = {
+        "t": np.arange(m, dtype=np.float32),
+        "positions": np.zeros((m, 2, 3)),
+        "quaternions": np.zeros((m, 2, 4)),
+        "velocities": np.zeros((m, 2, 3)),
+        "rotor_speeds": np.zeros((m, 2, 4)),
+        "ref_positions": np.zeros((m, 2, 3)),
+        "ref_velocities": np.zeros((m, 2, 3)),
+    }
     np.savez(tmp_path / "ts.npz", **arrays)
     assert read_timeseries(tmp_path / "ts.npz").positions.shape == (m, 2, 3)
     np.savez(tmp_path / "ts.npz", **{**arrays, "velocities": np.full((m, 2, 3), np.nan)})
@@ -275,9 +336,16 @@ def test_6_saved_results_are_checked(tmp_path: Path) -> None:
     np.savez(tmp_path / "ts.npz", **{**arrays, "t": np.array(["a"] * m)})
     with pytest.raises(ConfigError, match="must hold numbers"):
         read_timeseries(tmp_path / "ts.npz")
-    np.savez(tmp_path / "ph.npz", cell=np.array(0.1), extent=np.array([3.0, 1.0, 1.0]), layers=np.array(["task"]),
-             snapshot_t=np.zeros(2), task=np.zeros((30, 10, 10)), task_history=np.zeros((2, 30, 9)),
-             task_marked=np.zeros(2))
+    np.savez(
+        tmp_path / "ph.npz",
+        cell=np.array(0.1),
+        extent=np.array([3.0, 1.0, 1.0]),
+        layers=np.array(["task"]),
+        snapshot_t=np.zeros(2),
+        task=np.zeros((30, 10, 10)),
+        task_history=np.zeros((2, 30, 9)),
+        task_marked=np.zeros(2),
+    )
     with pytest.raises(ConfigError) as info:
         read_pheromones(tmp_path / "ph.npz")
     assert info.value.field == "task_history"
@@ -286,7 +354,7 @@ def test_6_saved_results_are_checked(tmp_path: Path) -> None:
 def test_6_zip_bomb_is_refused_unread(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from pybullet_swarm.experiment.results import read_timeseries
 
-    np.savez_compressed(tmp_path / "ts.npz", t=np.zeros(20_000_000, dtype=np.float32))   # 80 MB of zeros, tiny file
+    np.savez_compressed(tmp_path / "ts.npz", t=np.zeros(20_000_000, dtype=np.float32))  # 80 MB of zeros, tiny file
     monkeypatch.setenv(memory.ENV_VAR, "16M")
     with pytest.raises(ConfigError, match="above the memory budget"):
         read_timeseries(tmp_path / "ts.npz")

@@ -1,4 +1,5 @@
 """Random generators by name: a consumer's draws depend on the seed and its name only."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,8 +31,11 @@ def _planner_draws(overrides: list[str]) -> tuple[np.ndarray, np.ndarray]:
 
 def test_switching_sensors_on_does_not_change_planner_draws_or_starts() -> None:
     base, starts = _planner_draws([])
-    for extra in (["sensing.range.enabled=true"], ["sensing.run_estimator=true"],
-                  ["sensing.state=estimated", "sensing.range.enabled=true"]):
+    for extra in (
+        ["sensing.range.enabled=true"],
+        ["sensing.run_estimator=true"],
+        ["sensing.state=estimated", "sensing.range.enabled=true"],
+    ):
         draws, again = _planner_draws(extra)
         assert np.array_equal(draws, base), extra
         assert np.array_equal(again, starts), extra

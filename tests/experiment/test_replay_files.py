@@ -1,5 +1,6 @@
 """Replays written from run directories: what the time series records for them, a video's frames, a
 still, and runs recorded before the carriers were."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -34,7 +35,7 @@ def test_time_series_records_box_poses_and_carriers(construction_run: Path) -> N
     assert carried.shape == (m, 9) and carried[0].tolist() == [-1] * 9
     grasps = [e for e in read_events(construction_run / "events.csv") if e.kind == "grasp" and e.time_s < 5.9]
     assert grasps
-    for e in grasps:   # the sample at the grasp's instant was taken before it, the next one holds the box
+    for e in grasps:  # the sample at the grasp's instant was taken before it, the next one holds the box
         k = int(np.searchsorted(ts.t, e.time_s + 1e-4))
         assert carried[k - 1, int(e.b[3:])] == -1 and carried[k, int(e.b[3:])] == int(e.a[5:])
     data = load_replay(construction_run)
@@ -48,7 +49,7 @@ def test_replay_of_a_run_directory_writes_the_frames(construction_run: Path, tmp
     out = render_replay(construction_run, tmp_path / "r.mp4", view="top", speed=2.0, size=(320, 180), fps=10)
     assert out == tmp_path / "r.mp4"
     frames, _ = imageio_ffmpeg.count_frames_and_secs(str(out))
-    assert frames == frame_times(float(data.t[0]), float(data.t[-1]), 2.0, 10).size == 30   # floor(5.95 s * 10 / 2) + 1
+    assert frames == frame_times(float(data.t[0]), float(data.t[-1]), 2.0, 10).size == 30  # floor(5.95 s * 10 / 2) + 1
     reader = imageio_ffmpeg.read_frames(str(out))
     meta = next(reader)
     assert tuple(meta["size"]) == (320, 180)
@@ -76,4 +77,4 @@ def test_run_recorded_without_carriers_takes_them_from_events(construction_run: 
     dataclasses.replace(ts, extra=extra).save(old / "timeseries.npz")
     new, was = load_replay(old), load_replay(construction_run)
     assert np.array_equal(new.box_carried_by, was.box_carried_by)
-    assert np.allclose(new.box_quaternions[..., 3], 1.0)   # upright, as recorded runs before them
+    assert np.allclose(new.box_quaternions[..., 3], 1.0)  # upright, as recorded runs before them

@@ -1,5 +1,6 @@
 """Report pages of a run and of a sweep: content, figures that resolve, and a real headless browser
 (Chromium) rendering them."""
+
 from __future__ import annotations
 
 import base64
@@ -69,7 +70,7 @@ def assert_sources_resolve(page_path: Path, sources: list[str]) -> None:
                 im.load()
                 assert im.width > 100 and im.height > 100
         else:
-            assert "://" not in src and not src.startswith("/")   # relative: the directory moves as a whole
+            assert "://" not in src and not src.startswith("/")  # relative: the directory moves as a whole
             assert (page_path.parent / src).is_file(), src
 
 
@@ -81,8 +82,15 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from pybullet_swarm.types import TimeSeries
 
     out = tmp_path_factory.mktemp("report") / "run"
-    run("construction", planner="stigmergy", out=out, plots=False, video=True, speed=8.0,
-        overrides={"task.time_limit_s": 3.0})
+    run(
+        "construction",
+        planner="stigmergy",
+        out=out,
+        plots=False,
+        video=True,
+        speed=8.0,
+        overrides={"task.time_limit_s": 3.0},
+    )
     plot_positions(TimeSeries.load(out / "timeseries.npz"), out / "plots" / "position.png")
     write_run_report(out)
     return out
@@ -94,11 +102,21 @@ def sweep_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     one of its runs."""
     from pybullet_swarm.experiment.sweep import Sweep, draw_comparison, load_sweep, run_sweep
 
-    overrides = {"task.time_limit_s": 1.0, "task.relative": False, "task.hold_s": 0.2, "task.tolerance_m": 0.1,
-                 "task.waypoints": [{"t_s": 0.0, "position": [1.5, 1.5, 0.3]}], "agents.start_jitter": 0.05}
+    overrides = {
+        "task.time_limit_s": 1.0,
+        "task.relative": False,
+        "task.hold_s": 0.2,
+        "task.tolerance_m": 0.1,
+        "task.waypoints": [{"t_s": 0.0, "position": [1.5, 1.5, 0.3]}],
+        "agents.start_jitter": 0.05,
+    }
     out = tmp_path_factory.mktemp("report") / "sweep"
-    run_sweep(Sweep("hover", grid={"limits.velocity": [0.5, 1.0]}, seeds=1, overrides=overrides), out, workers=1,
-              figures=False)
+    run_sweep(
+        Sweep("hover", grid={"limits.velocity": [0.5, 1.0]}, seeds=1, overrides=overrides),
+        out,
+        workers=1,
+        figures=False,
+    )
     rows, group_by = load_sweep(out)
     draw_comparison(rows, group_by, out / "plots", ["sim_time_s", "energy_j"])
     write_run_report(out / str(rows[0]["run_dir"]))
@@ -126,7 +144,7 @@ def test_run_report_holds_scenario_metrics_figures_and_events(run_dir: Path) -> 
     events = read_events(run_dir / "events.csv")
     assert events
     header = page.cells.index("detail")
-    rows = page.cells[header + 1:]
+    rows = page.cells[header + 1 :]
     assert len(rows) == 5 * len(events)
     assert [r for r in rows[1::5]] == [e.kind for e in events]
 
@@ -146,7 +164,7 @@ def test_sweep_report_holds_the_comparison_with_intervals(sweep_dir: Path) -> No
     assert figures and len(page.images) == len(figures)
     assert_sources_resolve(path, page.images)
     run_pages = [link for link in page.links if link.endswith(REPORT_NAME)]
-    assert len(run_pages) == 1 and (sweep_dir / run_pages[0]).is_file()   # the one run with a page
+    assert len(run_pages) == 1 and (sweep_dir / run_pages[0]).is_file()  # the one run with a page
 
 
 def test_reports_of_directories_that_are_not_results_are_refused(tmp_path: Path) -> None:
@@ -166,10 +184,26 @@ def _chromium() -> str:
 
 def screenshot(page: Path, png: Path, profile: Path) -> NDArrayLike:
     exe = _chromium()
-    subprocess.run([exe, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                    f"--user-data-dir={profile}", f"--screenshot={png}", "--window-size=1280,2000",
-                    page.resolve().as_uri()], check=True, capture_output=True, timeout=180)
+    subprocess.run(
+        [
+            exe,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            f"--user-data-dir={profile}",
+            f"--screenshot={png}",
+            "--window-size=1280,2000",
+            page.resolve().as_uri(),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=180,
+    )
     with Image.open(png) as im:
         return np.asarray(im.convert("RGB"), dtype=float)
 
@@ -184,9 +218,9 @@ def test_report_renders_in_a_headless_browser(which: str, request: pytest.Fixtur
     page = directory / REPORT_NAME
     pixels = screenshot(page, tmp_path / "page.png", tmp_path / "profile")
     assert pixels.shape == (2000, 1280, 3)
-    assert pixels.std() > 20.0                                          # not blank
+    assert pixels.std() > 20.0  # not blank
     background = np.array([0xF6, 0xF6, 0xF4], dtype=float)
     drawn = np.any(np.abs(pixels - background) > 12, axis=2).mean()
-    assert drawn > 0.03                                                 # text, rules and figures, not only white
+    assert drawn > 0.03  # text, rules and figures, not only white
     parsed = parse(page)
     assert_sources_resolve(page, parsed.images + parsed.videos)

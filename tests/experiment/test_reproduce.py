@@ -3,6 +3,7 @@ avoidance layer, a seed and ``--set`` overrides given on the command line, run a
 ``scenario.yaml`` it wrote, gives the same metrics (wall-clock timings aside), the same events and
 the same time series; and that ``scenario.yaml`` names the planner, the layer, the seed and every
 parameter with its resolved value."""
+
 from __future__ import annotations
 
 import json
@@ -23,29 +24,103 @@ SHORT_WAYPOINTS = ["--set", "task.waypoints=[{t_s: 0, position: [0.0, 0.0, 1.0]}
 #: scenario -> command-line choices and overrides (every run shortened to a few simulated seconds)
 CASES: dict[str, list[str]] = {
     "construction": ["--planner", "stigmergy", "--avoidance", "orca", "--seed", "3", "--set", "task.time_limit_s=12"],
-    "construction_single": ["--planner", "shortest_path", "--avoidance", "braitenberg", "--seed", "1",
-                            "--set", "task.time_limit_s=4", "--set", "planner.params.altitude_step=0.1"],
-    "estimation": ["--planner", "waypoints", "--avoidance", "orca", "--seed", "2", "--set", "task.time_limit_s=4",
-                   *SHORT_WAYPOINTS],
-    "flocking": ["--planner", "reynolds", "--avoidance", "orca", "--seed", "4", "--set", "task.time_limit_s=3",
-                 "--set", "planner.params.w_cohesion=0.3"],
+    "construction_single": [
+        "--planner",
+        "shortest_path",
+        "--avoidance",
+        "braitenberg",
+        "--seed",
+        "1",
+        "--set",
+        "task.time_limit_s=4",
+        "--set",
+        "planner.params.altitude_step=0.1",
+    ],
+    "estimation": [
+        "--planner",
+        "waypoints",
+        "--avoidance",
+        "orca",
+        "--seed",
+        "2",
+        "--set",
+        "task.time_limit_s=4",
+        *SHORT_WAYPOINTS,
+    ],
+    "flocking": [
+        "--planner",
+        "reynolds",
+        "--avoidance",
+        "orca",
+        "--seed",
+        "4",
+        "--set",
+        "task.time_limit_s=3",
+        "--set",
+        "planner.params.w_cohesion=0.3",
+    ],
     # another planner and layer than the file's: the file's parameters of laplacian and braitenberg are dropped
-    "formation": ["--planner", "reynolds", "--avoidance", "orca", "--seed", "5", "--set", "task.time_limit_s=3",
-                  "--set", "avoidance_params.time_horizon=1.0"],
-    "hover": ["--planner", "waypoints", "--avoidance", "braitenberg", "--seed", "6", "--set", "task.time_limit_s=3",
-              *SHORT_WAYPOINTS, "--set", "avoidance_params.memory_s=1.0"],
-    "hover_swarm": ["--planner", "waypoints", "--avoidance", "orca", "--seed", "7", "--set", "task.time_limit_s=3",
-                    *SHORT_WAYPOINTS, "--set", "agents.count=4"],
-    "tour": ["--planner", "aco_tour", "--avoidance", "orca", "--seed", "8", "--set", "task.time_limit_s=3",
-             "--set", "planner.params.iterations=20"],
+    "formation": [
+        "--planner",
+        "reynolds",
+        "--avoidance",
+        "orca",
+        "--seed",
+        "5",
+        "--set",
+        "task.time_limit_s=3",
+        "--set",
+        "avoidance_params.time_horizon=1.0",
+    ],
+    "hover": [
+        "--planner",
+        "waypoints",
+        "--avoidance",
+        "braitenberg",
+        "--seed",
+        "6",
+        "--set",
+        "task.time_limit_s=3",
+        *SHORT_WAYPOINTS,
+        "--set",
+        "avoidance_params.memory_s=1.0",
+    ],
+    "hover_swarm": [
+        "--planner",
+        "waypoints",
+        "--avoidance",
+        "orca",
+        "--seed",
+        "7",
+        "--set",
+        "task.time_limit_s=3",
+        *SHORT_WAYPOINTS,
+        "--set",
+        "agents.count=4",
+    ],
+    "tour": [
+        "--planner",
+        "aco_tour",
+        "--avoidance",
+        "orca",
+        "--seed",
+        "8",
+        "--set",
+        "task.time_limit_s=3",
+        "--set",
+        "planner.params.iterations=20",
+    ],
 }
 
 
 def _without_wall_clock(m: Any) -> Any:
     """Metrics without the wall-clock fields (wall_time_s, real_time_factor, *_ms timings)."""
     if isinstance(m, dict):
-        return {k: _without_wall_clock(v) for k, v in m.items()
-                if k not in ("wall_time_s", "real_time_factor") and not k.endswith("_ms")}
+        return {
+            k: _without_wall_clock(v)
+            for k, v in m.items()
+            if k not in ("wall_time_s", "real_time_factor") and not k.endswith("_ms")
+        }
     return m
 
 
@@ -69,7 +144,7 @@ def test_a_run_reproduces_from_its_own_scenario_yaml(name: str, tmp_path: Path) 
     assert (data["planner"]["name"], data["avoidance"], data["seed"]) == (planner, avoidance, seed)
     assert set(data["planner"]["params"]) == set(planners()[planner].params.model_fields)
     assert set(data["avoidance_params"]) == set(avoidance_layers()[avoidance].params.model_fields)
-    assert data == yaml.safe_load((b / "scenario.yaml").read_text())   # the resolved scenario is a fixed point
+    assert data == yaml.safe_load((b / "scenario.yaml").read_text())  # the resolved scenario is a fixed point
 
     ma = json.loads((a / "metrics.json").read_text())
     mb = json.loads((b / "metrics.json").read_text())
@@ -84,13 +159,27 @@ def test_a_run_reproduces_from_its_own_scenario_yaml(name: str, tmp_path: Path) 
 
 def test_the_resolved_scenario_holds_the_overrides_and_every_default(tmp_path: Path) -> None:
     argv = CASES["construction"]
-    assert main(["run", "construction", *argv, "--set", "planner.params.fatigue=0.01", "--out", str(tmp_path),
-                 "--no-plots", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "construction",
+                *argv,
+                "--set",
+                "planner.params.fatigue=0.01",
+                "--out",
+                str(tmp_path),
+                "--no-plots",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     data = yaml.safe_load((tmp_path / "scenario.yaml").read_text())
     assert data["task"]["time_limit_s"] == 12.0
     params = data["planner"]["params"]
-    assert params["fatigue"] == 0.01                                   # the override
-    assert (params["cell_size"], params["ties"], params["release_dwell_s"]) == (0.1, "random", None)   # defaults
+    assert params["fatigue"] == 0.01  # the override
+    assert (params["cell_size"], params["ties"], params["release_dwell_s"]) == (0.1, "random", None)  # defaults
     assert data["avoidance_params"]["time_horizon"] == 1.5 and data["avoidance_params"]["shape"] == "box"
 
 
@@ -99,7 +188,7 @@ def test_formation_switched_to_another_planner_and_layer_drops_the_files_paramet
     from pybullet_swarm.experiment.scenario import load_scenario
 
     own = load_scenario("formation")
-    assert own.planner.params["gain"] == 0.5 and own.avoidance_params.on_threshold == 0.55   # the file's
+    assert own.planner.params["gain"] == 0.5 and own.avoidance_params.on_threshold == 0.55  # the file's
     other = load_scenario("formation", planner="reynolds", avoidance="orca")
     assert other.planner.params == planners()["reynolds"].params().model_dump(mode="json")
     assert other.avoidance_params == avoidance_layers()["orca"].params()

@@ -3,6 +3,7 @@
 Every bad scenario must raise one ``ConfigError`` of one line, ``file: field.path: expectation,
 got value``, with ``.source`` and ``.field`` set; never a pydantic, YAML or Python error.
 """
+
 from __future__ import annotations
 
 import copy
@@ -122,8 +123,8 @@ def test_with_overrides_validates_again() -> None:
         ("sim.control_hz=50", "sim.control_hz", "50"),
         ("sim.record_hz=7", "sim.record_hz", "7"),
         ("sim.planner_hz=11", "sim.planner_hz", "11"),
-        ("sim.control_hz=480", "sim.control_hz", "480"),   # faster than physics
-        ("sim.physics_hz=250", "sim.control_hz", "48"),    # 48 no longer divides
+        ("sim.control_hz=480", "sim.control_hz", "480"),  # faster than physics
+        ("sim.physics_hz=250", "sim.control_hz", "48"),  # 48 no longer divides
     ],
 )
 def test_non_dividing_rates_name_the_field(override: str, field: str, got: str) -> None:
@@ -133,8 +134,7 @@ def test_non_dividing_rates_name_the_field(override: str, field: str, got: str) 
     assert err.field == field
     assert err.source == "hover.yaml"
     physics = 250 if "physics" in override else 240
-    assert str(err) == (f"hover.yaml: {field}: must divide sim.physics_hz ({physics}) into an integer ratio, "
-                        f"got {got}")
+    assert str(err) == (f"hover.yaml: {field}: must divide sim.physics_hz ({physics}) into an integer ratio, got {got}")
 
 
 def test_non_dividing_rate_by_mapping_override() -> None:
@@ -143,8 +143,9 @@ def test_non_dividing_rate_by_mapping_override() -> None:
     assert info.value.field == "sim.record_hz"
 
 
-@pytest.mark.parametrize(("field", "value"), [("control_hz", 0), ("record_hz", -20), ("physics_hz", 59),
-                                              ("physics_hz", 10_001)])
+@pytest.mark.parametrize(
+    ("field", "value"), [("control_hz", 0), ("record_hz", -20), ("physics_hz", 59), ("physics_hz", 10_001)]
+)
 def test_out_of_range_rates(field: str, value: int) -> None:
     err = bad(_set(hover_data(), f"sim.{field}", value))
     assert err.field == f"sim.{field}"
@@ -188,7 +189,11 @@ def test_record_rate_valid_exactly_when_it_divides_physics(rate: int) -> None:
         ("seed", -1, "seed: must be >= 0, got -1"),
         ("task.time_limit_s", 0, "task.time_limit_s: must be > 0.0, got 0"),
         ("task.kind", "dance", "task.kind: must be one of construction, route, tour, waypoints, got 'dance'"),
-        ("task.kind", ["waypoints"], "task.kind: must be one of construction, route, tour, waypoints, got ['waypoints']"),
+        (
+            "task.kind",
+            ["waypoints"],
+            "task.kind: must be one of construction, route, tour, waypoints, got ['waypoints']",
+        ),
         ("task.kind", {"a": 1}, "task.kind: must be one of construction, route, tour, waypoints, got {'a': 1}"),
         ("task.relative", "yes", "task.relative: must be a valid boolean, got 'yes'"),
         ("task.waypoints", [], "task.waypoints: must have at least 1 item, got []"),
@@ -341,7 +346,7 @@ def test_deep_nesting_is_refused(tmp_path: Path, depth: int) -> None:
 
 def test_duplicate_keys_are_refused(tmp_path: Path) -> None:
     text = HOVER.read_text()
-    line = len(text.splitlines()) + 1   # the second `sim:` section
+    line = len(text.splitlines()) + 1  # the second `sim:` section
     err = bad_file(tmp_path, text + "sim:\n  physics_hz: 480\n")
     assert str(err) == f"bad.yaml: malformed YAML at line {line}, column 1: found duplicate key 'sim'"
 
@@ -357,11 +362,16 @@ def test_merge_keys_still_work(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(
     ("value", "expected"),
-    [("2020-13-45", "bad.yaml: seed: cannot read !!timestamp '2020-13-45' (month must be in 1..12)"),
-     ("!!int abc", "bad.yaml: seed: cannot read !!int 'abc' (invalid literal for int() with base 10: 'abc')"),
-     ("!!float abc", "bad.yaml: seed: cannot read !!float 'abc' (could not convert string to float: 'abc')"),
-     ("9" * 5000, "bad.yaml: seed: cannot read !!int '9999"),
-     ("!!python/object:os.system x", "bad.yaml: malformed YAML at line 4, column 7: could not determine a constructor")],
+    [
+        ("2020-13-45", "bad.yaml: seed: cannot read !!timestamp '2020-13-45' (month must be in 1..12)"),
+        ("!!int abc", "bad.yaml: seed: cannot read !!int 'abc' (invalid literal for int() with base 10: 'abc')"),
+        ("!!float abc", "bad.yaml: seed: cannot read !!float 'abc' (could not convert string to float: 'abc')"),
+        ("9" * 5000, "bad.yaml: seed: cannot read !!int '9999"),
+        (
+            "!!python/object:os.system x",
+            "bad.yaml: malformed YAML at line 4, column 7: could not determine a constructor",
+        ),
+    ],
 )
 def test_unreadable_yaml_values(tmp_path: Path, value: str, expected: str) -> None:
     err = bad_file(tmp_path, HOVER.read_text().replace("seed: 0", f"seed: {value}"))
@@ -378,7 +388,7 @@ def test_malformed_yaml(tmp_path: Path, text: str) -> None:
 
 
 def test_huge_hex_integer_is_refused_not_crashing(tmp_path: Path) -> None:
-    big = "0x" + "f" * 3000      # parses without the decimal digit limit, cannot be printed
+    big = "0x" + "f" * 3000  # parses without the decimal digit limit, cannot be printed
     err = bad_file(tmp_path, HOVER.read_text() + f"planner:\n  params: {{x: {big}}}\n")
     assert err.field == "planner.params.x"
     err = bad_file(tmp_path, HOVER.read_text().replace("count: 1", f"count: {big}"))

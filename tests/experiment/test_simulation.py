@@ -1,4 +1,5 @@
 """Whole runs: determinism, exit statuses, recorder budget, run directories, the Python API."""
+
 from __future__ import annotations
 
 import json
@@ -33,8 +34,10 @@ def test_hover_scenario_completes_and_tracks():
 
 
 def test_same_seed_gives_identical_metrics_and_series():
-    sc = pybullet_swarm.load_scenario("hover_swarm", overrides={"agents.count": 4, "task.time_limit_s": 6.0,
-                                                                 "task.waypoints": [{"t_s": 0, "position": [0, 0, 1]}]})
+    sc = pybullet_swarm.load_scenario(
+        "hover_swarm",
+        overrides={"agents.count": 4, "task.time_limit_s": 6.0, "task.waypoints": [{"t_s": 0, "position": [0, 0, 1]}]},
+    )
     a = pybullet_swarm.run(sc, seed=3)
     b = pybullet_swarm.run(sc, seed=3)
     assert _strip(a.metrics) == _strip(b.metrics)
@@ -73,7 +76,7 @@ def test_hard_ground_impact_is_a_crash(make_sim):
 
 def test_non_finite_state_is_diverged(make_sim):
     sim = make_sim(physics_scenario(start_z=1.0))
-    sim.world.reset_agent(0, [1.5, 1.5, 1.0], velocity=[0.0, 0.0, 1e6])   # Bullet clamps to 100 m/s
+    sim.world.reset_agent(0, [1.5, 1.5, 1.0], velocity=[0.0, 0.0, 1e6])  # Bullet clamps to 100 m/s
     sim.step(10)
     assert sim.exit_status is ExitStatus.DIVERGED
     sim2 = make_sim(physics_scenario(start_z=1.0))
@@ -97,8 +100,11 @@ def test_recorder_budget_one_megabyte_per_agent_per_ten_minutes():
 
 def test_run_directory_contents(tmp_path):
     out = tmp_path / "run"
-    r = pybullet_swarm.run("hover", out=out, overrides={"task.time_limit_s": 3.0, "task.waypoints": [
-        {"t_s": 0.0, "position": [0.0, 0.0, 0.5]}]})
+    r = pybullet_swarm.run(
+        "hover",
+        out=out,
+        overrides={"task.time_limit_s": 3.0, "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 0.5]}]},
+    )
     assert r.run_dir == out
     metrics = json.loads((out / "metrics.json").read_text())
     for key in ("exit_status", "sim_time_s", "wall_time_s", "real_time_factor", "seed"):

@@ -1,4 +1,5 @@
 """Sweeps: rows and summary of a tiny sweep, resume, statistics against scipy, failures, Ray."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -59,8 +60,12 @@ def test_tiny_sweep_two_planners_rows_and_summary(tmp_path: Path) -> None:
     assert (res.n_planned, res.n_run, res.n_skipped, res.n_failed) == (4, 4, 0, 0)
     rows = _csv_rows(tmp_path / "sw" / "runs.csv")
     assert len(rows) == 4 and len({r["run_id"] for r in rows}) == 4
-    assert sorted((r["planner"], r["seed"]) for r in rows) == [("shortest_path", 0), ("shortest_path", 1),
-                                                                ("stigmergy", 0), ("stigmergy", 1)]
+    assert sorted((r["planner"], r["seed"]) for r in rows) == [
+        ("shortest_path", 0),
+        ("shortest_path", 1),
+        ("stigmergy", 0),
+        ("stigmergy", 1),
+    ]
     for r in rows:
         assert r["avoidance"] == "none" and r["error"] is None
         metrics = json.loads((tmp_path / "sw" / r["run_dir"] / "metrics.json").read_text())
@@ -119,11 +124,13 @@ def test_sweep_rows_match_run_directories_and_summary_matches_rows(tmp_path: Pat
 
 def test_run_ids_are_stable_and_name_what_determines_a_run(tmp_path: Path) -> None:
     a = plan_sweep(hover_sweep(), tmp_path)
-    b = plan_sweep(Sweep("hover", planners=("waypoints",), grid={"limits.velocity": [0.5, 1.0]}, seeds=2,
-                         overrides=HOVER), tmp_path)
-    assert [r.run_id for r in a.runs] == [r.run_id for r in b.runs]   # default planner == named planner
+    b = plan_sweep(
+        Sweep("hover", planners=("waypoints",), grid={"limits.velocity": [0.5, 1.0]}, seeds=2, overrides=HOVER),
+        tmp_path,
+    )
+    assert [r.run_id for r in a.runs] == [r.run_id for r in b.runs]  # default planner == named planner
     assert len({r.run_id for r in a.runs}) == 4
-    assert [r.seed for r in a.runs] == [0, 0, 1, 1]                    # seeds outermost
+    assert [r.seed for r in a.runs] == [0, 0, 1, 1]  # seeds outermost
     c = plan_sweep(hover_sweep(seeds=3), tmp_path)
     assert {r.run_id for r in a.runs} < {r.run_id for r in c.runs}
 
@@ -157,7 +164,7 @@ def test_resume_runs_only_what_is_missing_and_duplicates_nothing(tmp_path: Path)
     assert (wider.n_planned, wider.n_run, wider.n_skipped) == (4, 2, 2)
     rows = _csv_rows(out / "runs.csv")
     assert len(rows) == 4 and len({r["run_id"] for r in rows}) == 4
-    for r in rows:                       # the earlier rows are untouched
+    for r in rows:  # the earlier rows are untouched
         if r["run_id"] in before:
             assert r == before[r["run_id"]]
 
@@ -173,7 +180,7 @@ def test_resume_runs_only_what_is_missing_and_duplicates_nothing(tmp_path: Path)
     after = {r["run_id"]: r for r in _csv_rows(out / "runs.csv")}
     assert len(after) == 4 and len(_csv_rows(out / "runs.csv")) == 4 and {lost_id, torn_id} <= set(after)
     assert (out / "runs" / lost_id / "metrics.json").stat().st_mtime_ns == stamp
-    for run_id in (lost_id, torn_id):    # the recovered rows hold the same numbers
+    for run_id in (lost_id, torn_id):  # the recovered rows hold the same numbers
         assert after[run_id]["energy_j"] == {r["run_id"]: r for r in rows}[run_id]["energy_j"]
 
 
@@ -181,14 +188,14 @@ def test_runs_table_appends_whole_lines_and_widens_its_header(tmp_path: Path) ->
     t = RunsTable(tmp_path / "runs.csv")
     t.append({"run_id": "a", "seed": 0, "x": 1.5})
     t.append({"run_id": "b", "seed": 1, "x": 2.5})
-    t.append({"run_id": "c", "seed": 2, "x": None, "y": "text, with comma"})   # new column: rewrite
+    t.append({"run_id": "c", "seed": 2, "x": None, "y": "text, with comma"})  # new column: rewrite
     text = (tmp_path / "runs.csv").read_text()
     assert text.splitlines()[0] == "run_id,seed,x,y" and text.endswith("\n")
     back = RunsTable(tmp_path / "runs.csv")
     assert [r["run_id"] for r in back.rows] == ["a", "b", "c"]
     assert back.get("a") == {"run_id": "a", "seed": 0, "x": 1.5, "y": None}
     assert back.get("c")["y"] == "text, with comma"
-    with open(tmp_path / "runs.csv", "a") as fh:      # a torn line is dropped on reading
+    with open(tmp_path / "runs.csv", "a") as fh:  # a torn line is dropped on reading
         fh.write("d,3,4.")
     assert RunsTable(tmp_path / "runs.csv").ids() == {"a", "b", "c"}
 
@@ -206,8 +213,15 @@ def test_statistics_against_known_numbers_and_scipy() -> None:
 
     y = [0.3, 1.9, 2.2, 2.4, 3.8, 4.1, 7.5, 9.0]
     b = describe(y, ci=CIMethod.BOOTSTRAP, seed=0)
-    ref = stats.bootstrap((np.asarray(y),), np.mean, confidence_level=0.95, method="BCa", n_resamples=9999,
-                          vectorized=True, rng=np.random.default_rng(0)).confidence_interval
+    ref = stats.bootstrap(
+        (np.asarray(y),),
+        np.mean,
+        confidence_level=0.95,
+        method="BCa",
+        n_resamples=9999,
+        vectorized=True,
+        rng=np.random.default_rng(0),
+    ).confidence_interval
     assert (b.ci95_low, b.ci95_high) == pytest.approx((ref.low, ref.high))
     assert b.ci95_low < np.mean(y) < b.ci95_high
 
@@ -290,7 +304,7 @@ def test_ray_executor_runs_the_tiny_sweep(tmp_path: Path) -> None:
     assert (res.n_run, res.n_failed) == (4, 0)
     rows = _csv_rows(out / "runs.csv")
     assert len({r["run_id"] for r in rows}) == 4 and all(r["exit_status"] == "completed" for r in rows)
-    for r in rows:      # each row holds its own run's metrics
+    for r in rows:  # each row holds its own run's metrics
         metrics = json.loads((out / r["run_dir"] / "metrics.json").read_text())
         assert r["path_length_m.total"] == metrics["path_length_m"]["total"]
     assert [s.stats.n for s in res.summary if s.metric == "sim_time_s"] == [2, 2]

@@ -1,4 +1,5 @@
 """Video writer (MP4 and GIF fallback), arena camera and a real render from DIRECT mode."""
+
 from __future__ import annotations
 
 import sys
@@ -30,7 +31,7 @@ def _synthetic(n: int, size: tuple[int, int] = SIZE) -> list[np.ndarray]:
     for i in range(n):
         f = base.copy()
         x = 10 + 10 * i
-        f[100:140, x:x + 40] = (255, 255, 0)
+        f[100:140, x : x + 40] = (255, 255, 0)
         frames.append(f)
     return frames
 

@@ -1,4 +1,5 @@
 """Construction metrics against hand-computed answers and brute-force references."""
+
 from __future__ import annotations
 
 import itertools
@@ -18,7 +19,7 @@ from pybullet_swarm.metrics.construction import (
     utility_of_space,
 )
 
-V = np.array([0.15, 0.15, 0.15])        # m/s, the thesis's per-axis limit
+V = np.array([0.15, 0.15, 0.15])  # m/s, the thesis's per-axis limit
 
 
 def _brute_nn(p: np.ndarray) -> np.ndarray:
@@ -57,8 +58,8 @@ def test_nearest_neighbour_matches_brute_force(seed: int, n: int) -> None:
 
 
 def test_head_on_approach_and_separation_is_one_violation() -> None:
-    t = np.arange(251) * 0.04                        # 0..10 s
-    gap = 0.1 + 0.1 * np.abs(t - 5.0)                # closest 0.10 m at t = 5 s
+    t = np.arange(251) * 0.04  # 0..10 s
+    gap = 0.1 + 0.1 * np.abs(t - 5.0)  # closest 0.10 m at t = 5 s
     res = proximity_metrics(t, _pair(t, gap), threshold=0.15)
     # below while |t - 5| < 0.5 s: samples 113..137, 25 samples of 0.04 s
     assert res["proximity_violations"] == 1
@@ -87,13 +88,17 @@ def test_passing_30cm_apart_never_violates() -> None:
 
 def test_single_agent_has_no_pairs() -> None:
     res = proximity_metrics(np.arange(3.0), np.zeros((3, 1, 3)), threshold=0.15)
-    assert res == {"proximity_violations": 0, "proximity_time_s": 0.0,
-                   "min_separation_m": None, "mean_nn_distance_m": None}
+    assert res == {
+        "proximity_violations": 0,
+        "proximity_time_s": 0.0,
+        "min_separation_m": None,
+        "mean_nn_distance_m": None,
+    }
 
 
 @pytest.mark.parametrize("dense_limit", [64, 1])
 def test_proximity_matches_pairwise_episodes(dense_limit: int, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(construction, "BROADCAST_MAX_AGENTS", dense_limit)   # 1: k-d tree path
+    monkeypatch.setattr(construction, "BROADCAST_MAX_AGENTS", dense_limit)  # 1: k-d tree path
     rng = np.random.default_rng(7)
     p = np.cumsum(rng.normal(0, 0.03, size=(120, 6, 3)), axis=0) + rng.uniform(0, 0.5, size=(1, 6, 3))
     t = np.arange(120) * 0.05
@@ -124,7 +129,7 @@ def _line(gaps_left: list[float], gaps_right: list[float]) -> np.ndarray:
 
 def test_one_close_pass_is_two_thesis_collisions_and_one_pair_onset() -> None:
     t = np.arange(251) * 0.04
-    p = _pair(t, 0.1 + 0.1 * np.abs(t - 5.0))            # below 0.15 m while |t - 5| < 0.5 s
+    p = _pair(t, 0.1 + 0.1 * np.abs(t - 5.0))  # below 0.15 m while |t - 5| < 0.5 s
     res = thesis_proximity_metrics(p, diameter=0.15)
     assert res["thesis_collisions_per_agent"] == [1, 1]  # both curves cross the line once
     assert res["thesis_collisions"] == 2
@@ -133,8 +138,8 @@ def test_one_close_pass_is_two_thesis_collisions_and_one_pair_onset() -> None:
 
 def test_an_agent_below_the_line_while_its_neighbour_changes_crosses_once() -> None:
     # sample:          0    1    2    3    4
-    left = [0.3, 0.1, 0.1, 0.3, 0.3]    # agent 0 <-> agent 1, m
-    right = [0.3, 0.3, 0.1, 0.1, 0.3]   # agent 1 <-> agent 2, m
+    left = [0.3, 0.1, 0.1, 0.3, 0.3]  # agent 0 <-> agent 1, m
+    right = [0.3, 0.3, 0.1, 0.1, 0.3]  # agent 1 <-> agent 2, m
     p = _line(left, right)
     res = thesis_proximity_metrics(p, diameter=0.15)
     # agent 1's nearest distance is 0.3, 0.1, 0.1, 0.1, 0.3: one crossing (neighbour 0, then 2)
@@ -142,16 +147,16 @@ def test_an_agent_below_the_line_while_its_neighbour_changes_crosses_once() -> N
     assert res["thesis_collisions"] == 3
     # pair onsets: (0, 1) at sample 1 and (1, 2) at sample 2; (0, 2) never closer than 0.2 m
     assert proximity_metrics(np.arange(5.0), p, threshold=0.15)["proximity_violations"] == 2
-    nn = np.array([left, np.minimum(left, right), right]).T          # (5, 3) m
+    nn = np.array([left, np.minimum(left, right), right]).T  # (5, 3) m
     assert res["nn_distance_diameters"] == pytest.approx(nn.mean() / 0.15, rel=1e-12)
 
 
 def test_thesis_count_starts_below_once_counts_every_dip_and_not_the_line_itself() -> None:
     res = thesis_proximity_metrics(_pair(np.arange(5.0), np.array([0.1, 0.1, 0.2, 0.1, 0.3])), diameter=0.15)
-    assert res["thesis_collisions_per_agent"] == [2, 2]   # below at the start (1) and the dip at sample 3 (1)
+    assert res["thesis_collisions_per_agent"] == [2, 2]  # below at the start (1) and the dip at sample 3 (1)
     # gaps of 0.5 and 0.25 m are exact in binary: the middle sample sits exactly on the line
     on_line = thesis_proximity_metrics(_pair(np.arange(3.0), np.array([0.5, 0.25, 0.5])), diameter=0.25)
-    assert on_line["thesis_collisions"] == 0              # exactly one diameter is not below the line
+    assert on_line["thesis_collisions"] == 0  # exactly one diameter is not below the line
     assert on_line["nn_distance_diameters"] == pytest.approx((2.0 + 1.0 + 2.0) / 3)
     just_below = thesis_proximity_metrics(_pair(np.arange(3.0), np.array([0.5, 0.2499, 0.5])), diameter=0.25)
     assert just_below["thesis_collisions"] == 2
@@ -159,7 +164,10 @@ def test_thesis_count_starts_below_once_counts_every_dip_and_not_the_line_itself
 
 def test_thesis_count_of_a_lone_agent_and_bad_diameters() -> None:
     assert thesis_proximity_metrics(np.zeros((4, 1, 3)), 0.15) == {
-        "thesis_collisions": 0, "thesis_collisions_per_agent": [0], "nn_distance_diameters": None}
+        "thesis_collisions": 0,
+        "thesis_collisions_per_agent": [0],
+        "nn_distance_diameters": None,
+    }
     assert thesis_proximity_metrics(np.zeros((0, 2, 3)), 0.15)["thesis_collisions_per_agent"] == [0, 0]
     for bad in (0.0, -0.1, float("nan")):
         with pytest.raises(ValueError, match="diameter"):
@@ -168,7 +176,7 @@ def test_thesis_count_of_a_lone_agent_and_bad_diameters() -> None:
 
 @pytest.mark.parametrize("dense_limit", [64, 1])
 def test_thesis_count_matches_a_per_agent_loop(dense_limit: int, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(construction, "BROADCAST_MAX_AGENTS", dense_limit)   # 1: k-d tree path
+    monkeypatch.setattr(construction, "BROADCAST_MAX_AGENTS", dense_limit)  # 1: k-d tree path
     rng = np.random.default_rng(11)
     p = np.cumsum(rng.normal(0, 0.03, size=(150, 6, 3)), axis=0) + rng.uniform(0, 0.5, size=(1, 6, 3))
     nn = _brute_nn(p)
@@ -188,11 +196,11 @@ def test_thesis_count_matches_a_per_agent_loop(dense_limit: int, monkeypatch: py
 
 def test_utility_of_space_of_a_straight_line() -> None:
     x = np.linspace(0.05, 2.95, 291)
-    xy = np.stack([x, np.full_like(x, 0.55)], axis=1)[:, None, :]            # (m, 1, 2)
-    assert utility_of_space(xy, (3.0, 1.0)) == pytest.approx(0.1)            # 30 of 300 cells
-    two = np.concatenate([xy, xy], axis=1)                                    # a second agent on the same line
+    xy = np.stack([x, np.full_like(x, 0.55)], axis=1)[:, None, :]  # (m, 1, 2)
+    assert utility_of_space(xy, (3.0, 1.0)) == pytest.approx(0.1)  # 30 of 300 cells
+    two = np.concatenate([xy, xy], axis=1)  # a second agent on the same line
     assert utility_of_space(two, (3.0, 1.0)) == pytest.approx(0.1)
-    outside = np.concatenate([xy, [[[-1.0, -1.0]]]], axis=0)                  # clipped into cell (0, 0)
+    outside = np.concatenate([xy, [[[-1.0, -1.0]]]], axis=0)  # clipped into cell (0, 0)
     assert utility_of_space(outside, (3.0, 1.0)) == pytest.approx(31 / 300)
 
 
@@ -231,7 +239,7 @@ def test_lower_bound_two_agents_two_boxes_symmetric() -> None:
 def test_lower_bound_more_boxes_than_agents_adds_returns() -> None:
     starts, boxes, slots = _two_lane_layout()
     res = task_lower_bound(starts[:1], boxes, slots, V, grasp_height=0.1)
-    assert res["returns_s"] == pytest.approx(10.0)           # slot -> box: 1.5 m along x
+    assert res["returns_s"] == pytest.approx(10.0)  # slot -> box: 1.5 m along x
     assert res["task_lower_bound_s"] == pytest.approx(0.5 / 0.15 + 10.0 + 10.0 + 10.0)
     # the schedule start -> box 0 -> slot 0 -> box 1 -> slot 1 attains it
     legs = [starts[0], boxes[0], slots[0], boxes[1], slots[1]]
@@ -290,16 +298,21 @@ def test_box_to_goal_matches_brute_force_with_static_stretches() -> None:
     slots = rng.uniform(size=(4, 3))
     samples = rng.uniform(size=(6, 4, 3))
     boxes = np.repeat(samples, [3, 1, 4, 1, 2, 5], axis=0)
-    expected = [min(sum(np.linalg.norm(s[i] - slots[j]) for i, j in enumerate(perm))
-                    for perm in itertools.permutations(range(4))) for s in boxes]
+    expected = [
+        min(
+            sum(np.linalg.norm(s[i] - slots[j]) for i, j in enumerate(perm))
+            for perm in itertools.permutations(range(4))
+        )
+        for s in boxes
+    ]
     np.testing.assert_allclose(box_to_goal_distance(boxes, slots), expected, rtol=1e-12)
 
 
 def test_acceleration_series_of_quadratic_velocity() -> None:
     t = np.linspace(0.0, 2.0, 41)
     v = np.zeros((t.size, 2, 3))
-    v[:, 0, 0] = 0.3 * t                             # constant 0.3 m/s^2
-    v[:, 1, 2] = t**2                                # 2 t m/s^2
+    v[:, 0, 0] = 0.3 * t  # constant 0.3 m/s^2
+    v[:, 1, 2] = t**2  # 2 t m/s^2
     acc = acceleration_series(t, v)
     assert acc.shape == v.shape
     np.testing.assert_allclose(acc[:, 0, 0], 0.3)

@@ -1,4 +1,5 @@
 """Collision counting from Bullet contacts on constructed encounters."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -9,10 +10,17 @@ from pybullet_swarm.metrics.collisions import CollisionClass, ContactTracker
 
 
 def _two_agents(mode: str):
-    return load_scenario("hover", {
-        "agents.count": 2, "agents.start": [[1.0, 1.5, 0.011], [2.0, 1.5, 0.011]], "collisions": mode,
-        "limits.velocity": 0.3, "task.time_limit_s": 100.0,
-        "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 50.0]}]})
+    return load_scenario(
+        "hover",
+        {
+            "agents.count": 2,
+            "agents.start": [[1.0, 1.5, 0.011], [2.0, 1.5, 0.011]],
+            "collisions": mode,
+            "limits.velocity": 0.3,
+            "task.time_limit_s": 100.0,
+            "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 50.0]}],
+        },
+    )
 
 
 def _encounter(make_sim, mode: str, half_gap: float):
@@ -21,7 +29,7 @@ def _encounter(make_sim, mode: str, half_gap: float):
     start = sim.state.positions.copy()
     sim.set_targets(start * [1, 1, 0] + [0, 0, 1.0])
     sim.step(5 * sim.physics_hz)
-    assert sum(sim.contacts.counts.values()) == 0        # take-off from the ground is not a collision
+    assert sum(sim.contacts.counts.values()) == 0  # take-off from the ground is not a collision
     sim.set_targets(np.array([[1.0, 1.5 + half_gap, 1.0], [2.0, 1.5 - half_gap, 1.0]]))
     sim.step(2 * sim.physics_hz)
     sim.set_targets(np.array([[2.0, 1.5 + half_gap, 1.0], [1.0, 1.5 - half_gap, 1.0]]))
@@ -66,6 +74,6 @@ def test_debounce_merges_flicker_and_counts_separate_touches():
     pair = {(1, 2)}
     timeline = [pair, pair, set(), pair, set(), set(), set(), set(), set(), set(), set(), set(), set(), pair]
     events = [tracker.update(p, 0.01 * k) for k, p in enumerate(timeline)]
-    assert sum(len(e) for e in events) == 2          # the re-touch after 0.02 s is the same collision
+    assert sum(len(e) for e in events) == 2  # the re-touch after 0.02 s is the same collision
     assert tracker.counts["agent_agent"] == 2
     assert tracker.time_s["agent_agent"] == pytest.approx(0.04)

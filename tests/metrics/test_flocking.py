@@ -1,4 +1,5 @@
 """Flocking and formation fitness on hand-built configurations with known values."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -47,16 +48,16 @@ def test_flocking_fitness_known_values() -> None:
 
 def test_formation_fitness_known_values() -> None:
     slots = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=float)
-    exact = slots + [5.0, 3.0, 1.0]                       # the formation anywhere: no error
+    exact = slots + [5.0, 3.0, 1.0]  # the formation anywhere: no error
     off = exact.copy()
-    off[1] += [0.3, 0.0, 0.0]                             # one agent 0.3 m out along x
+    off[1] += [0.3, 0.0, 0.0]  # one agent 0.3 m out along x
     p = np.stack([exact, off])
     err = fl.slot_errors(p, slots)
     np.testing.assert_allclose(err[0], 0.0, atol=1e-12)
     # centroid moves by 0.1 m in x: errors |(-0.1,0)|, |(0.2,0)|, |(-0.1,0)|
     np.testing.assert_allclose(err[1], [0.1, 0.2, 0.1], atol=1e-12)
     v = np.zeros((2, 3, 3))
-    v[:, :, 1] = 0.2                                      # moving +y at 0.2 m/s
+    v[:, :, 1] = 0.2  # moving +y at 0.2 m/s
     f = fl.formation_fitness(p, v, slots, np.array([0.0, 1.0, 0.0]), 0.4)
     np.testing.assert_allclose(f["distance"], [1.0, 1.0 / (1.0 + 0.4 / 3.0)])
     np.testing.assert_allclose(f["velocity"], [0.5, 0.5])

@@ -1,4 +1,5 @@
 """Tests of pybullet_swarm/planning/aco.py (and of the ``tsp`` subcommand that drives it)."""
+
 from __future__ import annotations
 
 import argparse
@@ -50,11 +51,12 @@ def _has_improving_2opt_move(dist: np.ndarray, tour: np.ndarray) -> bool:
 
 
 @settings(max_examples=40, deadline=None)
-@given(n=st.integers(5, 40), seed=st.integers(0, 2**32 - 1),
-       neighbours=st.sampled_from([None, 3, 8]), or_opt=st.booleans())
-def test_two_opt_never_lengthens_and_keeps_a_permutation(n: int, seed: int,
-                                                         neighbours: int | None,
-                                                         or_opt: bool) -> None:
+@given(
+    n=st.integers(5, 40), seed=st.integers(0, 2**32 - 1), neighbours=st.sampled_from([None, 3, 8]), or_opt=st.booleans()
+)
+def test_two_opt_never_lengthens_and_keeps_a_permutation(
+    n: int, seed: int, neighbours: int | None, or_opt: bool
+) -> None:
     dist = _random_instance(n, seed)
     tour = np.random.default_rng(seed + 1).permutation(n)
     better = two_opt(dist, tour, neighbours=neighbours, or_opt=or_opt)
@@ -76,12 +78,25 @@ def test_two_opt_fixes_a_crossing() -> None:
     assert tour_length(d5, fixed) == pytest.approx(3 + np.sqrt(2))
 
 
-@pytest.mark.parametrize("params", [
-    ACOParams(iterations=50),
-    ACOParams(variant=Variant.AS, alpha=1, beta=2, rho=0.5, q0=0.0, ants=20, iterations=50,
-              local_search=LocalSearch.NONE, candidates=None),
-    ACOParams(iterations=50, schedule=Schedule.LINEAR, local_search=LocalSearch.TWO_OPT),
-], ids=["acs-default", "as-plain", "acs-linear-2opt"])
+@pytest.mark.parametrize(
+    "params",
+    [
+        ACOParams(iterations=50),
+        ACOParams(
+            variant=Variant.AS,
+            alpha=1,
+            beta=2,
+            rho=0.5,
+            q0=0.0,
+            ants=20,
+            iterations=50,
+            local_search=LocalSearch.NONE,
+            candidates=None,
+        ),
+        ACOParams(iterations=50, schedule=Schedule.LINEAR, local_search=LocalSearch.TWO_OPT),
+    ],
+    ids=["acs-default", "as-plain", "acs-linear-2opt"],
+)
 def test_finds_brute_force_optimum_on_nine_cities(params: ACOParams) -> None:
     dist = _random_instance(9, seed=7)
     result = solve_tsp(dist, params, seed=1)
@@ -120,11 +135,14 @@ def test_tiny_instances_are_trivial() -> None:
     assert result.length == pytest.approx(dist[0, 1] + dist[1, 2] + dist[2, 0])
 
 
-@pytest.mark.parametrize(("schedule", "expected"), [
-    (Schedule.CONSTANT, [(5.0, 10.0), (5.0, 10.0), (5.0, 10.0)]),
-    (Schedule.LINEAR, [(0.0, 20.0), (5.0, 10.0), (10.0, 0.0)]),
-    (Schedule.LINEAR_NO_FACTOR, [(0.0, 10.0), (2.5, 5.0), (5.0, 0.0)]),
-])
+@pytest.mark.parametrize(
+    ("schedule", "expected"),
+    [
+        (Schedule.CONSTANT, [(5.0, 10.0), (5.0, 10.0), (5.0, 10.0)]),
+        (Schedule.LINEAR, [(0.0, 20.0), (5.0, 10.0), (10.0, 0.0)]),
+        (Schedule.LINEAR_NO_FACTOR, [(0.0, 10.0), (2.5, 5.0), (5.0, 0.0)]),
+    ],
+)
 def test_schedule_values(schedule: Schedule, expected: list[tuple[float, float]]) -> None:
     params = ACOParams(alpha=5.0, beta=10.0, iterations=100, schedule=schedule)
     got = [schedule_values(params, k) for k in (0, 50, 100)]
@@ -139,12 +157,28 @@ def test_linear_schedule_keeps_the_nominal_means() -> None:
         schedule_values(params, 101)
 
 
-@pytest.mark.parametrize(("field", "value"), [
-    ("alpha", -1.0), ("beta", float("nan")), ("rho", 1.5), ("q0", -0.1), ("xi", 2.0),
-    ("ants", 0), ("iterations", 0), ("iterations", 2.5), ("candidates", 0),
-    ("ls_neighbours", 0), ("tau0", 0.0), ("schedule", "quadratic"), ("variant", "mmas"),
-    ("local_search", "3opt"), ("iterations", 10**9), ("ants", True), ("alpha", float("inf")),
-])
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("alpha", -1.0),
+        ("beta", float("nan")),
+        ("rho", 1.5),
+        ("q0", -0.1),
+        ("xi", 2.0),
+        ("ants", 0),
+        ("iterations", 0),
+        ("iterations", 2.5),
+        ("candidates", 0),
+        ("ls_neighbours", 0),
+        ("tau0", 0.0),
+        ("schedule", "quadratic"),
+        ("variant", "mmas"),
+        ("local_search", "3opt"),
+        ("iterations", 10**9),
+        ("ants", True),
+        ("alpha", float("inf")),
+    ],
+)
 def test_bad_params_name_the_field(field: str, value: object) -> None:
     with pytest.raises(pydantic.ValidationError) as err:
         ACOParams(**{field: value})  # type: ignore[arg-type]
@@ -152,16 +186,24 @@ def test_bad_params_name_the_field(field: str, value: object) -> None:
 
 
 def test_params_accept_enum_values_as_strings() -> None:
-    params = ACOParams(variant="as", schedule="linear",  # type: ignore[arg-type]
-                       local_search="2opt")
+    params = ACOParams(
+        variant="as",
+        schedule="linear",  # type: ignore[arg-type]
+        local_search="2opt",
+    )
     assert params.variant is Variant.AS
     assert params.schedule is Schedule.LINEAR
     assert params.local_search is LocalSearch.TWO_OPT
 
 
-@pytest.mark.parametrize("dist", [
-    np.ones((3, 4)), np.array([[0.0, 1.0], [2.0, 0.0]]), np.array([[0.0, -1.0], [-1.0, 0.0]]),
-])
+@pytest.mark.parametrize(
+    "dist",
+    [
+        np.ones((3, 4)),
+        np.array([[0.0, 1.0], [2.0, 0.0]]),
+        np.array([[0.0, -1.0], [-1.0, 0.0]]),
+    ],
+)
 def test_bad_distances(dist: np.ndarray) -> None:
     with pytest.raises(ValueError, match="^dist: "):
         solve_tsp(dist, seed=0)
@@ -196,22 +238,43 @@ def test_cli_json_output(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_cli_table_and_options(capsys: pytest.CaptureFixture[str]) -> None:
-    code = _cli(["tsp", "eil51", "--runs", "1", "--alpha", "1", "--beta", "3",
-                 "--evaporation", "0.2", "--ants", "5", "--iterations", "5",
-                 "--schedule", "linear", "--local-search", "none"])
+    code = _cli(
+        [
+            "tsp",
+            "eil51",
+            "--runs",
+            "1",
+            "--alpha",
+            "1",
+            "--beta",
+            "3",
+            "--evaporation",
+            "0.2",
+            "--ants",
+            "5",
+            "--iterations",
+            "5",
+            "--schedule",
+            "linear",
+            "--local-search",
+            "none",
+        ]
+    )
     out, _ = capsys.readouterr()
     assert code == 0
     assert "eil51: mean" in out and "optimum 426" in out
 
 
-@pytest.mark.parametrize(("argv", "needle"), [
-    (["tsp", "eil51", "--ants", "0"], "--ants: "),
-    (["tsp", "eil51", "--evaporation", "1.5"], "--evaporation: "),
-    (["tsp", "eil51", "--runs", "0"], "--runs: "),
-    (["tsp", "no_such_instance"], "no_such_instance: "),
-])
-def test_cli_bad_input_exits_2(capsys: pytest.CaptureFixture[str], argv: list[str],
-                               needle: str) -> None:
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["tsp", "eil51", "--ants", "0"], "--ants: "),
+        (["tsp", "eil51", "--evaporation", "1.5"], "--evaporation: "),
+        (["tsp", "eil51", "--runs", "0"], "--runs: "),
+        (["tsp", "no_such_instance"], "no_such_instance: "),
+    ],
+)
+def test_cli_bad_input_exits_2(capsys: pytest.CaptureFixture[str], argv: list[str], needle: str) -> None:
     assert _cli(argv) == 2
     out, err = capsys.readouterr()
     assert out == ""

@@ -1,4 +1,5 @@
 """Tests of pybullet_swarm/planning/aco_tour.py: cost model, split into legs, flying the legs."""
+
 from __future__ import annotations
 
 import itertools
@@ -22,8 +23,8 @@ from pybullet_swarm.planning.base import CommandKind, TaskInfo, WorldView
 from pybullet_swarm.planning.registry import default_planner
 from pybullet_swarm.tasks.tour import TourRuntime, TourTask
 
-V = np.full(3, 0.5)   # m/s
-A = np.full(3, 1.0)   # m/s^2
+V = np.full(3, 0.5)  # m/s
+A = np.full(3, 1.0)  # m/s^2
 
 
 def _is_contiguous_piece(leg: np.ndarray, tour: np.ndarray) -> bool:
@@ -48,8 +49,8 @@ def test_axis_time_is_the_trapezoid_and_triangle_profile():
     assert axis_time(np.array(2.0), 0.5, 1.0) == pytest.approx(4.5)
     # 0.1 m never reaches 0.5 m/s (the knee is 0.25 m): bang-bang 2 sqrt(0.1 / 1)
     assert axis_time(np.array(0.1), 0.5, 1.0) == pytest.approx(2.0 * np.sqrt(0.1))
-    assert axis_time(np.array(0.25), 0.5, 1.0) == pytest.approx(1.0)        # continuous at the knee
-    assert axis_time(np.array(-3.0), 0.5, np.inf) == pytest.approx(6.0)     # no acceleration limit: x / v
+    assert axis_time(np.array(0.25), 0.5, 1.0) == pytest.approx(1.0)  # continuous at the knee
+    assert axis_time(np.array(-3.0), 0.5, np.inf) == pytest.approx(6.0)  # no acceleration limit: x / v
     assert axis_time(np.array(0.0), 0.5, 1.0) == 0.0
 
 
@@ -59,17 +60,17 @@ def test_time_metric_is_the_slowest_axis_and_climbs_to_the_safe_altitude():
     assert cm.move(np.zeros(3) + [0, 0, 1], np.array([2.0, 1.0, 1.5])) == pytest.approx(4.5)
     ground, point = np.array([1.0, 1.0, 0.011]), np.array([3.0, 1.0, 1.0])
     ways = cm.waypoints(ground, point)
-    assert [w.tolist() for w in ways] == [[1.0, 1.0, 0.3], [3.0, 1.0, 1.0]]   # straight up first
+    assert [w.tolist() for w in ways] == [[1.0, 1.0, 0.3], [3.0, 1.0, 1.0]]  # straight up first
     up = axis_time(np.array(0.289), 0.5, 1.0)
     across = max(axis_time(np.array(2.0), 0.5, 1.0), axis_time(np.array(0.7), 0.5, 1.0))
     assert cm.move(ground, point) == pytest.approx(up + across)
-    assert cm.move(point, ground) == pytest.approx(cm.move(ground, point))   # symmetric, as the TSP needs
+    assert cm.move(point, ground) == pytest.approx(cm.move(ground, point))  # symmetric, as the TSP needs
     # straight above: no via point; both high: no via point
     assert len(cm.waypoints(ground, np.array([1.0, 1.0, 1.0]))) == 1
     assert len(cm.waypoints(point, np.array([2.0, 2.0, 0.5]))) == 1
     length = CostModel(Metric.LENGTH, 0.3, V, A)
     assert length.move(point, np.array([2.0, 2.0, 1.0])) == pytest.approx(np.sqrt(2.0))
-    assert CostModel(Metric.TIME, 0.3, np.full(3, np.inf), None).metric is Metric.LENGTH   # no limits: no time
+    assert CostModel(Metric.TIME, 0.3, np.full(3, np.inf), None).metric is Metric.LENGTH  # no limits: no time
 
 
 def test_bottleneck_assignment_minimises_the_largest_then_the_total_cost():
@@ -79,8 +80,10 @@ def test_bottleneck_assignment_minimises_the_largest_then_the_total_cost():
         cost = rng.integers(0, 20, (k, k)).astype(float)
         cols, worst, total = bottleneck_assignment(cost)
         assert sorted(cols.tolist()) == list(range(k))
-        best = min((max(cost[i, p[i]] for i in range(k)), sum(cost[i, p[i]] for i in range(k)))
-                   for p in itertools.permutations(range(k)))
+        best = min(
+            (max(cost[i, p[i]] for i in range(k)), sum(cost[i, p[i]] for i in range(k)))
+            for p in itertools.permutations(range(k))
+        )
         assert (worst, total) == best
         assert cost[np.arange(k), cols].max() == worst
 
@@ -96,7 +99,7 @@ def test_legs_cover_every_point_once_as_contiguous_pieces_of_the_tour(W, k):
     assert sorted(int(j) for leg in legs for j in leg) == list(range(W))
     assert all(_is_contiguous_piece(leg, tour) for leg in legs)
     if W >= k:
-        assert all(len(leg) > 0 for leg in legs)   # nobody idles while there is work
+        assert all(len(leg) > 0 for leg in legs)  # nobody idles while there is work
     costs = []
     for i, leg in enumerate(legs):
         c = cm.move(starts[i], pts[leg[0]]) if len(leg) else 0.0
@@ -110,7 +113,7 @@ def _brute_force_makespan(tour, P, approach) -> float:
     W, k = len(tour), approach.shape[0]
     best = np.inf
     for cuts in itertools.combinations(range(W), k):
-        pieces = [np.concatenate([tour, tour])[cuts[j]: (cuts[j + 1] if j + 1 < k else cuts[0] + W)] for j in range(k)]
+        pieces = [np.concatenate([tour, tour])[cuts[j] : (cuts[j + 1] if j + 1 < k else cuts[0] + W)] for j in range(k)]
         for perm in itertools.permutations(range(k)):
             worst = 0.0
             for i, j in enumerate(perm):
@@ -138,14 +141,22 @@ def test_return_home_is_part_of_each_agents_cost():
     cm = CostModel(Metric.LENGTH, 0.3, V, A)
     homes = starts.copy()
     homes[:, 2] = 0.3
-    legs, _ = split_tour(np.arange(4), cm.matrix(pts, pts), cm.matrix(starts, pts), cm.matrix(homes, pts),
-                         cm.move(starts, homes))
-    assert [leg.tolist() for leg in legs] == [[0, 1], [3, 2]]   # each takes the near half, nearest end first
+    legs, _ = split_tour(
+        np.arange(4), cm.matrix(pts, pts), cm.matrix(starts, pts), cm.matrix(homes, pts), cm.move(starts, homes)
+    )
+    assert [leg.tolist() for leg in legs] == [[0, 1], [3, 2]]  # each takes the near half, nearest end first
 
 
 def _flyable(points, n=3, return_home=False, seed=0, **params):
-    spec = TourTask.model_validate({"kind": "tour", "time_limit_s": 100.0, "points": np.asarray(points).tolist(), "visit_radius": 0.1,
-                                    "return_home": return_home})
+    spec = TourTask.model_validate(
+        {
+            "kind": "tour",
+            "time_limit_s": 100.0,
+            "points": np.asarray(points).tolist(),
+            "visit_radius": 0.1,
+            "return_home": return_home,
+        }
+    )
     starts = np.array([[0.6, 0.2, 0.011], [2.0, 0.2, 0.011], [3.4, 0.2, 0.011]])[:n]
     rt = TourRuntime(spec, starts, a_max=A)
     kw = rt.task_info()
@@ -157,9 +168,17 @@ def _flyable(points, n=3, return_home=False, seed=0, **params):
 
 def _view(t, positions, rt=None):
     n = len(positions)
-    return WorldView(t, positions.copy(), np.zeros((n, 3)), np.full(n, -1), np.zeros((0, 3)),
-                     np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=bool),
-                     None if rt is None else rt.view(t))
+    return WorldView(
+        t,
+        positions.copy(),
+        np.zeros((n, 3)),
+        np.full(n, -1),
+        np.zeros((0, 3)),
+        np.zeros(0, dtype=np.int64),
+        np.zeros(0, dtype=np.int64),
+        np.zeros(0, dtype=bool),
+        None if rt is None else rt.view(t),
+    )
 
 
 def test_agents_climb_first_then_visit_their_legs_in_order_and_publish_the_plan():
@@ -168,7 +187,7 @@ def test_agents_climb_first_then_visit_their_legs_in_order_and_publish_the_plan(
     pos = starts.copy()
     first = planner.plan_all(_view(0.0, pos))
     assert all(c.kind == CommandKind.POSITION for c in first)
-    assert [c.vector.tolist() for c in first] == [[*s[:2], 0.3] for s in starts]   # straight up to safe altitude
+    assert [c.vector.tolist() for c in first] == [[*s[:2], 0.3] for s in starts]  # straight up to safe altitude
     plan = planner.artefacts()["tour_plan"]
     assert plan is not None and plan.metric == "time"
     assert [leg.tolist() for leg in plan.legs] == [leg.tolist() for leg in planner.legs]
@@ -192,10 +211,10 @@ def test_points_the_task_already_counted_are_skipped():
     rt, planner, starts = _flyable(pts, n=1)
     planner.plan_all(_view(0.0, starts))
     leg = planner.legs[0]
-    rt.observe(0.0, pts[leg[0]][None, :])      # the task saw point leg[0] visited already
+    rt.observe(0.0, pts[leg[0]][None, :])  # the task saw point leg[0] visited already
     route = planner.route[0]
     assert route[0][1] == VIA
-    assert planner.plan_all(_view(0.1, starts, rt))[0].vector.tolist() == route[0][0].tolist()   # still climbing
+    assert planner.plan_all(_view(0.1, starts, rt))[0].vector.tolist() == route[0][0].tolist()  # still climbing
     planner.plan_all(_view(0.2, route[0][0][None, :], rt))
     cmd = planner.plan_all(_view(0.3, route[0][0][None, :], rt))[0]
     assert cmd.vector.tolist() == pts[leg[1]].tolist()
@@ -221,8 +240,14 @@ def test_same_seed_same_tour_and_legs_different_params_refused():
     starts = np.array([[0.6, 0.2, 0.011], [2.0, 0.2, 0.011], [3.4, 0.2, 0.011]])
     assert np.array_equal(a.tour, b.tour)
     assert [x.tolist() for x in a.plan_legs(starts)] == [x.tolist() for x in b.plan_legs(starts)]
-    for bad in ({"metric": "fastest"}, {"split": "round-robin"}, {"ants": 0}, {"safe_altitude": -1.0},
-                {"colour": "red"}, {"iterations": 10**9}):
+    for bad in (
+        {"metric": "fastest"},
+        {"split": "round-robin"},
+        {"ants": 0},
+        {"safe_altitude": -1.0},
+        {"colour": "red"},
+        {"iterations": 10**9},
+    ):
         with pytest.raises(ConfigError) as err:
             load_scenario("tour", {f"planner.params.{k}": v for k, v in bad.items()})
         assert err.value.field == f"planner.params.{next(iter(bad))}" and str(err.value).startswith("tour.yaml: ")

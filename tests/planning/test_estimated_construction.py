@@ -1,5 +1,6 @@
 """Construction planners flying on a position estimate: release decisions on a jittering estimate,
 clearance from the estimate's accuracy, boxes that came to rest off their slot taken back."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -10,12 +11,23 @@ from pybullet_swarm.planning.shortest_path import Phase as SPPhase
 from pybullet_swarm.planning.shortest_path import ShortestPath
 from pybullet_swarm.planning.stigmergy import CLEARANCE_SIGMAS, Carry, Phase, Sighting, Stigmergy
 
-GH = 0.065            # m, grasp height of quad150 with 10 cm boxes
-R = 0.106             # m, quad150 radius
+GH = 0.065  # m, grasp height of quad150 with 10 cm boxes
+R = 0.106  # m, quad150 radius
 DEPOT = np.array([[x, y, 0.05] for x in (0.4, 0.6, 0.8) for y in (0.3, 0.5, 0.7)])
-SLOTS = np.array([[2.7, 0.2, 0.05], [2.7, 0.4, 0.05], [2.7, 0.6, 0.05], [2.7, 0.8, 0.05], [2.7, 0.2, 0.15],
-                  [2.7, 0.4, 0.15], [2.7, 0.6, 0.15], [2.7, 0.2, 0.25], [2.7, 0.4, 0.25]])
-SIGMA = 0.005         # m, per-axis std of the agents' own position estimate
+SLOTS = np.array(
+    [
+        [2.7, 0.2, 0.05],
+        [2.7, 0.4, 0.05],
+        [2.7, 0.6, 0.05],
+        [2.7, 0.8, 0.05],
+        [2.7, 0.2, 0.15],
+        [2.7, 0.4, 0.15],
+        [2.7, 0.6, 0.15],
+        [2.7, 0.2, 0.25],
+        [2.7, 0.4, 0.25],
+    ]
+)
+SIGMA = 0.005  # m, per-axis std of the agents' own position estimate
 NO3 = np.zeros((0, 3))
 NOI = np.zeros(0, dtype=np.int64)
 
@@ -24,14 +36,35 @@ def _info(sigma: float | None = SIGMA) -> TaskInfo:
     extra = {"search_height": 0.45, "attach_threshold": 0.02, "view_radius": 2 * R}
     if sigma is not None:
         extra["position_std"] = sigma
-    return TaskInfo(arena_size=np.array([3.0, 1.0]), n_agents=5, agent_radius=R, v_max=np.full(3, 0.15),
-                    depot=DEPOT.copy(), slots=SLOTS.copy(), box_size=0.1, grasp_height=GH, extra=extra)
+    return TaskInfo(
+        arena_size=np.array([3.0, 1.0]),
+        n_agents=5,
+        agent_radius=R,
+        v_max=np.full(3, 0.15),
+        depot=DEPOT.copy(),
+        slots=SLOTS.copy(),
+        box_size=0.1,
+        grasp_height=GH,
+        extra=extra,
+    )
 
 
 def _obs(p, *, t, carrying=-1, boxes=NO3, box_ids=NOI, slots=NO3, slot_ids=NOI) -> Observation:
-    return Observation(0, t, np.asarray(p, dtype=float), np.zeros(3), 0.0, carrying, NOI, NO3, NO3,
-                       np.asarray(boxes, dtype=float).reshape(-1, 3), np.asarray(box_ids, dtype=np.int64),
-                       np.asarray(slots, dtype=float).reshape(-1, 3), np.asarray(slot_ids, dtype=np.int64))
+    return Observation(
+        0,
+        t,
+        np.asarray(p, dtype=float),
+        np.zeros(3),
+        0.0,
+        carrying,
+        NOI,
+        NO3,
+        NO3,
+        np.asarray(boxes, dtype=float).reshape(-1, 3),
+        np.asarray(box_ids, dtype=np.int64),
+        np.asarray(slots, dtype=float).reshape(-1, 3),
+        np.asarray(slot_ids, dtype=np.int64),
+    )
 
 
 def _delivering(sigma: float | None = SIGMA) -> tuple[Stigmergy, np.ndarray]:
@@ -46,7 +79,7 @@ def _delivering(sigma: float | None = SIGMA) -> tuple[Stigmergy, np.ndarray]:
 def test_clearance_covers_three_standard_deviations_of_the_estimate_and_not_more_on_true_state():
     a, drop = _delivering()
     assert a.clearance == pytest.approx(CLEARANCE_SIGMAS * SIGMA)
-    assert drop[2] - GH - SLOTS[1][2] >= 3 * SIGMA - 1e-12          # the box hangs clear of the ground
+    assert drop[2] - GH - SLOTS[1][2] >= 3 * SIGMA - 1e-12  # the box hangs clear of the ground
     b, _ = _delivering(None)
     assert b.clearance == pytest.approx(b.params.release_clearance) and b.dwell == 0.0
 
@@ -73,10 +106,12 @@ def test_a_single_lucky_estimate_does_not_release_a_box_on_estimated_state():
 def test_the_box_is_let_go_only_after_the_estimate_has_dwelt_on_the_drop_point():
     a, drop = _delivering()
     assert a.dwell == pytest.approx(0.5)
-    actions = [a.plan(_obs(drop + [0.002, -0.002, 0.001], t=0.1 * k, carrying=3, slots=[SLOTS[1]], slot_ids=[1]),
-                      None).action for k in range(8)]
-    assert actions.index(Action.RELEASE) == 5          # t = 0.5 s after it first got there
-    b, drop = _delivering(None)                        # true state: at once, as before
+    actions = [
+        a.plan(_obs(drop + [0.002, -0.002, 0.001], t=0.1 * k, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), None).action
+        for k in range(8)
+    ]
+    assert actions.index(Action.RELEASE) == 5  # t = 0.5 s after it first got there
+    b, drop = _delivering(None)  # true state: at once, as before
     assert b.plan(_obs(drop, t=0.0, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), None).action == Action.RELEASE
 
 
@@ -89,13 +124,12 @@ def test_a_box_that_came_to_rest_off_its_slot_is_taken_back_and_the_slot_served_
         cmd = a.plan(_obs(drop, t=0.1 * k, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), None)
     assert cmd.action == Action.RELEASE
     t = 0.1 * k
-    off = SLOTS[1] + [0.013, 0.0, 0.0]                 # 13 mm off: free, the slot still open
+    off = SLOTS[1] + [0.013, 0.0, 0.0]  # 13 mm off: free, the slot still open
     a.plan(_obs(drop, t=t + 0.1, boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1]), None)
     assert a.phase == Phase.SETTLING
-    cmd = a.plan(_obs(drop + [0, 0, 0.02], t=t + 0.5, boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1]),
-                 None)
+    cmd = a.plan(_obs(drop + [0, 0, 0.02], t=t + 0.5, boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1]), None)
     assert a.phase == Phase.DESCEND_BOX and a.box.id == 3
-    assert np.allclose(cmd.vector, off + [0, 0, GH])       # straight back down onto it
+    assert np.allclose(cmd.vector, off + [0, 0, GH])  # straight back down onto it
     a.plan(_obs(off + [0, 0, GH], t=t + 1.5, boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1]), None)
     a.plan(_obs(off + [0, 0, GH], t=t + 1.6, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), None)
     assert a.phase == Phase.TO_SLOT and a.slot.id == 1
@@ -104,16 +138,24 @@ def test_a_box_that_came_to_rest_off_its_slot_is_taken_back_and_the_slot_served_
 def test_no_descent_with_a_box_onto_a_slot_with_a_loose_box_in_it():
     a, drop = _delivering()
     loose = SLOTS[1] + [0.02, 0.01, 0.0]
-    a.plan(_obs(drop + [0, 0, 0.1], t=0.0, carrying=3, boxes=[loose], box_ids=[5], slots=[SLOTS[1]],
-                slot_ids=[1]), None)
+    a.plan(
+        _obs(drop + [0, 0, 0.1], t=0.0, carrying=3, boxes=[loose], box_ids=[5], slots=[SLOTS[1]], slot_ids=[1]), None
+    )
     assert a.phase not in (Phase.TO_SLOT, Phase.DESCEND_SLOT) and a.slot.id == -1
 
 
 def _view(t, positions, carrying, box_positions, box_state, slot_filled) -> WorldView:
     slot_filled = np.asarray(slot_filled)
-    return WorldView(t, np.asarray(positions, float), np.zeros((len(positions), 3)), np.asarray(carrying),
-                     np.asarray(box_positions, float), np.asarray(box_state), slot_filled,
-                     np.array([f < 0 for f in slot_filled]))
+    return WorldView(
+        t,
+        np.asarray(positions, float),
+        np.zeros((len(positions), 3)),
+        np.asarray(carrying),
+        np.asarray(box_positions, float),
+        np.asarray(box_state),
+        slot_filled,
+        np.array([f < 0 for f in slot_filled]),
+    )
 
 
 def test_shortest_path_serves_again_a_slot_whose_box_came_to_rest_off_it_with_that_box():
@@ -133,7 +175,7 @@ def test_shortest_path_serves_again_a_slot_whose_box_came_to_rest_off_it_with_th
     p0 = SLOTS[first] + [0.0, 0.0, GH + 0.4]
     sp.plan_all(_view(1.0, [p0, starts[1]], [-1, -1], boxes, state, filled))
     sp.hs[0] = p0[2]
-    sp.plan_all(_view(1.1, [p0, starts[1]], [-1, -1], boxes, state, filled))   # at its altitude: done
+    sp.plan_all(_view(1.1, [p0, starts[1]], [-1, -1], boxes, state, filled))  # at its altitude: done
     assert sp.phase[0] == SPPhase.IDLE
     sp.plan_all(_view(1.2, [p0, starts[1]], [-1, -1], boxes, state, filled))
     assert sp.slot[0] == first and sp.box[0] == b0 and sp.phase[0] == SPPhase.TO_BOX
@@ -145,7 +187,7 @@ def test_on_estimated_state_boxes_are_seen_relative_to_the_airframe_and_agents_k
     sc = ps.load_scenario("construction", overrides={"sensing.state": "estimated"})
     with ps.Simulation(sc, seed=2, planner="stigmergy") as sim:
         sigma = sim.info.extra["position_std"]
-        assert 0.002 < sigma < sim.scenario.sensing.positioning.noise_std   # the filter averages 1 cm fixes
+        assert 0.002 < sigma < sim.scenario.sensing.positioning.noise_std  # the filter averages 1 cm fixes
         c = sim.task
         sim.task.update(0.0)
         # put agent 0's estimate 8 mm off the truth, right over a depot box
@@ -154,7 +196,7 @@ def test_on_estimated_state_boxes_are_seen_relative_to_the_airframe_and_agents_k
         obs = sim.observations()[0]
         k = int(np.flatnonzero(obs.box_ids == 4)[0])
         seen = obs.boxes[k] - obs.position
-        assert np.allclose(seen, c.positions[4] - sim.state_array[0, :3])   # the true relative position
-        assert np.allclose(obs.slots, c.slots[obs.slot_ids])                # slots: planned coordinates
+        assert np.allclose(seen, c.positions[4] - sim.state_array[0, :3])  # the true relative position
+        assert np.allclose(obs.slots, c.slots[obs.slot_ids])  # slots: planned coordinates
     with ps.Simulation(ps.load_scenario("construction"), seed=2, planner="stigmergy") as sim:
         assert "position_std" not in sim.info.extra

@@ -1,4 +1,5 @@
 """Laplacian formation: graphs, and convergence at the rate of the algebraic connectivity."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -20,8 +21,21 @@ def _obs(i: int, pos: np.ndarray) -> Observation:
     others = np.array([j for j in range(len(pos)) if j != i], dtype=np.int64)
     z3 = np.zeros((0, 3))
     zi = np.zeros(0, dtype=np.int64)
-    return Observation(i, 0.0, pos[i].copy(), np.zeros(3), 0.0, -1, others, pos[others].copy(),
-                       np.zeros((len(others), 3)), z3, zi, z3, zi)
+    return Observation(
+        i,
+        0.0,
+        pos[i].copy(),
+        np.zeros(3),
+        0.0,
+        -1,
+        others,
+        pos[others].copy(),
+        np.zeros((len(others), 3)),
+        z3,
+        zi,
+        z3,
+        zi,
+    )
 
 
 def test_named_graphs_and_connectivity() -> None:
@@ -33,8 +47,9 @@ def test_named_graphs_and_connectivity() -> None:
     assert L[0, 0] == 4 and np.all(L[0, 1:] == -1) and np.all(np.diag(L)[1:] == 1)
 
 
-@pytest.mark.parametrize("bad", [[[0, 1], [1, 0]], [[0, 1, 0], [0, 0, 1], [0, 1, 0]], "wheel",
-                                 [[0, 1, 0], [1, 0, 0], [0, 0, 0]]])
+@pytest.mark.parametrize(
+    "bad", [[[0, 1], [1, 0]], [[0, 1, 0], [0, 0, 1], [0, 1, 0]], "wheel", [[0, 1, 0], [1, 0, 0], [0, 0, 0]]]
+)
 def test_bad_graphs_refused(bad: object) -> None:
     with pytest.raises(ValueError, match="planner.params.graph"):
         adjacency(bad, 3)
@@ -45,16 +60,23 @@ def test_kinematic_convergence_rate_matches_algebraic_connectivity(graph: str) -
     n, gain, dt = 5, 0.7, 0.002
     slots = np.column_stack([2.0 * SEED_FORMATION, np.zeros(n)])
     slots -= slots.mean(axis=0)
-    info = TaskInfo(arena_size=np.array([10.0, 10.0]), n_agents=n, agent_radius=0.1, v_max=np.full(3, np.inf),
-                    route=np.array([[5.0, 5.0, 1.0]]), extra={"formation_slots": slots})
+    info = TaskInfo(
+        arena_size=np.array([10.0, 10.0]),
+        n_agents=n,
+        agent_radius=0.1,
+        v_max=np.full(3, np.inf),
+        route=np.array([[5.0, 5.0, 1.0]]),
+        extra={"formation_slots": slots},
+    )
     planners = []
     rng = np.random.default_rng(7)
     for i in range(n):
-        pl = LaplacianPlanner(LaplacianParams(graph=graph, gain=gain, migration_speed=0.0, w_separation=0.0,
-                                             altitude=1.0))
+        pl = LaplacianPlanner(
+            LaplacianParams(graph=graph, gain=gain, migration_speed=0.0, w_separation=0.0, altitude=1.0)
+        )
         pl.reset(i, rng, info)
         planners.append(pl)
-    x = np.column_stack([rng.uniform(3, 7, size=(n, 2)), np.ones(n)])   # random start, at the altitude
+    x = np.column_stack([rng.uniform(3, 7, size=(n, 2)), np.ones(n)])  # random start, at the altitude
     times, errs = [], []
     for k in range(int(4.0 / dt)):
         e = np.linalg.norm(formation_error(x, slots))
@@ -63,7 +85,7 @@ def test_kinematic_convergence_rate_matches_algebraic_connectivity(graph: str) -
         v = np.array([pl.velocity(_obs(i, x)) for i, pl in enumerate(planners)])
         x = x + dt * v
     errs = np.asarray(errs)
-    assert errs[-1] < 0.1 * errs[0]                  # it converges
+    assert errs[-1] < 0.1 * errs[0]  # it converges
     times = np.asarray(times)
     late = (times > 1.5) & (errs > 1e-9)
     rate = -np.polyfit(times[late], np.log(errs[late]), 1)[0]

@@ -1,4 +1,5 @@
 """ORCA layer: velocity obstacles, the LP, kinematic swaps, full simulations, determinism."""
+
 from __future__ import annotations
 
 from typing import Any, ClassVar
@@ -14,16 +15,27 @@ import pybullet_swarm
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.simulation import Simulation
 from pybullet_swarm.planning.base import Action, Command, CommandKind, TaskInfo, WorldView
-from pybullet_swarm.planning.orca import (FLAG_CLIMB, FLAG_FREE, FLAG_INFEASIBLE, OrcaParams, Shape,
-                                          bounding_boxes, commanded_velocities, velocity_bounds,
-                                          orca_plane, orca_velocities, preferred_velocities, solve_velocity)
+from pybullet_swarm.planning.orca import (
+    FLAG_CLIMB,
+    FLAG_FREE,
+    FLAG_INFEASIBLE,
+    OrcaParams,
+    Shape,
+    bounding_boxes,
+    commanded_velocities,
+    velocity_bounds,
+    orca_plane,
+    orca_velocities,
+    preferred_velocities,
+    solve_velocity,
+)
 from pybullet_swarm.planning.params import Params as PlannerParams
 from pybullet_swarm.planning.registry import avoidance_layers, register_planner
 from pybullet_swarm.types import ExitStatus
 
-V_MAX = np.full(3, 0.5)          # m/s per axis
-R_AGENT = 0.106                  # m, quad150 enclosing radius
-HALF = np.array([0.075, 0.075, 0.01])   # m, quad150 half extents (level)
+V_MAX = np.full(3, 0.5)  # m/s per axis
+R_AGENT = 0.106  # m, quad150 enclosing radius
+HALF = np.array([0.075, 0.075, 0.01])  # m, quad150 half extents (level)
 
 
 # ----------------------------------------------------------------------------- half-spaces
@@ -41,32 +53,34 @@ def _ray_hits_box(c: np.ndarray, H: np.ndarray, v: np.ndarray, tau: float) -> bo
 
 
 @settings(max_examples=300, deadline=None)
-@given(c=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
-       H=st.lists(st.floats(0.03, 0.3), min_size=3, max_size=3),
-       v=st.lists(st.floats(-0.6, 0.6), min_size=3, max_size=3))
+@given(
+    c=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
+    H=st.lists(st.floats(0.03, 0.3), min_size=3, max_size=3),
+    v=st.lists(st.floats(-0.6, 0.6), min_size=3, max_size=3),
+)
 def test_box_velocity_obstacle_is_exact(c, H, v):
     """Inside the computed VO exactly when the relative motion hits the Minkowski box within the horizon,
     and v + u lies on the VO's boundary."""
     c, H, v = np.array(c), np.array(H), np.array(v)
     if np.all(np.abs(c) <= H):
-        return                                      # touching or overlapping now: the recovery rule applies
+        return  # touching or overlapping now: the recovery rule applies
     tau = 2.0
     n, u = orca_plane(c, v, np.zeros(3), time_horizon=tau, recovery_time=0.5, half_extents=H, responsibility=1.0)
-    depth = float(u @ n)                            # > 0: v inside the VO, by that much
+    depth = float(u @ n)  # > 0: v inside the VO, by that much
     if abs(depth) > 1e-9:
         assert (depth > 0) == _ray_hits_box(c, H, v, tau)
-    if depth > 1e-6:                                # just inside / just outside the boundary point
+    if depth > 1e-6:  # just inside / just outside the boundary point
         w = v + u
         assert _ray_hits_box(c, H, w - 1e-7 * n, tau) and not _ray_hits_box(c, H, w + 1e-7 * n, tau)
 
 
 def test_sphere_head_on_keeps_right_and_is_antisymmetric():
-    p = np.array([1.0, 0.0, 0.0])                   # neighbour straight ahead (+x)
-    v = np.array([0.6, 0.0, 0.0])                   # closing head-on
+    p = np.array([1.0, 0.0, 0.0])  # neighbour straight ahead (+x)
+    v = np.array([0.6, 0.0, 0.0])  # closing head-on
     n_a, _ = orca_plane(p, v, np.array([0.3, 0, 0]), time_horizon=4.0, recovery_time=0.5, combined_radius=0.3)
     n_b, _ = orca_plane(-p, -v, np.array([-0.3, 0, 0]), time_horizon=4.0, recovery_time=0.5, combined_radius=0.3)
-    assert n_a[1] < -0.5                            # agent a (heading +x) turns to its right: -y
-    assert np.allclose(n_b, -n_a)                   # b turns to its own right: +y
+    assert n_a[1] < -0.5  # agent a (heading +x) turns to its right: -y
+    assert np.allclose(n_b, -n_a)  # b turns to its own right: +y
 
 
 # ----------------------------------------------------------------------------- the LP
@@ -79,8 +93,15 @@ def _planes(rng_data: list[tuple[list[float], list[float]]], shape: str, v_self:
                 rel_p = rel_p / max(np.linalg.norm(rel_p), 1e-9) * 0.3
             n, pt = orca_plane(rel_p, rel_v, v_self, time_horizon=2.0, recovery_time=0.5, combined_radius=0.25)
         else:
-            n, pt = orca_plane(rel_p, rel_v, v_self, time_horizon=2.0, recovery_time=0.5,
-                               half_extents=2 * HALF + 0.03, vertical_cost=3.0)
+            n, pt = orca_plane(
+                rel_p,
+                rel_v,
+                v_self,
+                time_horizon=2.0,
+                recovery_time=0.5,
+                half_extents=2 * HALF + 0.03,
+                vertical_cost=3.0,
+            )
         normals.append(n)
         points.append(pt)
     return np.array(normals).reshape(-1, 3), np.array(points).reshape(-1, 3)
@@ -91,19 +112,26 @@ neighbour = st.tuples(vec, st.lists(st.floats(-0.8, 0.8), min_size=3, max_size=3
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(nbrs=st.lists(neighbour, min_size=1, max_size=8), shape=st.sampled_from(["sphere", "box"]),
-       pref=st.lists(st.floats(-0.6, 0.6), min_size=3, max_size=3),
-       v_self=st.lists(st.floats(-0.4, 0.4), min_size=3, max_size=3))
+@given(
+    nbrs=st.lists(neighbour, min_size=1, max_size=8),
+    shape=st.sampled_from(["sphere", "box"]),
+    pref=st.lists(st.floats(-0.6, 0.6), min_size=3, max_size=3),
+    v_self=st.lists(st.floats(-0.4, 0.4), min_size=3, max_size=3),
+)
 def test_lp_result_satisfies_every_halfspace_when_feasible(nbrs, shape, pref, v_self):
     v_self, pref = np.array(v_self), np.array(pref)
     N, P = _planes(nbrs, shape, v_self)
     v, feasible = solve_velocity(N, P, pref, v_max=V_MAX)
-    assert np.all(np.abs(v) <= V_MAX + 1e-9)        # the per-axis limits hold in every case
+    assert np.all(np.abs(v) <= V_MAX + 1e-9)  # the per-axis limits hold in every case
     # independent feasibility check: the largest common slack t of all planes inside the box
-    A = np.hstack([-N, np.ones((len(N), 1))])       # -n.v + t <= -n.p
-    res = linprog(c=[0, 0, 0, -1], A_ub=A, b_ub=-np.einsum("ij,ij->i", N, P),
-                  bounds=[(-V_MAX[0], V_MAX[0]), (-V_MAX[1], V_MAX[1]), (-V_MAX[2], V_MAX[2]), (None, 1.0)],
-                  method="highs")
+    A = np.hstack([-N, np.ones((len(N), 1))])  # -n.v + t <= -n.p
+    res = linprog(
+        c=[0, 0, 0, -1],
+        A_ub=A,
+        b_ub=-np.einsum("ij,ij->i", N, P),
+        bounds=[(-V_MAX[0], V_MAX[0]), (-V_MAX[1], V_MAX[1]), (-V_MAX[2], V_MAX[2]), (None, 1.0)],
+        method="highs",
+    )
     slack = -res.fun
     if slack > 1e-7:
         assert feasible
@@ -111,8 +139,14 @@ def test_lp_result_satisfies_every_halfspace_when_feasible(nbrs, shape, pref, v_
         # optimal: no feasible velocity of a generic solver is closer to the preferred one
         cons = [{"type": "ineq", "fun": lambda x, N=N, P=P: np.einsum("ij,ij->i", N, x - P)}]
         x0 = res.x[:3]
-        qp = minimize(lambda x: np.sum((x - pref) ** 2), x0, constraints=cons, method="SLSQP",
-                      bounds=[(-0.5, 0.5)] * 3, options={"ftol": 1e-12, "maxiter": 200})
+        qp = minimize(
+            lambda x: np.sum((x - pref) ** 2),
+            x0,
+            constraints=cons,
+            method="SLSQP",
+            bounds=[(-0.5, 0.5)] * 3,
+            options={"ftol": 1e-12, "maxiter": 200},
+        )
         if qp.success and np.all(np.einsum("ij,ij->i", N, qp.x - P) >= -1e-9):
             assert np.linalg.norm(v - pref) <= np.linalg.norm(qp.x - pref) + 1e-6
     elif slack < -1e-7:
@@ -121,10 +155,10 @@ def test_lp_result_satisfies_every_halfspace_when_feasible(nbrs, shape, pref, v_
 
 def test_infeasible_lp_gives_least_violating_velocity_within_limits():
     N = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-    P = np.array([[0.3, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.2, 0.0]])   # v_x >= 0.3 and v_x <= 0.1
+    P = np.array([[0.3, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.2, 0.0]])  # v_x >= 0.3 and v_x <= 0.1
     v, feasible = solve_velocity(N, P, np.array([0.0, 0.0, 0.1]), v_max=np.full(3, 0.25))
     assert not feasible
-    assert v[0] == pytest.approx(0.2, abs=1e-8)      # both x planes violated by 0.1, the least possible
+    assert v[0] == pytest.approx(0.2, abs=1e-8)  # both x planes violated by 0.1, the least possible
     # every plane is now allowed that violation, and within it the velocity is the closest to the
     # preferred one: the y plane is met up to 0.1, z is free
     assert v[1] == pytest.approx(0.1, abs=1e-8)
@@ -142,15 +176,23 @@ def test_params_refuse_bad_values_naming_the_field():
     assert _refused_field(time_horizon=-1.0) == "time_horizon"
     assert _refused_field(shape="blob") == "shape"
     assert _refused_field(horizon=2.0) == "horizon"
-    assert _refused_field(max_neighbours=1000) == "max_neighbours"      # bounds the neighbour table
+    assert _refused_field(max_neighbours=1000) == "max_neighbours"  # bounds the neighbour table
     assert _refused_field(max_neighbours=2.5) == "max_neighbours"
     assert _refused_field(stuck_fraction=1.0) == "stuck_fraction"
     assert OrcaParams.model_validate({"shape": "sphere"}).shape is Shape.SPHERE
 
 
 # ----------------------------------------------------------------------------- kinematic swaps
-def _kinematic(starts: np.ndarray, goals: np.ndarray, *, params: OrcaParams, T: float, v_max: float = 0.5,
-               a_max: float = 1.0, lag: float = 0.1) -> dict[str, Any]:
+def _kinematic(
+    starts: np.ndarray,
+    goals: np.ndarray,
+    *,
+    params: OrcaParams,
+    T: float,
+    v_max: float = 0.5,
+    a_max: float = 1.0,
+    lag: float = 0.1,
+) -> dict[str, Any]:
     """Point agents under the layer as the simulation runs it: 10 Hz ticks; a command left alone stays
     a position target, a changed one becomes a velocity target; the reference shaper of the
     controller at 48 Hz; each airframe trails its reference position with a first-order lag.
@@ -167,13 +209,22 @@ def _kinematic(starts: np.ndarray, goals: np.ndarray, *, params: OrcaParams, T: 
     kinds = np.full(n, int(CommandKind.POSITION))
     closest, fastest, gap = np.inf, 0.0, np.inf
     for k in range(int(T / dt)):
-        if k % 5 == 0:   # ~10 Hz
+        if k % 5 == 0:  # ~10 Hz
             pref = preferred_velocities(kinds, goals, pos, arrive_time=params.arrive_time, v_max=vm)
             vcmd = commanded_velocities(kinds, goals, pos, v_max=vm, a_max=np.full(3, a_max), dt=dt)
-            cmd, flags = orca_velocities(pos, np.clip(vel, -vm, vm), pref, params=params, sensing_radius=3.0,
-                                         v_max=vm, radii=np.full(n, R_AGENT),
-                                         boxes=(np.zeros((n, 3)), np.tile(HALF, (n, 1))),
-                                         goals=goals, has_goal=np.ones(n, dtype=bool), commanded=vcmd)
+            cmd, flags = orca_velocities(
+                pos,
+                np.clip(vel, -vm, vm),
+                pref,
+                params=params,
+                sensing_radius=3.0,
+                v_max=vm,
+                radii=np.full(n, R_AGENT),
+                boxes=(np.zeros((n, 3)), np.tile(HALF, (n, 1))),
+                goals=goals,
+                has_goal=np.ones(n, dtype=bool),
+                commanded=vcmd,
+            )
             free = (flags & FLAG_FREE) != 0
             shaper.set_position_targets(goals, free)
             shaper.set_velocity_targets(cmd, ~free)
@@ -202,15 +253,15 @@ def test_eight_agents_swap_antipodes_on_a_circle(shape):
     out = _kinematic(starts, goals, params=params, T=40.0)
     assert np.max(np.linalg.norm(out["pos"] - goals, axis=1)) < 0.02
     if shape == "sphere":
-        assert out["closest"] > 2 * R_AGENT      # spheres never touched, so neither did the airframes
-    assert out["gap"] > 0.0                      # airframes never overlapped
-    assert out["fastest"] <= 0.5 + 1e-9          # velocity limits hold
+        assert out["closest"] > 2 * R_AGENT  # spheres never touched, so neither did the airframes
+    assert out["gap"] > 0.0  # airframes never overlapped
+    assert out["fastest"] <= 0.5 + 1e-9  # velocity limits hold
 
 
 def test_agents_swap_antipodes_on_a_sphere():
     m = 12
     i = np.arange(m) + 0.5
-    th, ph = np.arccos(1 - 2 * i / m), np.pi * (1 + 5 ** 0.5) * i
+    th, ph = np.arccos(1 - 2 * i / m), np.pi * (1 + 5**0.5) * i
     starts = 1.0 * np.column_stack([np.cos(ph) * np.sin(th), np.sin(ph) * np.sin(th), np.cos(th)]) + [0, 0, 2.0]
     goals = 2 * np.array([0, 0, 2.0]) - starts
     out = _kinematic(starts, goals, params=OrcaParams(shape=Shape.SPHERE), T=40.0)
@@ -232,8 +283,15 @@ def test_free_agents_keep_their_commands_untouched():
     kinds = np.full(2, int(CommandKind.POSITION))
     vm = np.full(3, 0.5)
     pref = preferred_velocities(kinds, goals, pos, arrive_time=0.5, v_max=vm)
-    v, flags = orca_velocities(pos, np.zeros((2, 3)), pref, params=OrcaParams(shape=Shape.SPHERE),
-                               sensing_radius=1.0, v_max=vm, radii=np.full(2, R_AGENT))
+    v, flags = orca_velocities(
+        pos,
+        np.zeros((2, 3)),
+        pref,
+        params=OrcaParams(shape=Shape.SPHERE),
+        sensing_radius=1.0,
+        v_max=vm,
+        radii=np.full(2, R_AGENT),
+    )
     assert np.all(flags & FLAG_FREE) and not np.any(flags & FLAG_INFEASIBLE)
     assert np.array_equal(v, pref)
 
@@ -267,7 +325,7 @@ def _swap_scenario(starts: np.ndarray, goals: np.ndarray, time_limit: float, **e
         "agents.start": starts.tolist(),
         "collisions": "physical",
         "task.time_limit_s": time_limit,
-        "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 500.0]}],   # never completes by itself
+        "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 500.0]}],  # never completes by itself
         "planner": {"name": _GoTo.name, "params": {"targets": goals.tolist()}},
         "avoidance": "orca",
     }
@@ -292,9 +350,9 @@ def test_orca_is_registered():
 
 def test_two_agents_head_on_reach_their_goals_without_contact():
     starts = np.array([[1.0, 1.5, 1.0], [2.2, 1.5, 1.0]])
-    goals = starts[::-1].copy()                     # exact head-on swap at one altitude
+    goals = starts[::-1].copy()  # exact head-on swap at one altitude
     r = pybullet_swarm.run(_swap_scenario(starts, goals, 16.0))
-    assert r.exit_status is ExitStatus.TIMEOUT      # the scenario runs to its time limit
+    assert r.exit_status is ExitStatus.TIMEOUT  # the scenario runs to its time limit
     assert r.metrics["collisions"]["agent_agent"] == 0
     assert sum(r.metrics["collisions"].values()) == 0
     final = r.timeseries.positions[-1].astype(float)
@@ -307,8 +365,10 @@ def test_same_seed_same_run_with_orca():
     starts = np.array([[1.0, 1.5, 1.0], [2.2, 1.5, 1.0]])
     sc = _swap_scenario(starts, starts[::-1].copy(), 4.0)
     a, b = pybullet_swarm.run(sc, seed=1), pybullet_swarm.run(sc, seed=1)
-    strip = lambda m: {k: v for k, v in m.items() if k not in ("wall_time_s", "real_time_factor")  # noqa: E731
-                       and not k.endswith("_ms")}
+
+    def strip(m: dict) -> dict:
+        return {k: v for k, v in m.items() if k not in ("wall_time_s", "real_time_factor") and not k.endswith("_ms")}
+
     assert strip(a.metrics) == strip(b.metrics)
     assert np.array_equal(a.timeseries.positions, b.timeseries.positions)
 
@@ -351,17 +411,26 @@ def test_line_of_stalled_agents_is_broken_sideways():
     pref = np.array([[-0.15, -0.075, 0.0], [-0.15, -0.075, 0.0], [0.15, 0.075, 0.0]])
     vm = np.full(3, 0.15)
     params = OrcaParams()
-    v, flags = orca_velocities(pos, np.zeros((3, 3)), pref, params=params, sensing_radius=1.0, v_max=vm,
-                               radii=np.full(3, R_AGENT), boxes=(np.zeros((3, 3)), np.tile(HALF, (3, 1))),
-                               goals=pos + 10.0 * pref, has_goal=np.ones(3, dtype=bool))
+    v, flags = orca_velocities(
+        pos,
+        np.zeros((3, 3)),
+        pref,
+        params=params,
+        sensing_radius=1.0,
+        v_max=vm,
+        radii=np.full(3, R_AGENT),
+        boxes=(np.zeros((3, 3)), np.tile(HALF, (3, 1))),
+        goals=pos + 10.0 * pref,
+        has_goal=np.ones(3, dtype=bool),
+    )
     speed = np.linalg.norm(v, axis=1)
     assert np.all(speed >= params.stuck_fraction * np.linalg.norm(pref, axis=1))
-    assert abs(v[1, 1]) > 0.05                   # the middle one steps aside along the free axis
+    assert abs(v[1, 1]) > 0.05  # the middle one steps aside along the free axis
     assert np.all(np.abs(v) <= vm + 1e-9)
 
 
 # ----------------------------------------------------------------------------- climbing over
-R_CARRY = 0.15                   # m, enclosing radius of a quad150 with a 10 cm box hanging 6.5 cm below
+R_CARRY = 0.15  # m, enclosing radius of a quad150 with a 10 cm box hanging 6.5 cm below
 
 
 def _level_boxes(carrying: list[bool]) -> tuple[np.ndarray, np.ndarray]:
@@ -378,16 +447,26 @@ def _empty_meets_carrier(params: OrcaParams, carrier_vz: float = 0.0):
     centre, half = _level_boxes([False, True])
     vm = np.full(3, 0.15)
     bounds = velocity_bounds(pos, vel, vm, floor_height=0.5, time_horizon=params.time_horizon)
-    return orca_velocities(pos, vel, vel, params=params, sensing_radius=1.0, v_max=vm,
-                           radii=np.array([R_AGENT, R_CARRY]), boxes=(centre, half), bounds=bounds,
-                           goals=pos + 10.0 * vel, has_goal=np.ones(2, dtype=bool))
+    return orca_velocities(
+        pos,
+        vel,
+        vel,
+        params=params,
+        sensing_radius=1.0,
+        v_max=vm,
+        radii=np.array([R_AGENT, R_CARRY]),
+        boxes=(centre, half),
+        bounds=bounds,
+        goals=pos + 10.0 * vel,
+        has_goal=np.ones(2, dtype=bool),
+    )
 
 
 def test_an_empty_agent_climbs_over_a_carrier_that_flies_on_undisturbed():
     v, flags = _empty_meets_carrier(OrcaParams())
     assert flags[0] & FLAG_CLIMB and not flags[1] & FLAG_CLIMB
-    assert v[0, 2] > 0.05 and v[0, 0] > 0.05            # the empty one climbs and keeps going
-    assert flags[1] & FLAG_FREE                          # the carrier's command stands
+    assert v[0, 2] > 0.05 and v[0, 0] > 0.05  # the empty one climbs and keeps going
+    assert flags[1] & FLAG_FREE  # the carrier's command stands
     assert np.array_equal(v[1], [-0.15, 0.0, 0.0])
     # reciprocal halves instead: the carrier may not sink (floor rule), so it is the one held up
     v, flags = _empty_meets_carrier(OrcaParams(climb_over=False))
@@ -408,14 +487,14 @@ def test_stigmergy_with_orca_builds_the_wall_without_contact():
     r = pybullet_swarm.run("construction", planner="stigmergy", avoidance="orca", seed=6, plots=False)
     assert r.exit_status is ExitStatus.COMPLETED
     assert r.metrics["collisions"]["agent_agent"] == 0
-    assert r.metrics["orca_climbing_agent_ticks"] > 0    # agents passed over each other
+    assert r.metrics["orca_climbing_agent_ticks"] > 0  # agents passed over each other
 
 
 def test_an_agent_descending_onto_its_goals_occupant_makes_way_upwards():
     # Traced in shortest_path + orca on estimates (seed 9): a carrier waited 6 cm above its slot for
     # the agent that had just placed the box below it, which could only leave upwards, through the
     # carrier (and not sideways: both were on vertical legs); neither moved for 340 s.
-    pos = np.array([[2.7, 0.6, 0.31], [2.7, 0.6, 0.125]])       # 0 carries, 1 sits on 0's goal
+    pos = np.array([[2.7, 0.6, 0.31], [2.7, 0.6, 0.125]])  # 0 carries, 1 sits on 0's goal
     goals = np.array([[2.7, 0.6, 0.215], [2.7, 0.6, 0.45]])
     kinds = np.full(2, int(CommandKind.POSITION))
     vm = np.full(3, 0.15)
@@ -423,13 +502,32 @@ def test_an_agent_descending_onto_its_goals_occupant_makes_way_upwards():
     pref = preferred_velocities(kinds, goals, pos, arrive_time=params.arrive_time, v_max=vm)
     vcmd = commanded_velocities(kinds, goals, pos, v_max=vm, a_max=np.full(3, 1.0), dt=1.0 / 48.0)
     has_goal = np.ones(2, dtype=bool)
-    bounds = velocity_bounds(pos, vcmd, vm, floor_height=params.floor_height, time_horizon=params.time_horizon,
-                             goals=goals, has_goal=has_goal, column=params.column_radius)
+    bounds = velocity_bounds(
+        pos,
+        vcmd,
+        vm,
+        floor_height=params.floor_height,
+        time_horizon=params.time_horizon,
+        goals=goals,
+        has_goal=has_goal,
+        column=params.column_radius,
+    )
     centre, half = _level_boxes([True, False])
-    v, _ = orca_velocities(pos, np.zeros((2, 3)), pref, params=params, sensing_radius=1.0, v_max=vm,
-                           radii=np.array([R_CARRY, R_AGENT]), boxes=(centre, half), goals=goals,
-                               has_goal=has_goal, bounds=bounds, commanded=vcmd)
-    assert v[0, 2] > 0.05 and np.allclose(v[0, :2], 0.0)      # straight up, out of the way
+    v, _ = orca_velocities(
+        pos,
+        np.zeros((2, 3)),
+        pref,
+        params=params,
+        sensing_radius=1.0,
+        v_max=vm,
+        radii=np.array([R_CARRY, R_AGENT]),
+        boxes=(centre, half),
+        goals=goals,
+        has_goal=has_goal,
+        bounds=bounds,
+        commanded=vcmd,
+    )
+    assert v[0, 2] > 0.05 and np.allclose(v[0, :2], 0.0)  # straight up, out of the way
     assert np.all(np.abs(v) <= vm + 1e-9)
 
 
@@ -437,7 +535,7 @@ def test_a_stalled_agent_above_the_one_in_its_way_climbs_past_it():
     # Traced in stigmergy + orca on construction.yaml (seed 49): an empty agent 1.5 cm short of
     # clearing a carrier vertically was pushed backwards by it for 1.5 s, stepping left and right
     # in turn, until they touched.
-    pos = np.array([[2.238, 0.394, 0.255], [2.058, 0.35, 0.245]])   # 0 empty, 1 carries
+    pos = np.array([[2.238, 0.394, 0.255], [2.058, 0.35, 0.245]])  # 0 empty, 1 carries
     vel = np.array([[0.144, -0.104, 0.003], [0.144, 0.0, 0.0]])
     pref = np.array([[-0.15, -0.088, -0.002], [0.15, 0.0, 0.0]])
     vm = np.full(3, 0.15)
@@ -445,7 +543,17 @@ def test_a_stalled_agent_above_the_one_in_its_way_climbs_past_it():
     bounds = velocity_bounds(pos, pref, vm, floor_height=0.5, time_horizon=1.5)
     goals = pos + 10.0 * pref
     for climb, climbs in ((True, True), (False, False)):
-        v, _ = orca_velocities(pos, vel, pref, params=OrcaParams(climb_over=climb), sensing_radius=1.0, v_max=vm,
-                               radii=np.array([R_AGENT, R_CARRY]), boxes=(centre, half), bounds=bounds,
-                               goals=goals, has_goal=np.ones(2, dtype=bool))
+        v, _ = orca_velocities(
+            pos,
+            vel,
+            pref,
+            params=OrcaParams(climb_over=climb),
+            sensing_radius=1.0,
+            v_max=vm,
+            radii=np.array([R_AGENT, R_CARRY]),
+            boxes=(centre, half),
+            bounds=bounds,
+            goals=goals,
+            has_goal=np.ones(2, dtype=bool),
+        )
         assert bool(v[0, 2] > 0.05) == climbs

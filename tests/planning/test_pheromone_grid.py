@@ -1,4 +1,5 @@
 """The pheromone grid: cells, queued deposits, fading against closed forms, strongest cell, files."""
+
 from __future__ import annotations
 
 import json
@@ -20,8 +21,8 @@ def test_thesis_grid_is_30_by_10_by_10_and_clips_outside_points():
     g = _grid()
     assert g.shape == (30, 10, 10)
     assert g.index([0.0, 0.0, 0.0]).tolist() == [0, 0, 0]
-    assert g.index([0.3, 0.25, 0.999]).tolist() == [3, 2, 9]          # 0.3 / 0.1 lands in cell 3, not 2
-    assert g.index([-1.0, 5.0, 0.55]).tolist() == [0, 9, 5]           # outside: clipped into the border cells
+    assert g.index([0.3, 0.25, 0.999]).tolist() == [3, 2, 9]  # 0.3 / 0.1 lands in cell 3, not 2
+    assert g.index([-1.0, 5.0, 0.55]).tolist() == [0, 9, 5]  # outside: clipped into the border cells
     assert np.allclose(g.centre([3, 2, 9]), [0.35, 0.25, 0.95])
 
 
@@ -30,11 +31,11 @@ def test_deposits_take_effect_at_the_next_step_whatever_the_order_of_the_agents(
     p = [1.23, 0.45, 0.3]
     g.deposit("task", p, 0.2, rule=DepositRule.SET, source=0)
     g.deposit("task", p, 1.0, rule=DepositRule.SET, source=1)
-    assert g.sample("task", p) == 0.0                  # nobody sees a mark of this tick yet
+    assert g.sample("task", p) == 0.0  # nobody sees a mark of this tick yet
     g.step(0.1)
-    assert g.sample("task", p) == 1.0                  # the stronger mark of the tick wins
+    assert g.sample("task", p) == 1.0  # the stronger mark of the tick wins
     assert g.sources["task"][tuple(g.index(p))] == 1
-    g.deposit("task", p, 0.5)                          # ADD amplifies
+    g.deposit("task", p, 0.5)  # ADD amplifies
     g.deposit("task", p, 0.25)
     g.step(0.1)
     assert g.sample("task", p) == pytest.approx(1.75)
@@ -42,12 +43,16 @@ def test_deposits_take_effect_at_the_next_step_whatever_the_order_of_the_agents(
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 5), st.sampled_from([-1.0, 0.2, 1.0, 2.0]), st.integers(0, 4)),
-                min_size=1, max_size=12), st.randoms(use_true_random=False))
+@given(
+    st.lists(
+        st.tuples(st.integers(0, 5), st.sampled_from([-1.0, 0.2, 1.0, 2.0]), st.integers(0, 4)), min_size=1, max_size=12
+    ),
+    st.randoms(use_true_random=False),
+)
 def test_set_marks_of_one_tick_resolve_independently_of_order(marks, rnd):
     """Per cell the mark of largest magnitude wins, whichever agent planned first (ties aside)."""
     unique = {}
-    for cell, value, src in marks:                     # keep one mark per (cell, |value|) so there are no ties
+    for cell, value, src in marks:  # keep one mark per (cell, |value|) so there are no ties
         unique.setdefault((cell, abs(value)), (cell, value, src))
     marks = list(unique.values())
     shuffled = list(marks)
@@ -79,7 +84,7 @@ def test_fatigue_erases_a_presence_mark_in_one_second():
         g.step(0.1)
     assert np.allclose(seen[:10], [2.0 - 0.2 * k for k in range(10)])
     assert seen[10] == seen[11] == 0.0
-    assert g.sources["presence"][tuple(g.index(p))] == NO_SOURCE      # a faded mark belongs to nobody
+    assert g.sources["presence"][tuple(g.index(p))] == NO_SOURCE  # a faded mark belongs to nobody
     assert g.sample("task", q) == pytest.approx(-1.0 + 0.5 * 1.2)
 
 
@@ -96,8 +101,12 @@ def test_evaporation_is_exponential():
 def test_strongest_cell_by_sign_with_ties_to_the_nearest_and_optional_distance_effect():
     g = _grid()
     assert g.strongest("task", +1) is None
-    for p, v in (([0.45, 0.35, 0.1], 1.0), ([0.85, 0.55, 0.1], 1.0), ([2.75, 0.45, 0.1], -1.0),
-                 ([1.55, 0.45, 0.3], 0.2)):
+    for p, v in (
+        ([0.45, 0.35, 0.1], 1.0),
+        ([0.85, 0.55, 0.1], 1.0),
+        ([2.75, 0.45, 0.1], -1.0),
+        ([1.55, 0.45, 0.3], 0.2),
+    ):
         g.deposit("task", p, v, rule=DepositRule.SET)
     g.step(0.1)
     assert np.allclose(g.strongest("task", -1), [2.75, 0.45, 0.15])
@@ -113,7 +122,7 @@ def test_strongest_cell_by_sign_with_ties_to_the_nearest_and_optional_distance_e
     assert picks == {(0.45, 0.35, 0.15), (0.85, 0.55, 0.15)}
     # the first in a given axis order, whatever ``near`` is: y most significant, then z, then x
     assert np.allclose(g.strongest("task", +1, near=[0.9, 0.6, 0.1], first_by=(1, 2, 0)), [0.45, 0.35, 0.15])
-    g.deposit("task", [0.15, 0.35, 0.5], 1.0, rule=DepositRule.SET)   # same y, higher: z decides before x
+    g.deposit("task", [0.15, 0.35, 0.5], 1.0, rule=DepositRule.SET)  # same y, higher: z decides before x
     g.step(0.1)
     assert np.allclose(g.strongest("task", +1, first_by=(1, 2, 0)), [0.45, 0.35, 0.15])
     assert np.allclose(g.strongest("task", +1, first_by=(0, 1, 2)), [0.15, 0.35, 0.55])
@@ -121,7 +130,7 @@ def test_strongest_cell_by_sign_with_ties_to_the_nearest_and_optional_distance_e
 
 def test_a_column_marked_at_several_altitudes_is_drawn_as_often_as_one_marked_once():
     g = _grid()
-    for z in (0.05, 0.15, 0.25):           # three boxes placed on top of each other
+    for z in (0.05, 0.15, 0.25):  # three boxes placed on top of each other
         g.deposit("task", [2.75, 0.25, z], -1.0, rule=DepositRule.SET)
     g.deposit("task", [2.75, 0.65, 0.05], -1.0, rule=DepositRule.SET)
     g.step(0.1)
@@ -130,7 +139,7 @@ def test_a_column_marked_at_several_altitudes_is_drawn_as_often_as_one_marked_on
     assert 0.45 < stacked / 2000 < 0.55
     rng = np.random.default_rng(1)
     stacked = sum(g.strongest("task", -1, rng=rng)[1] < 0.5 for _ in range(2000))
-    assert 0.7 < stacked / 2000 < 0.8     # cell by cell the stacked column wins 3 draws in 4
+    assert 0.7 < stacked / 2000 < 0.8  # cell by cell the stacked column wins 3 draws in 4
 
 
 def test_an_agent_can_ignore_its_own_marks():
@@ -174,7 +183,7 @@ def test_metrics_are_json_and_write_saves_the_layers(tmp_path):
         assert z["persistent"].tolist() == ["task"]
         assert np.array_equal(z["task"], g.values["task"])
         assert z["layers"].tolist() == ["task", "presence"]
-        assert np.allclose(z["snapshot_t"], [0.1, 0.5, 1.0])          # first tick, then every 0.5 s
+        assert np.allclose(z["snapshot_t"], [0.1, 0.5, 1.0])  # first tick, then every 0.5 s
         assert z["presence_history"].shape == (3, 30, 10)
         assert z["presence_marked"].tolist() == [1, 1, 1]
     assert not list(tmp_path.glob(".*tmp*"))

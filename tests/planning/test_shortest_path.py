@@ -1,5 +1,6 @@
 """The shortest-path baseline's extension switches, on scripted world views: altitude staggering and
 serving again a slot whose box came to rest off it."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -15,9 +16,17 @@ SLOTS = np.array([[2.7, 0.2, 0.05], [2.7, 0.4, 0.05], [2.7, 0.6, 0.05]])
 
 def _planner(n: int, **params) -> ShortestPath:
     sp = ShortestPath(ShortestPathParams(**params))
-    info = TaskInfo(arena_size=np.array([3.0, 1.0]), n_agents=n, agent_radius=0.106, v_max=np.full(3, 0.15),
-                    depot=DEPOT.copy(), slots=SLOTS.copy(), box_size=0.1, grasp_height=GH,
-                    extra={"search_height": 0.45, "attach_threshold": 0.02})
+    info = TaskInfo(
+        arena_size=np.array([3.0, 1.0]),
+        n_agents=n,
+        agent_radius=0.106,
+        v_max=np.full(3, 0.15),
+        depot=DEPOT.copy(),
+        slots=SLOTS.copy(),
+        box_size=0.1,
+        grasp_height=GH,
+        extra={"search_height": 0.45, "attach_threshold": 0.02},
+    )
     sp.reset(n, np.random.default_rng(0), info)
     return sp
 
@@ -25,8 +34,16 @@ def _planner(n: int, **params) -> ShortestPath:
 def _view(positions, *, slot_filled=None) -> WorldView:
     n = len(positions)
     filled = np.full(len(SLOTS), -1) if slot_filled is None else np.asarray(slot_filled)
-    return WorldView(0.0, np.asarray(positions, dtype=float), np.zeros((n, 3)), np.full(n, -1), DEPOT.copy(),
-                     np.zeros(len(DEPOT), dtype=np.int64), filled, filled < 0)
+    return WorldView(
+        0.0,
+        np.asarray(positions, dtype=float),
+        np.zeros((n, 3)),
+        np.full(n, -1),
+        DEPOT.copy(),
+        np.zeros(len(DEPOT), dtype=np.int64),
+        filled,
+        filled < 0,
+    )
 
 
 def test_altitude_step_staggers_the_cruise_altitudes_and_the_thesis_flies_one():
@@ -34,7 +51,7 @@ def test_altitude_step_staggers_the_cruise_altitudes_and_the_thesis_flies_one():
     for params, heights in ((dict(), [0.45, 0.65, 0.85]), (dict(preset="thesis"), [0.45, 0.45, 0.45])):
         sp = _planner(3, **params)
         cmds = sp.plan_all(_view(starts))
-        assert [c.vector[2] for c in cmds] == pytest.approx(heights)   # each climbs first, to its altitude
+        assert [c.vector[2] for c in cmds] == pytest.approx(heights)  # each climbs first, to its altitude
 
 
 def test_retry_slots_serves_again_a_slot_left_behind_empty():

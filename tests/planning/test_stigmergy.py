@@ -1,5 +1,6 @@
 """The stigmergy planners: search cycle, pheromone rules, flight around the structure, claims,
 presence avoidance (on hand-made observations), and short construction runs."""
+
 from __future__ import annotations
 
 import json
@@ -14,33 +15,84 @@ from pybullet_swarm.planning.base import Action, CommandKind, Observation, TaskI
 from pybullet_swarm.planning.pheromone_grid import DepositRule, PheromoneGrid
 from pybullet_swarm.planning.registry import planners
 from pybullet_swarm.planning.stigmergy import (
-    Carry, FlightGeometry, Layer, LayeredStigmergy, LayeredStigmergyParams, Phase, Sighting, Stigmergy, StigmergyParams,
-    Strategy, TieBreak)
+    Carry,
+    FlightGeometry,
+    Layer,
+    LayeredStigmergy,
+    LayeredStigmergyParams,
+    Phase,
+    Sighting,
+    Stigmergy,
+    StigmergyParams,
+    Strategy,
+    TieBreak,
+)
 from pybullet_swarm.types import ExitStatus
 
-GH = 0.065            # m, grasp height of quad150 with 10 cm boxes
-R = 0.106             # m, quad150 radius
+GH = 0.065  # m, grasp height of quad150 with 10 cm boxes
+R = 0.106  # m, quad150 radius
 DEPOT = np.array([[x, y, 0.05] for x in (0.4, 0.6, 0.8) for y in (0.3, 0.5, 0.7)])
-SLOTS = np.array([[2.7, 0.2, 0.05], [2.7, 0.4, 0.05], [2.7, 0.6, 0.05], [2.7, 0.8, 0.05], [2.7, 0.2, 0.15],
-                  [2.7, 0.4, 0.15], [2.7, 0.6, 0.15], [2.7, 0.2, 0.25], [2.7, 0.4, 0.25]])
+SLOTS = np.array(
+    [
+        [2.7, 0.2, 0.05],
+        [2.7, 0.4, 0.05],
+        [2.7, 0.6, 0.05],
+        [2.7, 0.8, 0.05],
+        [2.7, 0.2, 0.15],
+        [2.7, 0.4, 0.15],
+        [2.7, 0.6, 0.15],
+        [2.7, 0.2, 0.25],
+        [2.7, 0.4, 0.25],
+    ]
+)
 NO3 = np.zeros((0, 3))
 NOI = np.zeros(0, dtype=np.int64)
 
 
 def _info() -> TaskInfo:
     """The construction task as its agents know it (scenarios/construction.yaml)."""
-    return TaskInfo(arena_size=np.array([3.0, 1.0]), n_agents=5, agent_radius=R, v_max=np.full(3, 0.15),
-                    depot=DEPOT.copy(), slots=SLOTS.copy(), box_size=0.1, grasp_height=GH,
-                    extra={"search_height": 0.45, "attach_threshold": 0.02, "view_radius": 2 * R})
+    return TaskInfo(
+        arena_size=np.array([3.0, 1.0]),
+        n_agents=5,
+        agent_radius=R,
+        v_max=np.full(3, 0.15),
+        depot=DEPOT.copy(),
+        slots=SLOTS.copy(),
+        box_size=0.1,
+        grasp_height=GH,
+        extra={"search_height": 0.45, "attach_threshold": 0.02, "view_radius": 2 * R},
+    )
 
 
-def _obs(p, *, v=(0.0, 0.0, 0.0), carrying=-1, boxes=NO3, box_ids=NOI, slots=NO3, slot_ids=NOI,
-         nb_ids=NOI, nb_pos=NO3, agent=0, t=0.0) -> Observation:
-    return Observation(agent, t, np.asarray(p, dtype=float), np.asarray(v, dtype=float), 0.0, carrying,
-                       np.asarray(nb_ids, dtype=np.int64), np.asarray(nb_pos, dtype=float).reshape(-1, 3),
-                       np.zeros((len(nb_ids), 3)), np.asarray(boxes, dtype=float).reshape(-1, 3),
-                       np.asarray(box_ids, dtype=np.int64), np.asarray(slots, dtype=float).reshape(-1, 3),
-                       np.asarray(slot_ids, dtype=np.int64))
+def _obs(
+    p,
+    *,
+    v=(0.0, 0.0, 0.0),
+    carrying=-1,
+    boxes=NO3,
+    box_ids=NOI,
+    slots=NO3,
+    slot_ids=NOI,
+    nb_ids=NOI,
+    nb_pos=NO3,
+    agent=0,
+    t=0.0,
+) -> Observation:
+    return Observation(
+        agent,
+        t,
+        np.asarray(p, dtype=float),
+        np.asarray(v, dtype=float),
+        0.0,
+        carrying,
+        np.asarray(nb_ids, dtype=np.int64),
+        np.asarray(nb_pos, dtype=float).reshape(-1, 3),
+        np.zeros((len(nb_ids), 3)),
+        np.asarray(boxes, dtype=float).reshape(-1, 3),
+        np.asarray(box_ids, dtype=np.int64),
+        np.asarray(slots, dtype=float).reshape(-1, 3),
+        np.asarray(slot_ids, dtype=np.int64),
+    )
 
 
 def _medium(layered: bool = False) -> PheromoneGrid:
@@ -64,11 +116,11 @@ def test_altitudes_let_agents_see_and_carry_boxes_clear_of_depot_and_structure()
     g = FlightGeometry.from_task(_info(), StigmergyParams())
     floor, look, cruise = g.floor_altitude, g.look_altitude, g.cruise_altitude
     assert floor < look < cruise
-    assert _visible([0.6, 0.5, look], DEPOT[4])                        # over the depot: a box right below is in view
-    assert look - GH - 0.05 >= 0.10 + 0.03 - 1e-9                      # a carried box clears the depot boxes
-    assert floor - GH - 0.05 >= 0.10 + 0.03 - 1e-9                     # ... and a box lying on the open floor
-    assert cruise == pytest.approx(0.45)                               # the task's search height
-    assert cruise - GH - 0.05 >= 0.30 + 0.03 - 1e-9                    # ... clears the finished wall
+    assert _visible([0.6, 0.5, look], DEPOT[4])  # over the depot: a box right below is in view
+    assert look - GH - 0.05 >= 0.10 + 0.03 - 1e-9  # a carried box clears the depot boxes
+    assert floor - GH - 0.05 >= 0.10 + 0.03 - 1e-9  # ... and a box lying on the open floor
+    assert cruise == pytest.approx(0.45)  # the task's search height
+    assert cruise - GH - 0.05 >= 0.30 + 0.03 - 1e-9  # ... clears the finished wall
     # the zones: every slot column in the structure's, every depot box in the depot's
     assert all(g.inside(s[:2]) for s in SLOTS) and not any(g.inside(b[:2]) for b in DEPOT)
     assert all(g.altitude(b[:2]) == look for b in DEPOT) and g.altitude(np.array([1.5, 0.5])) == floor
@@ -120,8 +172,8 @@ def test_strategy_cycle_random_then_strongest_pheromone_then_local():
         a.plan(_obs(p), med)
         seen.append((a.strategy, a.target.copy()))
     assert [s for s, _ in seen] == [Strategy.PHEROMONE, Strategy.LOCAL, Strategy.RANDOM, Strategy.PHEROMONE]
-    assert np.allclose(seen[0][1], [0.65, 0.55])                        # the centre of the marked cell
-    assert np.all(np.abs(seen[1][1] - p[:2]) <= 0.2 + 1e-9)             # local: within 20 cm of the agent
+    assert np.allclose(seen[0][1], [0.65, 0.55])  # the centre of the marked cell
+    assert np.all(np.abs(seen[1][1] - p[:2]) <= 0.2 + 1e-9)  # local: within 20 cm of the agent
     assert med.tallies == {"target_pheromone": 2, "target_local": 1, "target_random": 1}
 
 
@@ -137,10 +189,10 @@ def test_beside_the_structure_the_local_search_runs_along_its_face():
     p = np.array([edge, 0.45, g.floor_altitude])
     ys = []
     for _ in range(60):
-        a.strategy = Strategy.PHEROMONE            # the next choice is the local one
+        a.strategy = Strategy.PHEROMONE  # the next choice is the local one
         a._choose(_obs(p, carrying=2), med, -1)
         assert a.strategy == Strategy.LOCAL
-        assert a.target[0] == pytest.approx(edge)   # on the face
+        assert a.target[0] == pytest.approx(edge)  # on the face
         ys.append(a.target[1])
     ys = np.array(ys)
     assert np.all(np.abs(ys - 0.45) <= 0.2 + 1e-9) and ys.min() < 0.3 and ys.max() > 0.6
@@ -164,7 +216,7 @@ def test_an_agent_looking_for_a_box_leaves_a_trail_only_in_empty_cells():
     a.plan(_obs([1.05, 0.55, look]), med)
     med.step(0.1)
     assert med.sample(Layer.TASK.value, [1.55, 0.55, look]) == pytest.approx(0.2)
-    assert med.sample(Layer.TASK.value, [1.05, 0.55, look]) == 1.0      # a found box is not overwritten
+    assert med.sample(Layer.TASK.value, [1.05, 0.55, look]) == 1.0  # a found box is not overwritten
 
 
 # ----------------------------------------------------------------------------- boxes
@@ -176,7 +228,7 @@ def test_a_seen_box_is_fetched_grasped_and_marked_with_plus_one():
     near = [box[0] + 0.1, box[1], look]
     cmd = a.plan(_obs(near, boxes=[box], box_ids=[4]), med)
     assert a.phase == Phase.TO_BOX
-    assert np.allclose(cmd.vector, [box[0], box[1], look])              # above it first
+    assert np.allclose(cmd.vector, [box[0], box[1], look])  # above it first
     above = [box[0], box[1], look]
     cmd = a.plan(_obs(above, boxes=[box], box_ids=[4]), med)
     grasp = box + [0, 0, GH]
@@ -198,12 +250,16 @@ def test_a_box_a_neighbour_is_working_on_is_left_to_it():
     a = _agent(agent=2)
     look = a.geo.look_altitude
     box = DEPOT[0]
-    below = [box[0] + 0.01, box[1], 0.15]                               # descending onto it
+    below = [box[0] + 0.01, box[1], 0.15]  # descending onto it
     a.plan(_obs([box[0] + 0.15, box[1], look], boxes=[box], box_ids=[0], nb_ids=[1], nb_pos=[below]), _medium())
     assert a.phase == Phase.SEEK_BOX
     # level with it, the nearer agent has it; an equally near one with a lower id too
-    a.plan(_obs([box[0] + 0.05, box[1], look], boxes=[box], box_ids=[0], nb_ids=[4],
-                nb_pos=[[box[0] + 0.08, box[1], look]]), _medium())
+    a.plan(
+        _obs(
+            [box[0] + 0.05, box[1], look], boxes=[box], box_ids=[0], nb_ids=[4], nb_pos=[[box[0] + 0.08, box[1], look]]
+        ),
+        _medium(),
+    )
     assert a.phase == Phase.TO_BOX and a.box.id == 0
 
 
@@ -227,16 +283,16 @@ def test_a_carrying_agent_climbs_before_the_structure_and_crosses_it_at_cruise_a
     cmd = a.plan(_obs([1.5, 0.5, floor], carrying=3), med)
     assert cmd.vector[2] == pytest.approx(floor) and cmd.vector[0] == pytest.approx(edge - g.standoff)
     stop = cmd.vector.copy()
-    cmd = a.plan(_obs(stop, carrying=3, v=(0.15, 0.0, 0.0)), med)          # at the stop: straight up, latched
+    cmd = a.plan(_obs(stop, carrying=3, v=(0.15, 0.0, 0.0)), med)  # at the stop: straight up, latched
     assert np.allclose(cmd.vector, [stop[0], stop[1], g.cruise_altitude])
     cmd = a.plan(_obs(stop + [0.01, 0.0, 0.1], carrying=3), med)
     assert np.allclose(cmd.vector, [stop[0], stop[1], g.cruise_altitude])
-    cmd = a.plan(_obs([stop[0] + 0.01, 0.5, 0.44], carrying=3), med)        # up: now across
+    cmd = a.plan(_obs([stop[0] + 0.01, 0.5, 0.44], carrying=3), med)  # up: now across
     assert np.allclose(cmd.vector, [2.7, 0.5, g.cruise_altitude])
 
 
 def test_an_agent_climbs_to_the_depot_altitude_before_flying_over_the_depot():
-    a = _agent(floor_altitude=0.2)     # by default the floor lies within ALTITUDE_TOL of the depot altitude
+    a = _agent(floor_altitude=0.2)  # by default the floor lies within ALTITUDE_TOL of the depot altitude
     g = a.geo
     a.phase, a.target = Phase.SEEK_BOX, np.array([0.6, 0.5])
     cmd = a.plan(_obs([1.5, 0.5, g.floor_altitude]), _medium())
@@ -252,7 +308,7 @@ def test_an_open_slot_is_served_from_above_and_marked_with_minus_one():
     med = _medium()
     a = _agent()
     g = a.geo
-    a.carry, a.phase = Carry(3, np.array([0.004, -0.002, -0.066])), Phase.SEEK_GOAL   # offset measured at the grasp
+    a.carry, a.phase = Carry(3, np.array([0.004, -0.002, -0.066])), Phase.SEEK_GOAL  # offset measured at the grasp
     a.target = np.array([2.6, 0.5])
     slot = SLOTS[1]
     p = np.array([g.structure.lo[:, 0].min() - g.standoff, 0.45, g.floor_altitude])
@@ -261,46 +317,46 @@ def test_an_open_slot_is_served_from_above_and_marked_with_minus_one():
     assert a.phase == Phase.TO_SLOT and a.slot.id == 1
     drop = slot + [0, 0, 0.004] - a.offset
     above = [drop[0], drop[1], g.cruise_altitude]
-    cmd = a.plan(_obs(above, carrying=3), med)                          # out of view from up there: keeps it
+    cmd = a.plan(_obs(above, carrying=3), med)  # out of view from up there: keeps it
     assert a.phase == Phase.DESCEND_SLOT and np.allclose(cmd.vector, drop) and cmd.action == Action.NONE
     cmd = a.plan(_obs(drop + [0.002, 0.0, 0.003], carrying=3, slots=[slot], slot_ids=[1]), med)
     assert cmd.action == Action.RELEASE and a.phase == Phase.RELEASING
-    cmd = a.plan(_obs(drop + [0.002, 0.0, 0.003]), med)                 # the task let go of it
+    cmd = a.plan(_obs(drop + [0.002, 0.0, 0.003]), med)  # the task let go of it
     med.step(0.1)
     assert med.sample(Layer.TASK.value, drop) == -1.0
     assert a.phase == Phase.SETTLING and cmd.vector[2] == pytest.approx(g.cruise_altitude)
-    assert np.allclose(med.strongest(Layer.TASK.value, -1), med.centre(med.index(drop)))   # where it let go
+    assert np.allclose(med.strongest(Layer.TASK.value, -1), med.centre(med.index(drop)))  # where it let go
 
 
 def test_a_descent_pushed_off_its_column_climbs_straight_back_and_comes_over_the_slot_again():
     med = _medium()
     a = _agent()
     g = a.geo
-    slot = SLOTS[4]                                                     # second layer, on top of slot 0's box
+    slot = SLOTS[4]  # second layer, on top of slot 0's box
     a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.DESCEND_SLOT, Sighting(4, slot.copy())
     a.watch.descent_start = 0.0
     a.target = np.array([2.6, 0.2])
     drop = slot + [0.0, 0.0, a.clearance] - a.offset
     seen = dict(carrying=3, slots=[slot], slot_ids=[4])
-    cmd = a.plan(_obs(drop + [0.03, 0.0, 0.05], **seen), med)          # 3 cm off: the descent goes on
+    cmd = a.plan(_obs(drop + [0.03, 0.0, 0.05], **seen), med)  # 3 cm off: the descent goes on
     assert a.phase == Phase.DESCEND_SLOT and np.allclose(cmd.vector, drop)
-    low = drop + [0.08, 0.0, 0.04]                                      # pushed 8 cm behind the wall
+    low = drop + [0.08, 0.0, 0.04]  # pushed 8 cm behind the wall
     cmd = a.plan(_obs(low, **seen), med)
     assert a.phase == Phase.RECLIMB_SLOT
-    assert np.allclose(cmd.vector, [low[0], low[1], g.cruise_altitude])   # straight up, not back across the stack
+    assert np.allclose(cmd.vector, [low[0], low[1], g.cruise_altitude])  # straight up, not back across the stack
     cmd = a.plan(_obs([low[0], low[1], 0.35], **seen), med)
-    assert np.allclose(cmd.vector[:2], low[:2])                         # still climbing where it is
-    cmd = a.plan(_obs([low[0], low[1], g.cruise_altitude], **seen), med)   # up: over the slot again, at altitude
+    assert np.allclose(cmd.vector[:2], low[:2])  # still climbing where it is
+    cmd = a.plan(_obs([low[0], low[1], g.cruise_altitude], **seen), med)  # up: over the slot again, at altitude
     assert np.allclose(cmd.vector, [drop[0], drop[1], g.cruise_altitude]) and a.phase == Phase.TO_SLOT
     a.plan(_obs([drop[0], drop[1], g.cruise_altitude], **seen), med)
-    assert a.phase == Phase.DESCEND_SLOT                                                 # over it: the descent starts again
+    assert a.phase == Phase.DESCEND_SLOT  # over it: the descent starts again
 
 
 def test_a_slot_filled_meanwhile_is_given_up():
     a = _agent()
     a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.TO_SLOT, Sighting(1, SLOTS[1].copy())
     a.target = np.array([2.0, 0.5])
-    a.plan(_obs(SLOTS[1] + [0.0, 0.0, GH + 0.05], carrying=3), _medium())   # right there, not open any more
+    a.plan(_obs(SLOTS[1] + [0.0, 0.0, GH + 0.05], carrying=3), _medium())  # right there, not open any more
     assert a.phase == Phase.SEEK_GOAL and a.slot.id == -1
 
 
@@ -311,8 +367,8 @@ def test_layered_agent_replans_before_entering_another_agents_cell_but_not_its_o
     look = a.geo.look_altitude
     a.phase, a.target = Phase.SEEK_BOX, np.array([2.0, 0.55])
     p = np.array([1.05, 0.55, look])
-    med.deposit(Layer.PRESENCE.value, p, 2.0, rule=DepositRule.SET, source=0)              # its own mark
-    med.deposit(Layer.PRESENCE.value, p - [0.15, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=3)   # behind it
+    med.deposit(Layer.PRESENCE.value, p, 2.0, rule=DepositRule.SET, source=0)  # its own mark
+    med.deposit(Layer.PRESENCE.value, p - [0.15, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=3)  # behind it
     med.step(0.1)
     cmd = a.plan(_obs(p), med)
     assert cmd.kind == CommandKind.POSITION and a.phase == Phase.SEEK_BOX
@@ -322,7 +378,7 @@ def test_layered_agent_replans_before_entering_another_agents_cell_but_not_its_o
     assert cmd.kind == CommandKind.HOLD
     assert a.phase == Phase.CHOOSE_BOX and med.tallies["presence_replans"] == 1
     med.step(0.1)
-    assert med.sources[Layer.PRESENCE.value][tuple(med.index(p))] == 0                      # marks its own cell
+    assert med.sources[Layer.PRESENCE.value][tuple(med.index(p))] == 0  # marks its own cell
 
 
 def test_layered_agent_passes_a_neighbour_beside_it_and_after_a_replan_detours_before_fetching():
@@ -331,17 +387,17 @@ def test_layered_agent_passes_a_neighbour_beside_it_and_after_a_replan_detours_b
     look = a.geo.look_altitude
     box = DEPOT[4]
     p = np.array([box[0] - 0.25, box[1] - 0.01, look])
-    med.deposit(Layer.PRESENCE.value, p + [0.0, 0.15, 0.0], 2.0, rule=DepositRule.SET, source=2)    # beside
+    med.deposit(Layer.PRESENCE.value, p + [0.0, 0.15, 0.0], 2.0, rule=DepositRule.SET, source=2)  # beside
     med.step(0.1)
     cmd = a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.0), med)
     assert cmd.kind == CommandKind.POSITION and a.phase == Phase.TO_BOX
-    med.deposit(Layer.PRESENCE.value, p + [0.12, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=2)    # now ahead
+    med.deposit(Layer.PRESENCE.value, p + [0.12, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=2)  # now ahead
     med.step(0.1)
     assert a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.1), med).kind == CommandKind.HOLD
     # for as long as a mark lasts (2 / (2/s) = 1 s) it searches elsewhere instead of trying again
     a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.2), med)
     assert a.phase == Phase.SEEK_BOX and a.box.id == -1
-    for _ in range(10):                                # the neighbour has gone: its marks fade
+    for _ in range(10):  # the neighbour has gone: its marks fade
         med.step(0.1)
     a.plan(_obs(p, boxes=[box], box_ids=[4], t=2.2), med)
     assert a.phase == Phase.TO_BOX and a.box.id == 4
@@ -380,14 +436,15 @@ def _refused_field(model, **values):
 def test_bad_parameters_are_refused_naming_the_field():
     assert _refused_field(StigmergyParams, goal_pheromone=1.0) == "goal_pheromone"
     assert _refused_field(LayeredStigmergyParams, lookahead=0.0) == "lookahead"
-    assert _refused_field(StigmergyParams, lookahead=0.2) == "lookahead"    # a layered parameter only
+    assert _refused_field(StigmergyParams, lookahead=0.2) == "lookahead"  # a layered parameter only
     assert _refused_field(StigmergyParams, ties="last") == "ties"
     assert _refused_field(StigmergyParams, cell_size=float("nan")) == "cell_size"
-    assert _refused_field(StigmergyParams, fatigue=True) == "fatigue"        # strict: a boolean is not a number
+    assert _refused_field(StigmergyParams, fatigue=True) == "fatigue"  # strict: a boolean is not a number
     assert StigmergyParams(ties="nearest").ties is TieBreak.NEAREST
     assert Stigmergy(StigmergyParams(ties="nearest")).params.ties is TieBreak.NEAREST
-    with pytest.raises(ConfigError,
-                       match=r"^construction\.yaml: planner\.params\.cell_size: must be >= 0\.01, got -0\.1$"):
+    with pytest.raises(
+        ConfigError, match=r"^construction\.yaml: planner\.params\.cell_size: must be >= 0\.01, got -0\.1$"
+    ):
         pybullet_swarm.run("construction", planner="stigmergy", overrides={"planner.params.cell_size": -0.1})
     with pytest.raises(ConfigError, match=r"^construction\.yaml: planner\.params\.speed: unknown field, got 2$"):
         pybullet_swarm.run("construction", planner="stigmergy", overrides={"planner.params.speed": 2})
@@ -395,9 +452,11 @@ def test_bad_parameters_are_refused_naming_the_field():
 
 def test_a_grid_beyond_the_memory_budget_is_refused_at_load():
     with pytest.raises(ConfigError) as err:
-        pybullet_swarm.load_scenario("construction", {"planner.params.cell_size": 0.01,
-                                                      "planner.params.grid_height": 20.0,
-                                                      "arena.size": [300.0, 100.0]}, planner="stigmergy")
+        pybullet_swarm.load_scenario(
+            "construction",
+            {"planner.params.cell_size": 0.01, "planner.params.grid_height": 20.0, "arena.size": [300.0, 100.0]},
+            planner="stigmergy",
+        )
     # 30000 x 10000 x 2000 cells of 16 bytes, plus 501 snapshots of 30000 x 10000 floats
     assert err.value.field == "planner.params.cell_size"
     assert "30000 x 10000 x 2000 cells" in str(err.value) and "above the memory budget of 4 GiB" in str(err.value)
@@ -406,9 +465,13 @@ def test_a_grid_beyond_the_memory_budget_is_refused_at_load():
 # ----------------------------------------------------------------------------- runs
 def _small(**extra):
     """Two agents, two boxes, the two middle bottom slots (a quick construction task)."""
-    over = {"agents.count": 2, "agents.start": [[0.12, 0.4, 0.011], [0.12, 0.6, 0.011]],
-            "task.boxes": [[0.6, 0.3, 0.05], [0.6, 0.7, 0.05]],
-            "task.structure": [[2.7, 0.4, 0.05], [2.7, 0.6, 0.05]], "task.time_limit_s": 200.0}
+    over = {
+        "agents.count": 2,
+        "agents.start": [[0.12, 0.4, 0.011], [0.12, 0.6, 0.011]],
+        "task.boxes": [[0.6, 0.3, 0.05], [0.6, 0.7, 0.05]],
+        "task.structure": [[2.7, 0.4, 0.05], [2.7, 0.6, 0.05]],
+        "task.time_limit_s": 200.0,
+    }
     over.update(extra)
     return pybullet_swarm.load_scenario("construction", over)
 
@@ -478,7 +541,7 @@ def test_wide_view_notices_a_box_the_thesis_window_does_not():
     for params, seen in ((dict(), True), (dict(wide_view=False), False), (dict(preset="thesis"), False)):
         a = _seeking(**params)
         p = [box[0] + 0.2, box[1], a.geo.look_altitude]
-        assert _visible(p, box)                                        # the task would show it
+        assert _visible(p, box)  # the task would show it
         a.plan(_obs(p, boxes=[box], box_ids=[4]), _medium())
         assert (a.phase == Phase.TO_BOX) == seen, params
     a = _seeking(preset="thesis")
@@ -491,8 +554,10 @@ def test_without_claims_a_box_a_neighbour_descends_onto_is_fetched_all_the_same(
     below = [box[0] + 0.01, box[1], 0.15]
     for claims, phase in ((True, Phase.SEEK_BOX), (False, Phase.TO_BOX)):
         a = _agent(agent=2, claims=claims)
-        a.plan(_obs([box[0] + 0.15, box[1], a.geo.look_altitude], boxes=[box], box_ids=[0], nb_ids=[1],
-                    nb_pos=[below]), _medium())
+        a.plan(
+            _obs([box[0] + 0.15, box[1], a.geo.look_altitude], boxes=[box], box_ids=[0], nb_ids=[1], nb_pos=[below]),
+            _medium(),
+        )
         assert a.phase == phase
 
 
@@ -503,16 +568,16 @@ def test_without_layout_altitudes_one_altitude_over_floor_and_depot_and_search_p
     assert t.floor_altitude == pytest.approx(clear) and t.look_altitude == pytest.approx(clear)
     assert d.look_altitude != t.look_altitude and d.cruise_altitude == t.cruise_altitude
     med = _medium()
-    med.deposit(Layer.TASK.value, [2.75, 0.45, 0.2], -1.0, rule=DepositRule.SET)   # a goal mark over the wall
+    med.deposit(Layer.TASK.value, [2.75, 0.45, 0.2], -1.0, rule=DepositRule.SET)  # a goal mark over the wall
     med.step(0.1)
     targets = {}
     for layout in (True, False):
         a = _agent(layout_altitudes=layout)
-        a.strategy = Strategy.RANDOM                                   # the next choice is the pheromone one
+        a.strategy = Strategy.RANDOM  # the next choice is the pheromone one
         a._choose(_obs([1.5, 0.5, a.geo.floor_altitude], carrying=2), med, -1)
         targets[layout] = a.target
     assert np.allclose(targets[False], [2.75, 0.45]) and _agent().geo.inside(targets[False])
-    assert np.allclose(targets[True], [d.structure.lo[:, 0].min() - d.standoff, 0.45])   # at the zone's edge
+    assert np.allclose(targets[True], [d.structure.lo[:, 0].min() - d.standoff, 0.45])  # at the zone's edge
 
 
 def test_first_ties_follow_the_thesis_grid_order_random_ties_spread():
@@ -544,8 +609,11 @@ def test_a_box_beside_the_structure_is_fetched_without_leave_boxes_by_structure(
 
 def _descending_onto(slot_id: int, **params) -> tuple[Stigmergy, np.ndarray]:
     a = _agent(**params)
-    a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.DESCEND_SLOT, Sighting(
-        slot_id, SLOTS[slot_id].copy())
+    a.carry, a.phase, a.slot = (
+        Carry(3, np.array([0.0, 0.0, -GH])),
+        Phase.DESCEND_SLOT,
+        Sighting(slot_id, SLOTS[slot_id].copy()),
+    )
     a.watch.descent_start = 0.0
     a.target = np.array([2.6, 0.2])
     return a, SLOTS[slot_id] + [0.0, 0.0, a.clearance] - a.offset
@@ -563,16 +631,19 @@ def test_without_loose_box_check_an_agent_descends_onto_a_slot_with_a_loose_box_
     loose = SLOTS[1] + [0.02, 0.01, 0.0]
     for check, phase in ((True, Phase.SEEK_GOAL), (False, Phase.DESCEND_SLOT)):
         a, drop = _descending_onto(1, loose_box_check=check)
-        a.plan(_obs(drop + [0, 0, 0.05], carrying=3, boxes=[loose], box_ids=[5], slots=[SLOTS[1]], slot_ids=[1]),
-               _medium())
+        a.plan(
+            _obs(drop + [0, 0, 0.05], carrying=3, boxes=[loose], box_ids=[5], slots=[SLOTS[1]], slot_ids=[1]), _medium()
+        )
         assert a.phase == phase
 
 
 def test_without_retake_a_box_let_go_off_its_slot_is_left_where_it_lies():
-    off = SLOTS[1] + [0.013, 0.0, 0.0]                                  # came to rest 13 mm off its slot
+    off = SLOTS[1] + [0.013, 0.0, 0.0]  # came to rest 13 mm off its slot
     seen = dict(boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1])
-    for retake, after_release, after_settle in ((True, Phase.SETTLING, Phase.DESCEND_BOX),
-                                                (False, Phase.CLIMB, Phase.CLIMB)):
+    for retake, after_release, after_settle in (
+        (True, Phase.SETTLING, Phase.DESCEND_BOX),
+        (False, Phase.CLIMB, Phase.CLIMB),
+    ):
         a, drop = _descending_onto(1, retake=retake)
         assert a.plan(_obs(drop, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), _medium()).action == Action.RELEASE
         a.plan(_obs(drop, t=0.1, **seen), _medium())
@@ -632,10 +703,10 @@ def test_layered_without_detour_goes_for_a_seen_box_right_after_a_replan():
         a = _agent(LayeredStigmergy, detour=detour)
         med = _medium(layered=True)
         p = np.array([box[0] - 0.25, box[1] - 0.01, a.geo.look_altitude])
-        med.deposit(Layer.PRESENCE.value, p + [0.12, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=2)   # ahead
+        med.deposit(Layer.PRESENCE.value, p + [0.12, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=2)  # ahead
         med.step(0.1)
         assert a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.0), med).kind == CommandKind.HOLD
-        for _ in range(10):                                            # the neighbour's mark fades
+        for _ in range(10):  # the neighbour's mark fades
             med.step(0.1)
         a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.2), med)
         assert a.phase == phase

@@ -1,4 +1,5 @@
 """Tests of pybullet_swarm/planning/tsplib.py: parsing, TSPLIB distances, one-line errors."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -19,9 +20,57 @@ from pybullet_swarm.planning.tsplib import (
 
 # TSPLIB's eil51.opt.tour (1-based), length 426 under EUC_2D rounding.
 EIL51_OPT_TOUR = [
-    1, 22, 8, 26, 31, 28, 3, 36, 35, 20, 2, 29, 21, 16, 50, 34, 30, 9, 49, 10, 39, 33, 45, 15,
-    44, 42, 40, 19, 41, 13, 25, 14, 24, 43, 7, 23, 48, 6, 27, 51, 46, 12, 47, 18, 4, 17, 37, 5,
-    38, 11, 32,
+    1,
+    22,
+    8,
+    26,
+    31,
+    28,
+    3,
+    36,
+    35,
+    20,
+    2,
+    29,
+    21,
+    16,
+    50,
+    34,
+    30,
+    9,
+    49,
+    10,
+    39,
+    33,
+    45,
+    15,
+    44,
+    42,
+    40,
+    19,
+    41,
+    13,
+    25,
+    14,
+    24,
+    43,
+    7,
+    23,
+    48,
+    6,
+    27,
+    51,
+    46,
+    12,
+    47,
+    18,
+    4,
+    17,
+    37,
+    5,
+    38,
+    11,
+    32,
 ]
 
 BURMA14 = """NAME: burma14
@@ -51,8 +100,10 @@ EOF
 def _tsp(edge_weight_type: str, *coords: tuple[float, float], extra: str = "") -> str:
     """Text of a small TSPLIB file with the given nodes."""
     nodes = "\n".join(f"{i} {x} {y}" for i, (x, y) in enumerate(coords, start=1))
-    return (f"NAME : tiny\nTYPE : TSP\n{extra}DIMENSION : {len(coords)}\n"
-            f"EDGE_WEIGHT_TYPE : {edge_weight_type}\nNODE_COORD_SECTION\n{nodes}\nEOF\n")
+    return (
+        f"NAME : tiny\nTYPE : TSP\n{extra}DIMENSION : {len(coords)}\n"
+        f"EDGE_WEIGHT_TYPE : {edge_weight_type}\nNODE_COORD_SECTION\n{nodes}\nEOF\n"
+    )
 
 
 def _eil51_text() -> str:
@@ -160,15 +211,18 @@ def test_unsupported_edge_weight_type(tmp_path: Path) -> None:
     assert err.field == "EDGE_WEIGHT_TYPE" and "'EXPLICIT'" in str(err)
 
 
-@pytest.mark.parametrize(("old", "new", "field"), [
-    ("TYPE : TSP", "TYPE : ATSP", "TYPE"),
-    ("DIMENSION : 51", "DIMENSION : many", "DIMENSION"),
-    ("EDGE_WEIGHT_TYPE : EUC_2D\n", "", "EDGE_WEIGHT_TYPE"),
-    ("NODE_COORD_SECTION\n", "", None),  # the coordinates then read as a malformed header line
-    ("\n5 40 30\n", "\n5 40\n", "NODE_COORD_SECTION"),
-    ("\n5 40 30\n", "\n4 40 30\n", "NODE_COORD_SECTION"),  # node 4 twice
-    ("\n5 40 30\n", "\n52 40 30\n", "NODE_COORD_SECTION"),
-])
+@pytest.mark.parametrize(
+    ("old", "new", "field"),
+    [
+        ("TYPE : TSP", "TYPE : ATSP", "TYPE"),
+        ("DIMENSION : 51", "DIMENSION : many", "DIMENSION"),
+        ("EDGE_WEIGHT_TYPE : EUC_2D\n", "", "EDGE_WEIGHT_TYPE"),
+        ("NODE_COORD_SECTION\n", "", None),  # the coordinates then read as a malformed header line
+        ("\n5 40 30\n", "\n5 40\n", "NODE_COORD_SECTION"),
+        ("\n5 40 30\n", "\n4 40 30\n", "NODE_COORD_SECTION"),  # node 4 twice
+        ("\n5 40 30\n", "\n52 40 30\n", "NODE_COORD_SECTION"),
+    ],
+)
 def test_other_malformed_files(tmp_path: Path, old: str, new: str, field: str | None) -> None:
     text = _eil51_text()
     assert old in text

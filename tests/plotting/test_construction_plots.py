@@ -1,4 +1,5 @@
 """Construction figures are written as non-trivial PNG files."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -31,7 +32,7 @@ def _check(path: Path, written: Path) -> None:
     assert written == path
     assert path.stat().st_size > MIN_BYTES
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert [p.name for p in path.parent.iterdir() if p.name.startswith(".")] == []    # no temporary left
+    assert [p.name for p in path.parent.iterdir() if p.name.startswith(".")] == []  # no temporary left
 
 
 @pytest.fixture
@@ -40,7 +41,7 @@ def run() -> dict[str, np.ndarray]:
     k = np.arange(5)
     x = 0.3 + 2.4 * (0.5 - 0.5 * np.cos(2 * np.pi * t[:, None] / 20.0 + 0.3 * k))
     y = 0.2 + 0.15 * k + 0.05 * np.sin(t[:, None] + k)
-    pos = np.stack([x, np.broadcast_to(y, x.shape), np.full(x.shape, 0.3)], axis=2)   # (200, 5, 3)
+    pos = np.stack([x, np.broadcast_to(y, x.shape), np.full(x.shape, 0.3)], axis=2)  # (200, 5, 3)
     return {"t": t, "pos": pos}
 
 
@@ -66,8 +67,9 @@ def test_top_view_plot(tmp_path: Path, run: dict[str, np.ndarray]) -> None:
     boxes = np.array([[0.15 + 0.12 * (i % 3), 0.35 + 0.12 * (i // 3), 0.05] for i in range(9)])
     slots = np.array([[2.6 + 0.1 * (i % 3), 0.45 + 0.1 * ((i % 6) // 3), 0.05 + 0.1 * (i // 6)] for i in range(9)])
     path = tmp_path / "sub" / "top.png"
-    written = plot_top_view(run["pos"], (3.0, 1.0), boxes, slots, 0.1, path,
-                            obstacles=[(1.5, 0.5, 0.08), (2.0, 0.1, 2.2, 0.3)])
+    written = plot_top_view(
+        run["pos"], (3.0, 1.0), boxes, slots, 0.1, path, obstacles=[(1.5, 0.5, 0.08), (2.0, 0.1, 2.2, 0.3)]
+    )
     _check(path, written)
 
 
@@ -78,8 +80,12 @@ def test_acceleration_plot(tmp_path: Path, run: dict[str, np.ndarray]) -> None:
 
 
 def test_collision_timeline_plot(tmp_path: Path) -> None:
-    events = [Event(1.0, "agent_agent", 0, 1), Event(2.5, CollisionClass.AGENT_BOX, 2, 7),
-              Event(3.0, "agent_agent", 1, 3), Event(4.0, "something_else", 0, 0)]
+    events = [
+        Event(1.0, "agent_agent", 0, 1),
+        Event(2.5, CollisionClass.AGENT_BOX, 2, 7),
+        Event(3.0, "agent_agent", 1, 3),
+        Event(4.0, "something_else", 0, 0),
+    ]
     path = tmp_path / "collisions.png"
     _check(path, plot_collision_timeline(events, 10.0, path))
 

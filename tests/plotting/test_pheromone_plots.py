@@ -1,4 +1,5 @@
 """Pheromone figures drawn from saved arrays."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -38,10 +39,16 @@ def test_a_medium_draws_its_layers_into_the_run_directory(tmp_path):
 
     files = write_artefacts(tmp_path, g.artefacts()) + plot_saved_artifacts(tmp_path, tmp_path / "plots")
     names = sorted(f.name for f in files)
-    assert names == ["pheromone_activity.png", "pheromone_mass.png", "pheromone_presence.png",
-                     "pheromone_presence_series.png", "pheromone_task.png", "pheromones.npz"]
+    assert names == [
+        "pheromone_activity.png",
+        "pheromone_mass.png",
+        "pheromone_presence.png",
+        "pheromone_presence_series.png",
+        "pheromone_task.png",
+        "pheromones.npz",
+    ]
     assert all(_is_png(f) for f in files if f.suffix == ".png")
     assert all(f.parent == tmp_path / "plots" for f in files if f.suffix == ".png")
-    with np.load(tmp_path / "pheromones.npz") as z:             # the figures can be redrawn from the file alone
+    with np.load(tmp_path / "pheromones.npz") as z:  # the figures can be redrawn from the file alone
         again = plot_pheromones(dict(z), tmp_path / "again", persistent=["task"])
     assert len(again) == 5

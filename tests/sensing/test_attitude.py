@@ -1,4 +1,5 @@
 """Quaternion helpers, the complementary attitude filter, the IMU model and the rest calibration."""
+
 from __future__ import annotations
 
 import math
@@ -7,8 +8,17 @@ import numpy as np
 import pytest
 
 from pybullet_swarm.control.rotations import euler_to_quat, quat_to_euler, quat_to_matrix
-from pybullet_swarm.sensing.attitude import (AttitudeGains, ComplementaryFilter, mean_body_rates, quat_exp, quat_log,
-                                             quat_multiply, rotation_matrices, wrap_angle, yaw_of)
+from pybullet_swarm.sensing.attitude import (
+    AttitudeGains,
+    ComplementaryFilter,
+    mean_body_rates,
+    quat_exp,
+    quat_log,
+    quat_multiply,
+    rotation_matrices,
+    wrap_angle,
+    yaw_of,
+)
 from pybullet_swarm.sensing.calibration import RestCalibration
 from pybullet_swarm.sensing.imu import Imu, ImuNoise
 from pybullet_swarm.sensing.positioning import PositioningParams, PositioningSensor
@@ -51,11 +61,11 @@ def test_gyro_integration_without_noise_tracks_the_truth_exactly():
 def test_accelerometer_levels_a_tilted_estimate_and_fixes_pull_the_heading():
     wrong = euler_to_quat(np.array([[0.2, -0.15, 0.5], [-0.3, 0.1, -2.0]]))
     f = ComplementaryFilter(wrong, AttitudeGains(tilt=1.0, heading=0.5), G)
-    level_at_rest = np.tile([0.0, 0.0, G], (2, 1))     # the truth is level and at rest
+    level_at_rest = np.tile([0.0, 0.0, G], (2, 1))  # the truth is level and at rest
     for _ in range(48 * 8):
         f.update(np.zeros((2, 3)), level_at_rest, 1.0 / 48.0)
     rpy = quat_to_euler(f.q)
-    np.testing.assert_allclose(rpy[:, :2], 0.0, atol=1e-3)      # 8 time constants: e^-8 of the error
+    np.testing.assert_allclose(rpy[:, :2], 0.0, atol=1e-3)  # 8 time constants: e^-8 of the error
     np.testing.assert_allclose(rpy[:, 2], [0.5, -2.0], atol=0.02)  # yaw untouched by the accelerometer
     for _ in range(30):
         f.correct_heading(np.array([0.0, 3.0]))
@@ -74,12 +84,13 @@ def test_imu_reads_gravity_at_rest_and_specific_force_in_flight():
 
 
 def test_imu_noise_and_bias_statistics():
-    noise = ImuNoise(accel_noise_density=0.01, gyro_noise_density=0.001, accel_bias=[0.1, -0.2, 0.3],
-                     gyro_bias=[0.01, 0.0, -0.02])
+    noise = ImuNoise(
+        accel_noise_density=0.01, gyro_noise_density=0.001, accel_bias=[0.1, -0.2, 0.3], gyro_bias=[0.01, 0.0, -0.02]
+    )
     imu = Imu(400, noise, 50.0, G, rng=np.random.default_rng(1))
     q = np.tile([0.0, 0.0, 0.0, 1.0], (400, 1))
-    acc = np.stack([imu.at_rest(q).accel for _ in range(50)])          # (50, 400, 3)
-    assert noise.accel_std(50.0) == pytest.approx(0.01 * 5.0)           # density * sqrt(rate / 2)
+    acc = np.stack([imu.at_rest(q).accel for _ in range(50)])  # (50, 400, 3)
+    assert noise.accel_std(50.0) == pytest.approx(0.01 * 5.0)  # density * sqrt(rate / 2)
     assert acc[..., 0].std() == pytest.approx(0.05, rel=0.03)
     np.testing.assert_allclose(acc.mean(axis=(0, 1)), [0.1, -0.2, 0.3 + G], atol=0.003)
     drawn = Imu(2000, ImuNoise(accel_bias_std=0.2), 48.0, G, rng=np.random.default_rng(2))
@@ -94,7 +105,7 @@ def test_bias_calibration_recovers_an_injected_bias_within_ten_percent():
     imu = Imu(n, noise, 48.0, G, rng=np.random.default_rng(4))
     cal = RestCalibration(n, G)
     level = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-    for _ in range(96):                  # 2 s at 48 Hz
+    for _ in range(96):  # 2 s at 48 Hz
         s = imu.at_rest(level)
         cal.add_imu(s.accel, s.gyro)
     sensor = PositioningSensor(n, PositioningParams(noise_std=0.01), rng=np.random.default_rng(5))
@@ -110,8 +121,9 @@ def test_bias_calibration_recovers_an_injected_bias_within_ten_percent():
 
 
 def test_positioning_dropouts_and_outages():
-    sensor = PositioningSensor(1000, PositioningParams(dropout_probability=0.25, outages=[[1.0, 2.0]]),
-                               rng=np.random.default_rng(6))
+    sensor = PositioningSensor(
+        1000, PositioningParams(dropout_probability=0.25, outages=[[1.0, 2.0]]), rng=np.random.default_rng(6)
+    )
     p, q = np.zeros((1000, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (1000, 1))
     fix = sensor.measure(0.5, p, q)
     assert fix.valid.mean() == pytest.approx(0.75, abs=0.05)

@@ -1,4 +1,5 @@
 """The batched position/velocity Kalman filter on synthetic constant-acceleration data."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -7,12 +8,20 @@ import pytest
 from pybullet_swarm.metrics.estimation import nees, nees_bounds
 from pybullet_swarm.sensing.kalman import AxisKalman
 
-T = 1.0 / 48.0      # s, prediction period
-FIX_EVERY = 5       # predictions per position fix
+T = 1.0 / 48.0  # s, prediction period
+FIX_EVERY = 5  # predictions per position fix
 
 
-def _simulate(rng: np.random.Generator, runs: int, steps: int, *, sigma_a: float, sigma_p: float,
-              bias: bool = False, sigma_b: float = 0.0):
+def _simulate(
+    rng: np.random.Generator,
+    runs: int,
+    steps: int,
+    *,
+    sigma_a: float,
+    sigma_p: float,
+    bias: bool = False,
+    sigma_b: float = 0.0,
+):
     """Monte Carlo of ``runs`` independent 1-D filters tracking constant accelerations.
 
     Returns the NEES (steps, runs) after each step and the final errors (runs, d).
@@ -20,14 +29,14 @@ def _simulate(rng: np.random.Generator, runs: int, steps: int, *, sigma_a: float
     d = 3 if bias else 2
     P0 = np.diag([0.02**2, 0.05**2, sigma_b**2][:d])
     x_hat = np.zeros((runs, d))
-    truth = rng.multivariate_normal(np.zeros(d), P0, size=runs)        # the prior is the truth's distribution
-    accel = rng.uniform(-1.0, 1.0, size=runs)                          # m/s^2, constant per run
+    truth = rng.multivariate_normal(np.zeros(d), P0, size=runs)  # the prior is the truth's distribution
+    accel = rng.uniform(-1.0, 1.0, size=runs)  # m/s^2, constant per run
     kf = AxisKalman(x_hat, P0, T, sigma_a, 0.0)
     rows = np.arange(runs)
     out = np.empty((steps, runs))
     for k in range(steps):
         b = truth[:, 2] if bias else 0.0
-        u = accel + b + sigma_a * rng.normal(size=runs)                 # measured acceleration
+        u = accel + b + sigma_a * rng.normal(size=runs)  # measured acceleration
         truth[:, 0] += T * truth[:, 1] + 0.5 * T * T * accel
         truth[:, 1] += T * accel
         kf.predict(u)
@@ -43,7 +52,7 @@ def test_filter_is_consistent_on_constant_acceleration(bias):
     runs, steps = 400, 300
     d = 3 if bias else 2
     eps, err = _simulate(rng, runs, steps, sigma_a=0.05, sigma_p=0.01, bias=bias, sigma_b=0.1)
-    mean = eps.mean(axis=1)                        # average NEES over the runs, per step
+    mean = eps.mean(axis=1)  # average NEES over the runs, per step
     lo, hi = nees_bounds(d, runs, 0.95)
     inside = np.mean((mean >= lo) & (mean <= hi))
     assert inside >= 0.88, f"only {inside:.2%} of the steps inside [{lo:.2f}, {hi:.2f}]"
@@ -91,7 +100,7 @@ def test_lagged_fix_measures_the_past_position():
     kf = AxisKalman(x0, np.diag([0.01, 0.01]), T, 0.05)
     kf.update(np.array([0]), np.array([1.0 - 0.0125 * 0.4]), 1e-4, lag=0.0125)
     np.testing.assert_allclose(kf.x, x0, atol=1e-15)
-    assert kf.P[0, 0, 0] < 0.01   # but the uncertainty shrank
+    assert kf.P[0, 0, 0] < 0.01  # but the uncertainty shrank
 
 
 def test_prediction_follows_closed_form_and_covariance_grows():
@@ -115,16 +124,16 @@ def test_steady_position_std_matches_the_error_the_filter_settles_to():
     rows = np.arange(runs)
     before = []
     for k in range(400):
-        w = sigma_a * rng.normal(size=runs)                 # the input error the filter is told about
+        w = sigma_a * rng.normal(size=runs)  # the input error the filter is told about
         truth[:, 0] += T * truth[:, 1] + 0.5 * T * T * w
         truth[:, 1] += T * w
         kf.predict(np.zeros(runs))
         if (k + 1) % FIX_EVERY == 0:
             if k > 200:
-                before.append(kf.x[:, 0] - truth[:, 0])      # just before a fix: the largest of the cycle
+                before.append(kf.x[:, 0] - truth[:, 0])  # just before a fix: the largest of the cycle
             kf.update(rows, truth[:, 0] + sigma_p * rng.normal(size=runs), sigma_p**2)
     rms = float(np.sqrt(np.mean(np.square(before))))
     assert rms == pytest.approx(expected, rel=0.08)
-    assert 0.2 * sigma_p < expected < sigma_p                # the filter averages fixes, it does not invent accuracy
+    assert 0.2 * sigma_p < expected < sigma_p  # the filter averages fixes, it does not invent accuracy
     # more accurate fixes, more accurate estimate
     assert steady_position_std(T, sigma_a, FIX_EVERY, 0.003, bias=False) < 0.5 * expected

@@ -1,4 +1,5 @@
 """The construction task: grasp and release physics, slot order, validation, completion, full runs."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -31,7 +32,7 @@ def test_carried_box_follows_and_released_box_settles_in_its_slot(make_sim):
     _hover_to(sim, [grasp[0], grasp[1], 0.45], 5)
     c.read()
     lifted = c.positions[box] - sim.state.positions[0]
-    assert c.positions[box, 2] > 0.3                       # it came up with the agent
+    assert c.positions[box, 2] > 0.3  # it came up with the agent
     assert np.allclose(lifted, [0.0, 0.0, -c.grasp_height], atol=0.01)
     slot = c.slots[0]
     above = slot + [0.0, 0.0, 0.45 - slot[2]]
@@ -62,22 +63,32 @@ def test_slots_open_bottom_layer_first(make_sim):
     bottom = np.isclose(c.slots[:, 2], 0.05)
     assert np.array_equal(c.slot_open, bottom)
     c.slot_box[:] = -1
-    c.slot_box[0] = 0                     # slot 0 at (2.7, 0.2, 0.05) holds a box
+    c.slot_box[0] = 0  # slot 0 at (2.7, 0.2, 0.05) holds a box
     above0 = np.nonzero(np.isclose(c.slots[:, 1], 0.2) & np.isclose(c.slots[:, 2], 0.15))[0][0]
     assert c.slot_open[above0]
     top0 = np.nonzero(np.isclose(c.slots[:, 1], 0.2) & np.isclose(c.slots[:, 2], 0.25))[0][0]
     assert not c.slot_open[top0]
-    assert not c.slot_open[0]             # filled
+    assert not c.slot_open[0]  # filled
 
 
-@pytest.mark.parametrize(("override", "field", "text"), [
-    ({"task.boxes": [[3.5, 0.5, 0.05]], "task.structure": [[2.7, 0.2, 0.05]]}, "task.boxes[0]", "outside the arena"),
-    ({"task.boxes": [[0.4, 0.3, 0.05], [0.45, 0.3, 0.05]], "task.structure": [[2.7, 0.2, 0.05]]}, "task.boxes[1]",
-     "overlap"),
-    ({"task.boxes": [[0.4, 0.3, 0.05]]}, "task.structure", "at most as many slots as boxes"),
-    ({"task.structure": [[2.7, 0.2, 0.05], [2.7, 0.6, 0.15]]}, "task.structure[1]", "nothing under it"),
-    ({"task.structure": [[2.7, 0.2, 0.02]]}, "task.structure[0]", "above the ground"),
-])
+@pytest.mark.parametrize(
+    ("override", "field", "text"),
+    [
+        (
+            {"task.boxes": [[3.5, 0.5, 0.05]], "task.structure": [[2.7, 0.2, 0.05]]},
+            "task.boxes[0]",
+            "outside the arena",
+        ),
+        (
+            {"task.boxes": [[0.4, 0.3, 0.05], [0.45, 0.3, 0.05]], "task.structure": [[2.7, 0.2, 0.05]]},
+            "task.boxes[1]",
+            "overlap",
+        ),
+        ({"task.boxes": [[0.4, 0.3, 0.05]]}, "task.structure", "at most as many slots as boxes"),
+        ({"task.structure": [[2.7, 0.2, 0.05], [2.7, 0.6, 0.15]]}, "task.structure[1]", "nothing under it"),
+        ({"task.structure": [[2.7, 0.2, 0.02]]}, "task.structure[0]", "above the ground"),
+    ],
+)
 def test_bad_construction_layouts_are_refused(override, field, text):
     with pytest.raises(ConfigError) as err:
         load_scenario("construction", override)
@@ -88,13 +99,15 @@ def test_bad_construction_layouts_are_refused(override, field, text):
 
 
 def test_completion_needs_every_slot_and_a_still_structure(make_sim):
-    sc = load_scenario("construction_single", {"task.boxes": [[0.4, 0.5, 0.05]],
-                                               "task.structure": [[2.7, 0.5, 0.05]], "task.settle_s": 1.0})
+    sc = load_scenario(
+        "construction_single",
+        {"task.boxes": [[0.4, 0.5, 0.05]], "task.structure": [[2.7, 0.5, 0.05]], "task.settle_s": 1.0},
+    )
     sim = make_sim(sc)
     c = sim.task
     assert not c.update(0.0)
     sim.world.reset_body(c.bodies[0], [2.7, 0.5, 0.05])
-    assert not c.update(1.0)            # filled, but the structure must stand still for 1 s first
+    assert not c.update(1.0)  # filled, but the structure must stand still for 1 s first
     assert c.update(2.05)
     assert c.completed_at == pytest.approx(2.05)
 
@@ -126,13 +139,13 @@ def test_placed_box_stays_placed_within_the_hysteresis_band(make_sim):
     tol = c.spec.place_tolerance_m
     wide = (1.0 + c.spec.place_hysteresis) * tol
     c.update(0.0)
-    sim.world.reset_body(c.bodies[0], [2.7 + 1.2 * tol, 0.5, 0.05])   # lands just outside: not placed
+    sim.world.reset_body(c.bodies[0], [2.7 + 1.2 * tol, 0.5, 0.05])  # lands just outside: not placed
     c.update(0.1)
     assert c.slot_box[0] == -1 and c.state[0] == FREE
-    sim.world.reset_body(c.bodies[0], [2.7 + 0.9 * tol, 0.5, 0.05])   # inside: placed
+    sim.world.reset_body(c.bodies[0], [2.7 + 0.9 * tol, 0.5, 0.05])  # inside: placed
     c.update(0.2)
     assert c.slot_box[0] == 0 and c.state[0] == PLACED
-    sim.world.reset_body(c.bodies[0], [2.7 + 1.2 * tol, 0.5, 0.05])   # nudged past the tolerance: still placed
+    sim.world.reset_body(c.bodies[0], [2.7 + 1.2 * tol, 0.5, 0.05])  # nudged past the tolerance: still placed
     c.update(0.3)
     assert c.slot_box[0] == 0 and c.state[0] == PLACED
     sim.world.reset_body(c.bodies[0], [2.7 + wide + 0.002, 0.5, 0.05])  # clearly out: displaced
@@ -144,17 +157,19 @@ def test_placed_box_stays_placed_within_the_hysteresis_band(make_sim):
 
 @pytest.mark.parametrize(("norm", "seen"), [("chebyshev", True), ("euclidean", False)])
 def test_view_radius_is_measured_in_the_task_norm(make_sim, norm, seen):
-    sc = load_scenario("construction_single", {"task.boxes": [[0.4, 0.5, 0.05]], "task.structure": [[2.7, 0.5, 0.05]],
-                                               "task.view_norm": norm})
+    sc = load_scenario(
+        "construction_single",
+        {"task.boxes": [[0.4, 0.5, 0.05]], "task.structure": [[2.7, 0.5, 0.05]], "task.view_norm": norm},
+    )
     c = make_sim(sc).task
     reach = c.view_radius + c.grasp_height
     grasp = c.grasp_points()[0]
-    diagonal = grasp + 0.95 * reach * np.array([1.0, 1.0, 0.0])        # inside the cube, outside the ball
+    diagonal = grasp + 0.95 * reach * np.array([1.0, 1.0, 0.0])  # inside the cube, outside the ball
     free, _ = c.visible(diagonal)
     assert (0 in free) is seen
-    along = grasp + 0.95 * reach * np.array([0.0, 1.0, 0.0])           # inside both
+    along = grasp + 0.95 * reach * np.array([0.0, 1.0, 0.0])  # inside both
     assert 0 in c.visible(along)[0]
-    beyond = grasp + 1.05 * reach * np.array([0.0, 0.0, 1.0])          # outside both
+    beyond = grasp + 1.05 * reach * np.array([0.0, 0.0, 1.0])  # outside both
     assert 0 not in c.visible(beyond)[0]
 
 
@@ -167,7 +182,7 @@ def test_grip_squares_a_box_knocked_askew(make_sim, square):
     c = sim.task
     body = sim.world.agent_bodies[0]
     box = 4
-    yaw = np.radians(14.0)                                   # beyond the 10 deg place tolerance
+    yaw = np.radians(14.0)  # beyond the 10 deg place tolerance
     sim.world.reset_body(c.bodies[box], c.positions[box], [0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
     c.read()
     grasp = c.grasp_points()[box]
@@ -177,9 +192,9 @@ def test_grip_squares_a_box_knocked_askew(make_sim, square):
     sim.controller.set_payload(0, c.spec.box_mass)
     _hover_to(sim, [grasp[0], grasp[1], 0.45], 4)
     c.read()
-    _, box_yaw = _box_tilt_and_yaw_error(c.quaternions[box:box + 1])
+    _, box_yaw = _box_tilt_and_yaw_error(c.quaternions[box : box + 1])
     _, agent_yaw = _box_tilt_and_yaw_error(sim.state.quaternions[0:1])
-    if square:     # turned square with the airframe, which holds its heading
+    if square:  # turned square with the airframe, which holds its heading
         assert abs(np.degrees(box_yaw[0]) - np.degrees(agent_yaw[0])) < 1.0
         assert np.degrees(box_yaw[0]) < c.spec.place_tolerance_deg
     else:

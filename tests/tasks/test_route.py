@@ -1,4 +1,5 @@
 """The route task: validation, waypoint passing, metrics, and short flights on the bundled scenarios."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -44,16 +45,24 @@ def test_default_formation_is_the_report_formation_scaled() -> None:
     np.testing.assert_allclose(info["extra"]["formation_slots"].mean(axis=0), 0.0, atol=1e-12)
 
 
-@pytest.mark.parametrize("override, field", [
-    ({"task.waypoints": [[9.0, 1.0, 1.0]]}, "task.waypoints[0]"),
-    ({"task.waypoints": [[2.2, 1.35, 1.0]]}, "task.waypoints[0]"),           # inside a pillar
-    ({"task.formation": {"scale": 2.0}}, "task.formation.slots"),           # 10 agents, 5 slots
-    ({"arena.obstacles": [{"shape": "box", "size": [0.5, 0.3], "position": [3, 3]}]}, "arena.obstacles[0].size"),
-    ({"arena.obstacles": [{"shape": "cylinder", "size": [0.2, 1.0], "position": [6.9, 3]}]},
-     "arena.obstacles[0].position"),
-    ({"arena.obstacles": [{"shape": "cylinder", "size": [0.2, 1.0], "position": [1.0, 2.0]}]}, "arena.obstacles[0]"),
-    ({"sensing.range.rays": 0}, "sensing.range.rays"),
-])
+@pytest.mark.parametrize(
+    "override, field",
+    [
+        ({"task.waypoints": [[9.0, 1.0, 1.0]]}, "task.waypoints[0]"),
+        ({"task.waypoints": [[2.2, 1.35, 1.0]]}, "task.waypoints[0]"),  # inside a pillar
+        ({"task.formation": {"scale": 2.0}}, "task.formation.slots"),  # 10 agents, 5 slots
+        ({"arena.obstacles": [{"shape": "box", "size": [0.5, 0.3], "position": [3, 3]}]}, "arena.obstacles[0].size"),
+        (
+            {"arena.obstacles": [{"shape": "cylinder", "size": [0.2, 1.0], "position": [6.9, 3]}]},
+            "arena.obstacles[0].position",
+        ),
+        (
+            {"arena.obstacles": [{"shape": "cylinder", "size": [0.2, 1.0], "position": [1.0, 2.0]}]},
+            "arena.obstacles[0]",
+        ),
+        ({"sensing.range.rays": 0}, "sensing.range.rays"),
+    ],
+)
 def test_bad_route_scenarios_are_one_line_errors(override: dict, field: str) -> None:
     with pytest.raises(ConfigError) as exc:
         load_scenario("flocking", override)
@@ -62,23 +71,30 @@ def test_bad_route_scenarios_are_one_line_errors(override: dict, field: str) -> 
 
 
 def test_laplacian_bad_graph_is_a_config_error() -> None:
-    with pytest.raises(ConfigError, match=r"^formation\.yaml: planner\.params\.graph: must be a 5 x 5 adjacency "
-                                          r"matrix \(agents\.count = 5\), got 2 rows$"):
+    with pytest.raises(
+        ConfigError,
+        match=r"^formation\.yaml: planner\.params\.graph: must be a 5 x 5 adjacency "
+        r"matrix \(agents\.count = 5\), got 2 rows$",
+    ):
         load_scenario("formation", {"planner.params.graph": [[0, 1], [1, 0]]})
     with pytest.raises(ConfigError, match=r"^formation\.yaml: planner\.params\.graph: must be symmetric"):
         load_scenario("formation", {"planner.params.graph": [[0, 1], [0, 0]]})
     with pytest.raises(ConfigError, match=r"^formation\.yaml: planner\.params\.graph: is not connected"):
-        load_scenario("formation", {"agents.count": 3,
-                                    "planner.params.graph": [[0, 1, 0], [1, 0, 0], [0, 0, 0]]})
+        load_scenario("formation", {"agents.count": 3, "planner.params.graph": [[0, 1, 0], [1, 0, 0], [0, 0, 0]]})
 
 
 def test_short_formation_flight_passes_a_waypoint_without_contacts() -> None:
     """The formation takes off and migrates 1 m with Braitenberg on (real physics, range sensors cast)."""
     import pybullet_swarm as ps
 
-    sc = load_scenario("formation", {"task.waypoints": [[2.0, 2.0, 1.0]], "task.time_limit_s": 25.0,
-                                     "arena.obstacles": [{"shape": "cylinder", "size": [0.15, 2.0],
-                                                          "position": [2.0, 0.8]}]})
+    sc = load_scenario(
+        "formation",
+        {
+            "task.waypoints": [[2.0, 2.0, 1.0]],
+            "task.time_limit_s": 25.0,
+            "arena.obstacles": [{"shape": "cylinder", "size": [0.15, 2.0], "position": [2.0, 0.8]}],
+        },
+    )
     r = ps.run(sc, seed=1)
     m = r.metrics
     assert m["exit_status"] == "completed" and m["waypoints_passed"] == 1
@@ -95,7 +111,7 @@ def test_flocking_obstacle_course_is_deterministic_and_sees_obstacles(tmp_path) 
 
     sc = load_scenario("flocking", {"task.time_limit_s": 12.0})
     with ps.Simulation(sc, seed=0) as sim:
-        sim.step(sim.planner_every * 60)          # 6 s
+        sim.step(sim.planner_every * 60)  # 6 s
         obs = sim.observations()
         assert obs[0].ranges.shape == (8,)
         assert np.all((obs[0].ranges >= 0) & (obs[0].ranges <= 0.5))

@@ -1,4 +1,5 @@
 """The tour task: visits, completion, validation, the bundled scenario flown end to end."""
+
 from __future__ import annotations
 
 import json
@@ -24,51 +25,61 @@ def test_runtime_marks_visits_by_agent_and_time_and_completes_on_the_last_one():
     rt = _runtime()
     far = np.array([[0.5, 0.5, 0.011], [3.0, 0.5, 0.011]])
     assert not rt.observe(0.0, far)
-    assert not rt.observe(0.1, [[1.05, 1.0, 1.0], [3.0, 0.5, 0.5]])          # agent 0 at point 0 (5 cm)
-    assert not rt.observe(0.2, [[1.5, 1.5, 1.0], [2.0, 1.0, 1.58]])          # agent 1 at point 1 (8 cm)
-    assert not rt.observe(0.3, [[2.0, 2.0, 0.75], [2.0, 1.0, 1.5]])          # 25 cm from point 2: not yet
+    assert not rt.observe(0.1, [[1.05, 1.0, 1.0], [3.0, 0.5, 0.5]])  # agent 0 at point 0 (5 cm)
+    assert not rt.observe(0.2, [[1.5, 1.5, 1.0], [2.0, 1.0, 1.58]])  # agent 1 at point 1 (8 cm)
+    assert not rt.observe(0.3, [[2.0, 2.0, 0.75], [2.0, 1.0, 1.5]])  # 25 cm from point 2: not yet
     assert rt.observe(0.4, [[2.0, 2.0, 0.55], [2.0, 1.0, 1.5]])
     assert rt.completed_at == pytest.approx(0.4)
     assert rt.visited_by.tolist() == [0, 1, 0]
     assert rt.visited_at.tolist() == pytest.approx([0.1, 0.2, 0.4])
     visits = [(e.time_s, e.a, e.b) for e in rt.events if e.kind == "visit"]
     assert visits == [(0.1, "agent0", "point0"), (0.2, "agent1", "point1"), (0.4, "agent0", "point2")]
-    assert rt.observe(0.5, far)                                              # stays completed
+    assert rt.observe(0.5, far)  # stays completed
     m = rt.metrics()
     assert (m["points_visited"], m["points_total"]) == (3, 3)
     assert m["tour_completion_time_s"] == pytest.approx(0.4)
     assert m["visits_per_agent"] == [2, 1]
-    assert m["planned_length_m"] is None                                     # no planner published a plan
+    assert m["planned_length_m"] is None  # no planner published a plan
 
 
 def test_a_point_flown_through_between_two_ticks_counts():
     rt = _runtime()
     rt.observe(0.0, [[0.6, 1.0, 1.0], [3.0, 0.5, 0.011]])
-    rt.observe(0.1, [[1.4, 1.0, 1.0], [3.0, 0.5, 0.011]])                  # passed straight over point 0
+    rt.observe(0.1, [[1.4, 1.0, 1.0], [3.0, 0.5, 0.011]])  # passed straight over point 0
     assert rt.visited.tolist() == [True, False, False]
-    d = segment_point_distances(np.array([[0.0, 0.0, 0.0]]), np.array([[2.0, 0.0, 0.0]]),
-                                np.array([[1.0, 0.3, 0.0], [3.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]))
+    d = segment_point_distances(
+        np.array([[0.0, 0.0, 0.0]]),
+        np.array([[2.0, 0.0, 0.0]]),
+        np.array([[1.0, 0.3, 0.0], [3.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]),
+    )
     assert d[0].tolist() == pytest.approx([0.3, 1.0, 1.0])
 
 
 def test_return_home_completes_only_with_every_agent_above_its_start():
     rt = _runtime(return_home=True, home_height=0.4)
     rt.observe(0.0, [[1.0, 1.0, 1.0], [2.0, 1.0, 1.5]])
-    assert not rt.observe(0.1, [[2.0, 2.0, 0.5], [2.0, 1.0, 1.5]])          # all visited, nobody home
+    assert not rt.observe(0.1, [[2.0, 2.0, 0.5], [2.0, 1.0, 1.5]])  # all visited, nobody home
     assert rt.visited.all()
-    assert not rt.observe(0.2, [[0.5, 0.5, 0.4], [2.0, 1.0, 1.5]])          # agent 1 still away
+    assert not rt.observe(0.2, [[0.5, 0.5, 0.4], [2.0, 1.0, 1.5]])  # agent 1 still away
     assert rt.observe(0.3, [[0.5, 0.5, 0.42], [3.0, 0.55, 0.4]])
     assert rt.completed_at == pytest.approx(0.3)
     assert rt.task_info()["extra"]["homes"].tolist() == [[0.5, 0.5, 0.4], [3.0, 0.5, 0.4]]
 
 
-@pytest.mark.parametrize(("points", "index", "text"), [
-    ([[1.0, 1.0, 1.0], [4.2, 1.0, 1.0]], 1, "outside the arena"),
-    ([[1.0, 1.0, 1.0], [1.0, 0.05, 1.0]], 1, "outside the arena"),       # inside, but closer than the airframe's half width
-    ([[1.0, 1.0, 1.0], [2.0, 2.0, 1.0], [3.0, 3.0, -0.3]], 2, "below the ground"),
-    ([[1.0, 1.0, 0.005]], 0, "above the ground"),                        # an agent's centre cannot get that low
-    ([[1.0, 1.0, 1.0], [2.0, 2.0, 1.0], [2.05, 2.0, 1.0]], 2, "closer than visit_radius"),
-])
+@pytest.mark.parametrize(
+    ("points", "index", "text"),
+    [
+        ([[1.0, 1.0, 1.0], [4.2, 1.0, 1.0]], 1, "outside the arena"),
+        (
+            [[1.0, 1.0, 1.0], [1.0, 0.05, 1.0]],
+            1,
+            "outside the arena",
+        ),  # inside, but closer than the airframe's half width
+        ([[1.0, 1.0, 1.0], [2.0, 2.0, 1.0], [3.0, 3.0, -0.3]], 2, "below the ground"),
+        ([[1.0, 1.0, 0.005]], 0, "above the ground"),  # an agent's centre cannot get that low
+        ([[1.0, 1.0, 1.0], [2.0, 2.0, 1.0], [2.05, 2.0, 1.0]], 2, "closer than visit_radius"),
+    ],
+)
 def test_bad_tour_points_are_refused_naming_the_point(points, index, text):
     with pytest.raises(ConfigError) as err:
         load_scenario("tour", {"task.points": points})
@@ -126,11 +137,15 @@ def test_tour_is_flown_to_completion_with_plan_metrics_and_figure(tmp_path):
 
 
 def test_tour_run_is_deterministic_for_a_seed():
-    few = {"task.points": [[1.0, 1.0, 0.8], [3.0, 1.0, 1.2], [3.0, 3.0, 0.6], [1.0, 3.0, 1.5], [2.0, 2.0, 1.0]],
-           "agents.start_jitter": 0.05}
+    few = {
+        "task.points": [[1.0, 1.0, 0.8], [3.0, 1.0, 1.2], [3.0, 3.0, 0.6], [1.0, 3.0, 1.5], [2.0, 2.0, 1.0]],
+        "agents.start_jitter": 0.05,
+    }
     a = pybullet_swarm.run("tour", seed=3, overrides=few)
     b = pybullet_swarm.run("tour", seed=3, overrides=few)
     assert a.exit_status is ExitStatus.COMPLETED
     skip = {"wall_time_s", "real_time_factor"}
-    assert {k: v for k, v in a.metrics.items() if k not in skip} == {k: v for k, v in b.metrics.items() if k not in skip}
+    assert {k: v for k, v in a.metrics.items() if k not in skip} == {
+        k: v for k, v in b.metrics.items() if k not in skip
+    }
     assert np.array_equal(a.timeseries.positions, b.timeseries.positions)

@@ -1,4 +1,5 @@
 """Motor lag, saturation and the hover rotor speed."""
+
 from __future__ import annotations
 
 import math
@@ -45,12 +46,12 @@ def test_the_world_applies_kf_w_squared_of_the_lagged_rotor_speed(make_sim, vehi
     for k in range(n):
         v_before = sim.state.velocities[0, 2]
         sim.step(1)
-        accel[k] = (sim.state.velocities[0, 2] - v_before) / h        # m/s^2, measured
-    t_end = h * np.arange(1, n + 1)                                    # s, end of each step
-    w = w1 + (w0 - w1) * np.exp(-t_end / tau)                          # rad/s
+        accel[k] = (sim.state.velocities[0, 2] - v_before) / h  # m/s^2, measured
+    t_end = h * np.arange(1, n + 1)  # s, end of each step
+    w = w1 + (w0 - w1) * np.exp(-t_end / tau)  # rad/s
     expected = 4.0 * params.kf * w**2 / params.mass - g
     np.testing.assert_allclose(accel, expected, rtol=0.0, atol=1e-9 * g)
-    assert np.abs(sim.state.body_rates).max() < 1e-9                   # equal rotors: no torque
+    assert np.abs(sim.state.body_rates).max() < 1e-9  # equal rotors: no torque
     # the rotor speed the force implies closes the gap as exp(-t / tau): the time constant it
     # gives at every step is the vehicle's (63.2 % of the way at t = tau)
     w_seen = np.sqrt((accel + g) * params.mass / (4.0 * params.kf))
@@ -79,7 +80,7 @@ def test_open_loop_hover_at_analytic_speed_holds_altitude(make_sim, vehicle):
     assert w_hover == pytest.approx(p.hover_rotor_speed(sim.scenario.sim.gravity))
     sim.set_open_loop(np.full((1, 4), w_hover), motor_state=True)
     z0 = sim.state.positions[0].copy()
-    sim.step(2 * sim.physics_hz)        # 2 s
+    sim.step(2 * sim.physics_hz)  # 2 s
     drift = np.linalg.norm(sim.state.positions[0] - z0)
     assert drift < 1e-3
     # and 1 % less thrust does sink measurably: the test can fail

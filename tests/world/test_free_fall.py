@@ -6,6 +6,7 @@ is z0 - g t^2 / 2 (1 + 1/N): 0.42 % more drop than the continuous closed form af
 The test compares against the discrete closed form to 1e-9, far below what a wrong gravity (say
 9.8 instead of 9.81, 0.1 %) or a different integrator would change.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -18,7 +19,7 @@ def test_free_fall_matches_the_semi_implicit_euler_closed_form(make_sim, vehicle
     sim = make_sim(physics_scenario(start_z=20.0, vehicle=vehicle))
     sim.set_open_loop(np.zeros((1, 4)), motor_state=True)
     z0 = sim.state.positions[0, 2]
-    n = sim.physics_hz                  # 1 s
+    n = sim.physics_hz  # 1 s
     h = 1.0 / n
     sim.step(n)
     g = sim.scenario.sim.gravity
