@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
+from collections.abc import Mapping
 from typing import Any, TypeVar
 
 import pydantic
@@ -71,12 +72,12 @@ def _clean_loc(loc: tuple[Any, ...], data: Any, kind: str) -> tuple[Any, ...]:
     return tuple(out)
 
 
-def _is_type_mismatch(err: dict[str, Any]) -> bool:
+def _is_type_mismatch(err: Mapping[str, Any]) -> bool:
     kind = str(err.get("type", ""))
     return kind.endswith("_type") or kind in ("none_required", "is_instance_of")
 
 
-def _expectation(err: dict[str, Any]) -> str:
+def _expectation(err: Mapping[str, Any]) -> str:
     kind = err.get("type", "")
     ctx = err.get("ctx") or {}
     if kind == "missing":

@@ -194,7 +194,7 @@ def format_best(result: Any) -> str:
         return "\n".join(lines)
     head = "Pareto-optimal trials" if spec.multi else "best trial"
     lines.append(f"{head} ({', '.join(o.direction.value + ' ' + o.text for o in spec.objective_list)}):")
-    keys = [p.key for p in spec.params]
+    keys = [p.key for p in spec.param_specs]
     header = ["trial", *cols, "completed", *[k.removeprefix("planner.params.") for k in keys]]
     rows = [
         [

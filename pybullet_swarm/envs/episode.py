@@ -94,7 +94,8 @@ class SwarmEpisode:
         ranges = getattr(self.sim, "ranges", None)  # (n, r) m, readings of the last planner tick
         self.n_ranges = int(ranges.shape[1]) if ranges is not None else 0
         sensor = getattr(self.sim, "range_sensor", None)
-        range_bound = float(sensor.fan.range_m) if self.n_ranges and hasattr(sensor, "fan") else RANGE_BOUND
+        fan = getattr(sensor, "fan", None)
+        range_bound = float(fan.range_m) if self.n_ranges and fan is not None else RANGE_BOUND
         self.mapper = ActionMapper(self.sim, config)
         self.builder = ObservationBuilder(
             self.sim,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -141,9 +142,14 @@ def write_run(
     return out
 
 
+def _savez(data: Mapping[str, Any], fh: Any) -> None:
+    import numpy as np
+
+    np.savez_compressed(fh, **data)
+
+
 def write_artefacts(out: Path, artefacts: dict[str, Any]) -> list[Path]:
     """Write a run's artefacts (data by file name: ``.json`` plain data, ``.npz`` arrays by name) atomically."""
-    import numpy as np
 
     from pybullet_swarm.experiment.rundir import atomic_write
 
@@ -151,7 +157,7 @@ def write_artefacts(out: Path, artefacts: dict[str, Any]) -> list[Path]:
     for name, data in artefacts.items():
         path = out / name
         if name.endswith(".npz"):
-            atomic_write(path, lambda fh, d=data: np.savez_compressed(fh, **d), binary=True)
+            atomic_write(path, functools.partial(_savez, data), binary=True)
         elif name.endswith(".json"):
             write_json(path, data)
         else:

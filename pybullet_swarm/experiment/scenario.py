@@ -441,7 +441,7 @@ def apply_choices(
 
 def _seed(seed: Any, source: str) -> int:
     """A run's seed as an int (numpy integers too), refused outside [0, 2**63 - 1]."""
-    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral) or not 0 <= seed <= 2**63 - 1:
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, numbers.Integral) or not 0 <= int(seed) <= 2**63 - 1:
         raise ConfigError(f"must be an integer in [0, 2**63 - 1], got {_short(seed)}", source=source, field="seed")
     return int(seed)
 

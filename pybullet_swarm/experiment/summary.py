@@ -195,7 +195,11 @@ def summarize(
     for config, members in group_rows(rows, by):
         ok = [r for r in members if r.get("exit_status") != RunStatus.ERROR.value]
         for m in names:
-            values = [float(v) for v in (r.get(m) for r in ok) if is_number(v) or isinstance(v, bool)]
+            values = [
+                float(v)
+                for v in (r.get(m) for r in ok)
+                if isinstance(v, (int, float)) and (is_number(v) or isinstance(v, bool))
+            ]
             out.append(SummaryRow(config, m, len(members), len(members) - len(ok), describe(values, ci=ci), ci))
     return out
 

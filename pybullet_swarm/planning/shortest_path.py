@@ -203,7 +203,8 @@ class ShortestPath:
             self._assign(i, view)
             ph = Phase(self.phase[i])
         if ph == Phase.DONE:  # nothing left to carry: park above the start, out of the others' way
-            return self._cruise(i, p, np.array([self.home[i, 0], self.home[i, 1], self.h]))
+            home = self.home if self.home is not None else view.positions
+            return self._cruise(i, p, np.array([home[i, 0], home[i, 1], self.h]))
         b, s = self.box[i], self.slot[i]
         if ph == Phase.TO_BOX:
             if view.box_state[b] != 0:  # someone took or placed it meanwhile: choose again
@@ -256,7 +257,7 @@ class ShortestPath:
                 return Command.goto([p[0], p[1], self.h])
             err = view.box_positions[b] - drop
             speed = np.linalg.norm(view.velocities[i])
-            ok = np.hypot(err[0], err[1]) <= self.release_tol and abs(err[2]) <= self.release_tol and speed < 0.02
+            ok = bool(np.hypot(err[0], err[1]) <= self.release_tol and abs(err[2]) <= self.release_tol and speed < 0.02)
             if not hasattr(self, "_targets"):
                 self._targets = {}
             # the drop point is fixed once the descent starts, so box swing does not move the target

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.collections import PatchCollection
 from matplotlib.figure import Figure
 
@@ -162,7 +163,7 @@ def plot_top_view(
         ax.plot(p[:, i, 0], p[:, i, 1], lw=0.8, color=colours[i], alpha=0.85, zorder=5)
         if p.shape[0]:
             ax.plot(p[0, i, 0], p[0, i, 1], "o", ms=6, mfc=colours[i], mec="k", zorder=6)
-    handles = [Patch(fc="peru", ec="saddlebrown", label="boxes (depot)")]
+    handles: list[Artist] = [Patch(fc="peru", ec="saddlebrown", label="boxes (depot)")]
     handles += [
         Patch(fc=str(0.85 - 0.6 * k / max(1, n_layers - 1)), ec="k", label=f"slots, layer {k}") for k in range(n_layers)
     ]

@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -25,20 +26,20 @@ def has_estimation(extra: dict[str, Any]) -> bool:
     return "est_kalman_position" in extra
 
 
-def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
+def _wrap(a: NDArray[np.floating[Any]]) -> NDArray[np.floating[Any]]:
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def _fix_samples(t: NDArray[np.float64], fix_time: NDArray[np.float64], fixes: NDArray[np.float64]):
+def _fix_samples(t: NDArray[np.floating[Any]], fix_time: NDArray[np.floating[Any]], fixes: NDArray[np.floating[Any]]):
     """The distinct fixes (times, positions) among the recorded samples of one agent."""
     _, first = np.unique(fix_time, return_index=True)
     return fix_time[first], fixes[first]
 
 
 def plot_estimate_axes(
-    t: NDArray[np.float64],
-    truth: NDArray[np.float64],
-    extra: dict[str, NDArray[np.float64]],
+    t: NDArray[np.floating[Any]],
+    truth: NDArray[np.floating[Any]],
+    extra: Mapping[str, NDArray[np.floating[Any]]],
     path: Path | str,
     agent: int = 0,
 ) -> Path:
@@ -73,10 +74,10 @@ def plot_estimate_axes(
 
 
 def plot_estimation_error(
-    t: NDArray[np.float64],
-    truth: NDArray[np.float64],
-    true_yaw: NDArray[np.float64],
-    extra: dict[str, NDArray[np.float64]],
+    t: NDArray[np.floating[Any]],
+    truth: NDArray[np.floating[Any]],
+    true_yaw: NDArray[np.floating[Any]],
+    extra: Mapping[str, NDArray[np.floating[Any]]],
     path: Path | str,
     metrics: dict[str, Any] | None = None,
 ) -> Path:
@@ -117,7 +118,9 @@ def plot_estimation_error(
     return save_figure(fig, path)
 
 
-def plot_variances(t: NDArray[np.float64], variance: NDArray[np.float64], path: Path | str, agent: int = 0) -> Path:
+def plot_variances(
+    t: NDArray[np.floating[Any]], variance: NDArray[np.floating[Any]], path: Path | str, agent: int = 0
+) -> Path:
     """Evolution of the Kalman filter's variances of one agent (the course report's Fig. 15).
 
     Args:
@@ -131,7 +134,7 @@ def plot_variances(t: NDArray[np.float64], variance: NDArray[np.float64], path: 
     d = v.shape[-1]
     names = [("position", "m$^2$"), ("velocity", "(m/s)$^2$"), ("acceleration bias", "(m/s$^2$)$^2$")][:d]
     fig = Figure(figsize=(9, 2.6 * d + 0.6), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(d, 1, sharex=True))
+    axes = np.atleast_1d(np.asarray(fig.subplots(d, 1, sharex=True), dtype=object))
     for j, (ax, (name, unit)) in enumerate(zip(axes, names)):
         for a, axis in enumerate("xyz"):
             ax.semilogy(t, v[:, a, j], lw=1.0, label=axis)
@@ -144,10 +147,10 @@ def plot_variances(t: NDArray[np.float64], variance: NDArray[np.float64], path: 
 
 
 def plot_estimation(
-    t: NDArray[np.float64],
-    positions: NDArray[np.float64],
-    true_yaw: NDArray[np.float64],
-    extra: dict[str, NDArray[np.float64]],
+    t: NDArray[np.floating[Any]],
+    positions: NDArray[np.floating[Any]],
+    true_yaw: NDArray[np.floating[Any]],
+    extra: Mapping[str, NDArray[np.floating[Any]]],
     out_dir: Path | str,
     metrics: dict[str, Any] | None = None,
 ) -> list[Path]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -102,7 +103,7 @@ def plot_course(
     fig = Figure(figsize=(9, 6), layout="constrained")
     ax = fig.subplots()
     if arena_size is not None:
-        lx, ly = float(arena_size[0]), float(arena_size[1])
+        lx, ly = (float(v) for v in np.asarray(arena_size, dtype=float)[:2])
         ax.add_patch(Rectangle((0, 0), lx, ly, fill=False, ec="k", lw=1.0))
         ax.set_xlim(-0.1, lx + 0.1)
         ax.set_ylim(-0.1, ly + 0.1)
@@ -157,7 +158,7 @@ def plot_formation_error(
 
 
 def plot_route_run(
-    ts: Any, out_dir: Path, metrics: dict[str, Any], scenario: dict[str, Any], events: list[Any]
+    ts: Any, out_dir: Path, metrics: dict[str, Any], scenario: Mapping[str, Any], events: list[Any]
 ) -> list[Path]:
     """Every route figure of a run from its saved results (time series, metrics, scenario, events)."""
     from pybullet_swarm.metrics.flocking import route_fitness_series, slot_errors

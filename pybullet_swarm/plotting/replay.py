@@ -69,6 +69,11 @@ LIGHT = np.array([0.35, -0.45, 0.82]) / np.linalg.norm([0.35, -0.45, 0.82])  # d
 CONTACT_KINDS = frozenset({"agent_agent", "agent_box", "agent_structure", "agent_ground", "agent_obstacle"})
 
 
+def _colours(rgba: Any) -> Any:
+    """(n, 4) RGBA rows for a collection's colours: matplotlib takes arrays, its type stubs name only sequences."""
+    return rgba
+
+
 class View(str, enum.Enum):
     """Camera of a replay."""
 
@@ -852,8 +857,8 @@ class ReplayRenderer:
             order = [shown[i] for i in np.argsort(far, kind="stable")]
             self.obstacles.set_verts([px[sizes[k] : sizes[k + 1]] for k in order])
             fill = _shade(np.tile(OBSTACLE, (len(order), 1)), normals[order])
-            self.obstacles.set_facecolor(fill)
-            self.obstacles.set_edgecolor(np.where(outlined[order][:, None], (0.2, 0.2, 0.25, 0.6), fill))
+            self.obstacles.set_facecolor(_colours(fill))
+            self.obstacles.set_edgecolor(_colours(np.where(outlined[order][:, None], (0.2, 0.2, 0.25, 0.6), fill)))
         if self._field_cells is not None:
             px, _ = cam.project(self._field_cells)
             self._field_ok = np.all(np.isfinite(px), axis=(1, 2))
@@ -891,7 +896,7 @@ class ReplayRenderer:
         rgba = np.asarray(self._field_cmap(self._field_norm(v)))
         rgba[:, 3] = np.where(np.abs(v) > 1e-9, 0.8, 0.0)
         rgba[~self._field_ok, 3] = 0.0
-        self.field.set_facecolor(rgba)
+        self.field.set_facecolor(_colours(rgba))
         return True
 
     # ---------------------------------------------------------------- moving artists
@@ -917,13 +922,13 @@ class ReplayRenderer:
         self.rotors.set_sizes(np.repeat(self._pt2(rotor_px), 4))
         rc = np.repeat(self.colors, 4, axis=0).copy()
         rc[:, 3] = 0.45
-        self.rotors.set_facecolor(rc)
-        self.rotors.set_edgecolor(np.repeat(self.colors, 4, axis=0))
+        self.rotors.set_facecolor(_colours(rc))
+        self.rotors.set_edgecolor(_colours(np.repeat(self.colors, 4, axis=0)))
         self.bodies.set_offsets(centre)
         self.shadows.set_offsets(cam.project(pos * [1.0, 1.0, 0.0])[0])
         self.shadows.set_sizes(self._pt2(0.5 * icon))
         self.bodies.set_sizes(self._pt2(0.34 * icon))
-        self.bodies.set_facecolor(self.colors)
+        self.bodies.set_facecolor(_colours(self.colors))
         nose = cam.project(pos + rot[:, :, 0] * (0.5 * span_m))[0]
         direction = nose - centre
         norm = np.linalg.norm(direction, axis=1, keepdims=True)
@@ -977,11 +982,11 @@ class ReplayRenderer:
             face_color = _shade(color[owner[order]], nrm[order])
             target = self.carried if carried else self.boxes
             target.set_verts(list(px[order]))
-            target.set_facecolor(face_color)
+            target.set_facecolor(_colours(face_color))
             if carried:
-                target.set_edgecolor(self.colors[carried_by[owner[order]]])
+                target.set_edgecolor(_colours(self.colors[carried_by[owner[order]]]))
             else:
-                target.set_edgecolor(np.tile((0.25, 0.2, 0.15, 1.0), (len(order), 1)))
+                target.set_edgecolor(_colours(np.tile((0.25, 0.2, 0.15, 1.0), (len(order), 1))))
 
     def _placed_boxes(self, t: float) -> set[int]:
         placed: set[int] = set()
@@ -1020,15 +1025,15 @@ class ReplayRenderer:
         rgba[:, 3] = ring_alpha
         self.rings.set_offsets(cam.project(np.array(ring_xy).reshape(-1, 3))[0])
         self.rings.set_sizes(self._pt2(np.array(ring_size)))
-        self.rings.set_edgecolor(rgba)
+        self.rings.set_edgecolor(_colours(rgba))
         srgba = np.tile((1.0, 0.85, 0.1, 1.0), (len(star_xy), 1))
         srgba[:, 3] = star_alpha
         self.stars.set_offsets(cam.project(np.array(star_xy).reshape(-1, 3))[0])
         self.stars.set_sizes(np.full(len(star_xy), (1.6 * self.font) ** 2))
-        self.stars.set_facecolor(srgba)
+        self.stars.set_facecolor(_colours(srgba))
         edge = np.tile(FLASH, (len(star_xy), 1))
         edge[:, 3] = star_alpha
-        self.stars.set_edgecolor(edge)
+        self.stars.set_edgecolor(_colours(edge))
 
     def _update_targets(self, cam: ViewCamera, t: float) -> None:
         d = self.data
@@ -1036,8 +1041,8 @@ class ReplayRenderer:
             return
         self.targets.set_offsets(cam.project(d.targets)[0])
         done = self._target_t <= t + 1e-9
-        self.targets.set_facecolor(np.where(done[:, None], TARGET_DONE, (1.0, 1.0, 1.0, 0.8)))
-        self.targets.set_edgecolor(np.where(done[:, None], TARGET_DONE, TARGET))
+        self.targets.set_facecolor(_colours(np.where(done[:, None], TARGET_DONE, (1.0, 1.0, 1.0, 0.8))))
+        self.targets.set_edgecolor(_colours(np.where(done[:, None], TARGET_DONE, TARGET)))
 
     def hud_text(self, t: float) -> str:
         """The heads-up line of the frame at ``t`` s: time, boxes placed, targets reached, contacts so far."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -74,7 +75,7 @@ def plot_run(
     out_dir: Path,
     metrics: dict[str, Any] | None = None,
     *,
-    scenario: dict[str, Any] | None = None,
+    scenario: Mapping[str, Any] | None = None,
     events: list[Any] | None = None,
 ) -> list[Path]:
     """Draw every figure of a run into ``out_dir``; returns the files written.
@@ -134,7 +135,7 @@ def plot_saved_artifacts(run_dir: Path, out_dir: Path) -> list[Path]:
 
 
 def _swarm_figures(
-    ts: TimeSeries, out_dir: Path, metrics: dict[str, Any], scenario: dict[str, Any], events: list[Any]
+    ts: TimeSeries, out_dir: Path, metrics: dict[str, Any], scenario: Mapping[str, Any], events: list[Any]
 ) -> list[Path]:
     from pybullet_swarm.metrics.construction import (
         acceleration_series,

@@ -40,7 +40,12 @@ def thesis_comparison_figure(table: Sequence[Mapping[str, Any]], planners: Seque
         tx = [i for i, v in enumerate(thesis) if v is not None]
         if tx:
             ax.scatter(
-                tx, [float(thesis[i]) for i in tx], marker="D", color="tab:red", zorder=3, label="thesis (single run)"
+                tx,
+                [float(thesis[i] or 0.0) for i in tx],
+                marker="D",
+                color="tab:red",
+                zorder=3,
+                label="thesis (single run)",
             )
         ax.set_xticks(x, [p.replace("_", "\n") for p in planners], fontsize=8)
         ax.set_title(label, fontsize=10)

@@ -181,13 +181,23 @@ def _compile(node: ast.AST, names: list[str], source: str, text: str) -> Evaluat
         value = node.value
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"only numbers and metric names are allowed, got {value!r} in {text!r}", source=source)
-        return lambda m, v=float(value): v
+        constant = float(value)
+
+        def const(m: Mapping[str, Any]) -> float:
+            return constant
+
+        return const
     if isinstance(node, (ast.Name, ast.Attribute)):
         name = _dotted(node)
         if name is None:
             raise ConfigError(f"not a metric name: {ast.unparse(node)!r} in {text!r}", source=source)
         names.append(name)
-        return lambda m, k=name: _metric(m, k)
+        key = name
+
+        def metric(m: Mapping[str, Any]) -> float:
+            return _metric(m, key)
+
+        return metric
     if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
         op = _BINOPS[type(node.op)]
         left, right = _compile(node.left, names, source, text), _compile(node.right, names, source, text)
@@ -227,7 +237,9 @@ def _metric(metrics: Mapping[str, Any], name: str) -> float:
 
 def split_expressions(text: str) -> list[str]:
     """Split ``EXPR1,EXPR2`` at the commas that are not inside parentheses (``max(a, b)`` stays whole)."""
-    parts, depth, cur = [], 0, []
+    parts: list[str] = []
+    cur: list[str] = []
+    depth = 0
     for ch in text:
         if ch == "(":
             depth += 1

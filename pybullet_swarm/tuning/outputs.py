@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import time
 from pathlib import Path
+import functools
 from typing import Any, Mapping, Sequence
 
 import yaml
@@ -45,7 +46,7 @@ def trial_records(study: Any, spec: TuneSpec) -> list[dict[str, Any]]:
         rec: dict[str, Any] = {"trial": t.number, "state": t.state.name.lower()}
         values = t.values if t.values is not None else [None] * len(cols)
         rec.update(dict(zip(cols, values)))
-        for p in spec.params:  # type: ignore[union-attr]
+        for p in spec.param_specs:
             rec[p.key] = t.params.get(p.key)
         rec["completed"] = t.user_attrs.get("completed")
         rec.update({k: v for k, v in t.user_attrs.items() if k.startswith("mean.")})
@@ -89,7 +90,7 @@ def best_overrides(record: Mapping[str, Any], spec: TuneSpec, *, planner: str, a
         else (parse_override(o) if isinstance(o, str) else tuple(o) for o in spec.overrides)
     )
     out.update(dict(fixed))
-    for p in spec.params:  # type: ignore[union-attr]
+    for p in spec.param_specs:
         v = record[p.key]
         out[p.key] = int(v) if p.integer else float(v)
     return out
@@ -170,6 +171,10 @@ def read_overrides_file(path: str | Path) -> list[tuple[str, Any]]:
     return out
 
 
+def _value_of(i: int, trial: Any) -> float:
+    return float(trial.values[i])
+
+
 def param_importances(study: Any, spec: TuneSpec) -> dict[str, dict[str, float]]:
     """Importance of each parameter per objective: ``optuna.importance.get_param_importances`` with
     PED-ANOVA (Optuna's evaluator that needs no scikit-learn: how differently a parameter is
@@ -180,7 +185,7 @@ def param_importances(study: Any, spec: TuneSpec) -> dict[str, dict[str, float]]
     from optuna.trial import TrialState
 
     complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
-    if len(complete) < 2 or len(spec.params) < 1:
+    if len(complete) < 2 or len(spec.param_specs) < 1:
         return {}
     out: dict[str, dict[str, float]] = {}
     for i, obj in enumerate(spec.objective_list):
@@ -190,7 +195,7 @@ def param_importances(study: Any, spec: TuneSpec) -> dict[str, dict[str, float]]
                 imp = optuna.importance.get_param_importances(
                     study,
                     evaluator=optuna.importance.PedAnovaImportanceEvaluator(),
-                    target=(lambda t, i=i: t.values[i]),
+                    target=functools.partial(_value_of, i),
                 )
         except (RuntimeError, ValueError, ZeroDivisionError, ImportError):
             continue
@@ -232,9 +237,9 @@ def write_outputs(
         "scenario_name": scenario_name,
         "planner": planner,
         "avoidance": avoidance,
-        "sampler": spec.sampler.value,  # type: ignore[union-attr]
+        "sampler": spec.sampler_kind.value,
         "objectives": [{"expression": o.text, "direction": o.direction.value} for o in spec.objective_list],
-        "params": [p.to_json() for p in spec.params],  # type: ignore[union-attr]
+        "params": [p.to_json() for p in spec.param_specs],
         "seeds": list(spec.seeds),
         "penalty": spec.penalty,
         "trials": len(records),
@@ -258,7 +263,7 @@ def write_outputs(
                 labels,
                 minimise,
                 out / "plots" / "history.png",
-                title=f"{scenario_name}: {planner} ({spec.sampler.value})",
+                title=f"{scenario_name}: {planner} ({spec.sampler_kind.value})",
             )
         )  # type: ignore
         if importances:

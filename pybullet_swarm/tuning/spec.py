@@ -94,7 +94,7 @@ class TuneSpec:
             raise ConfigError("CMA-ES optimises one objective; use nsga2 or tpe for --objectives", source="--sampler")
         if not (isinstance(self.penalty, (int, float)) and math.isfinite(self.penalty) and self.penalty >= 0):
             raise ConfigError(f"must be a number >= 0, got {self.penalty!r}", source="--penalty")
-        keys = {p.key for p in self.params}  # type: ignore[union-attr]
+        keys = {p.key for p in self.param_specs}
         set_("enqueue", tuple(dict(e) for e in self.enqueue))
         for name, given in (
             ("baseline", [self.baseline] if self.baseline is not None else []),
@@ -112,6 +112,16 @@ class TuneSpec:
         return self._objectives  # type: ignore[attr-defined, no-any-return]
 
     @property
+    def param_specs(self) -> tuple[ParamSpec, ...]:
+        """The parsed search space (``params`` after ``__post_init__`` normalised it)."""
+        return tuple(p for p in self.params if isinstance(p, ParamSpec))
+
+    @property
+    def sampler_kind(self) -> SamplerKind:
+        """The sampler (``sampler`` after ``__post_init__`` normalised it)."""
+        return SamplerKind(self.sampler)
+
+    @property
     def seeds(self) -> tuple[int, ...]:
         """The seeds every trial runs."""
         return tuple(range(self.seed_start, self.seed_start + self.seeds_per_trial))
@@ -124,7 +134,7 @@ class TuneSpec:
     def to_json(self) -> dict[str, Any]:
         """What determines a study's results (stored with it; a resume must match)."""
         return {
-            "params": [p.to_json() for p in self.params],  # type: ignore[union-attr]
+            "params": [p.to_json() for p in self.param_specs],
             "objectives": [o.text for o in self.objective_list],
             "directions": [o.direction.value for o in self.objective_list],
             "seeds": list(self.seeds),

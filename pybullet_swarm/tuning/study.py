@@ -126,7 +126,7 @@ def _resolve(spec: TuneSpec, out: Path) -> _Context:
     from pybullet_swarm.experiment.sweep import Sweep, plan_sweep
 
     scenario = load_scenario(spec.scenario, spec.overrides, planner=spec.planner, avoidance=spec.avoidance)
-    check_ranges(spec.params, lambda key: field_info(scenario, key))  # type: ignore[arg-type]  # normalised
+    check_ranges(spec.param_specs, lambda key: field_info(scenario, key))  # type: ignore[arg-type]  # normalised
     sweep = Sweep(
         spec.scenario,
         planners=(spec.planner,),
@@ -144,7 +144,7 @@ def _resolve(spec: TuneSpec, out: Path) -> _Context:
         base_hash=plan.base_hash,
     )
     for end in ("low", "high"):
-        values = {p.key: _cast(p, getattr(p, end)) for p in spec.params}  # type: ignore[union-attr, arg-type]
+        values = {p.key: _cast(p, getattr(p, end)) for p in spec.param_specs}
         try:
             ctx.plan(values, seeds=(spec.seed_start,))
         except ConfigError as exc:
@@ -172,7 +172,7 @@ def probe_run(spec: RunSpec) -> Row:
 def _metric_names(ctx: _Context, probe: Worker) -> list[str]:
     """Metric names of a run, from one short run at the low end of the ranges (parameters were
     checked by ``_resolve``, against the models)."""
-    values = {p.key: _cast(p, p.low) for p in ctx.spec.params}  # type: ignore[union-attr, arg-type]
+    values = {p.key: _cast(p, p.low) for p in ctx.spec.param_specs}
     row = probe(ctx.plan(values, seeds=(ctx.spec.seed_start,))[0])
     if row.get("exit_status") == RunStatus.ERROR.value:
         raise ConfigError(f"a run at the low end of the ranges fails: {row.get('error')}", source="--param")
@@ -281,7 +281,7 @@ def _open_study(ctx: _Context, storage: Any, name: str) -> Any:
         "planner": ctx.planner,
         "avoidance": ctx.avoidance,
     }
-    directions = [o.direction.value for o in spec.objective_list]
+    directions: list[Any] = [o.direction.value for o in spec.objective_list]
     study = optuna.create_study(storage=storage, study_name=name, directions=directions, load_if_exists=True)
     old = study.user_attrs.get(SPEC_ATTR)
     if old is None:
@@ -430,7 +430,7 @@ def trial_scores(spec: TuneSpec, rows: Sequence[Row]) -> tuple[tuple[float, ...]
         "completed": sum(1 for r in rows if is_completed(r)) / len(rows),
     }
     for name in dict.fromkeys(n for o in objs for n in o.names):
-        vals = [float(r[name]) for r in rows if isinstance(r.get(name), (int, float)) and r.get(name) is not None]
+        vals = [float(v) for v in (r.get(name) for r in rows) if isinstance(v, (int, float))]
         attrs[f"mean.{name}"] = sum(vals) / len(vals) if vals else None
     return means, attrs
 
@@ -510,7 +510,7 @@ def run_tuning(
         done = _n_done(study)
         if done:
             say(f"tune: study {name!r} resumed with {done} of {spec.trials} trials finished")
-        distributions = {p.key: p.distribution() for p in spec.params}  # type: ignore[union-attr]
+        distributions = {p.key: p.distribution() for p in spec.param_specs}
         table = RunsTable(out / RUNS_CSV)
         n_workers = workers if workers is not None else cpu_count()
         batch_size = max(1, math.ceil(n_workers / spec.seeds_per_trial))
@@ -590,7 +590,7 @@ def _run_batch(study: Any, spec: TuneSpec, ctx: _Context, batch: Sequence[Any], 
 
     specs: dict[int, tuple[RunSpec, ...]] = {}
     for trial in batch:
-        values = {p.key: trial.params[p.key] for p in spec.params}  # type: ignore[union-attr]
+        values = {p.key: trial.params[p.key] for p in spec.param_specs}
         try:
             specs[trial.number] = ctx.plan(values)
         except ConfigError as exc:
@@ -613,14 +613,14 @@ def _run_batch(study: Any, spec: TuneSpec, ctx: _Context, batch: Sequence[Any], 
             for s in specs[trial.number]
         ]
         try:
-            values, attrs = trial_scores(spec, rows)  # type: ignore[arg-type]
+            scores, attrs = trial_scores(spec, rows)  # type: ignore[arg-type]
         except MissingMetric as exc:
             trial.set_user_attr("error", str(exc))
             study.tell(trial, state=TrialState.FAIL)
         else:
             for k, v in attrs.items():
                 trial.set_user_attr(k, v)
-            study.tell(trial, list(values))
+            study.tell(trial, list(scores))
         n += 1
     return n
 

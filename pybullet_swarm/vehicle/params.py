@@ -155,7 +155,7 @@ class VehicleParams:
     @functools.cached_property
     def mixer_inverse(self) -> NDArray[np.float64]:
         """Map [thrust, tau_x, tau_y, tau_z] to squared rotor speeds, (4, 4)."""
-        return np.linalg.inv(self.mixer)
+        return np.asarray(np.linalg.inv(self.mixer), dtype=np.float64)
 
     @property
     def weight(self) -> float:
