@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 from pybullet_swarm.plotting.common import save_figure
 
 PANELS = (
-    ("proximity_violations", "collisions (centre distance < diameter)"),
+    ("thesis_collisions", "collisions (thesis count: per agent, NN distance < diameter)"),
     ("completion_time_s", "completion time [s]"),
     ("utility_of_space", "utility of space"),
 )
