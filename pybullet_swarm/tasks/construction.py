@@ -62,6 +62,14 @@ class ConstructionTask(pydantic.BaseModel):
     # cube of half-width view_radius: the thesis's appendix A, dist = max(abs(object - agent))) or
     # "euclidean" (a ball)
     view_norm: Literal["chebyshev", "euclidean"] = "chebyshev"
+    # how a released box comes to rest in a slot (see ``ConstructionRuntime``): "guided" (self-aligning
+    # bricks: a chamfered guide pulls a box released over an open slot into it and an interlock bonds
+    # it to the structure) or "free" (a box drops, and rests where friction leaves it: the thesis)
+    placement: Literal["guided", "free"] = "guided"
+    guide_capture: float = Field(0.3, gt=0.0, le=0.5)  # x box_size, horizontal reach of a slot's guide
+    guide_height: float = Field(0.5, ge=0.0, le=5.0)  # x box_size, height above its slot a box is captured from
+    guide_force: float = Field(0.5, gt=0.0, le=1000.0)  # N, the guide's pull on a captured box
+    bond_force: float = Field(50.0, gt=0.0, le=1e5)  # N, the interlock's hold on a placed box
 
     def check(self, scenario: ScenarioLike, source: str) -> None:
         """Refuse boxes outside the arena, overlapping boxes or slots, and unsupported slots."""
@@ -230,6 +238,8 @@ class ConstructionRuntime(TaskBase):
         self.carried_by = np.full(self.B, -1, dtype=np.int64)
         self.slot_box = np.full(self.S, -1, dtype=np.int64)  # box in each slot, -1 when empty
         self._constraints: dict[int, int] = {}
+        self._guides: dict[int, int] = {}  # box -> pin constraint (guided placement)
+        self.guided_slot = np.full(self.B, -1, dtype=np.int64)  # slot a box is guided into or bonded in
         self.still_since: float | None = None
         self.completed_at: float | None = None
         self.events: list[Event] = []
@@ -281,6 +291,9 @@ class ConstructionRuntime(TaskBase):
                 new_slot_box[s] = cand[np.argmin(d[s, cand])]
         for s in range(self.S):
             if new_slot_box[s] != self.slot_box[s]:
+                b = new_slot_box[s]
+                if b >= 0 and self.guided_slot[b] == s and b in self._guides:
+                    self.world.set_constraint_force(self._guides[b], self.spec.bond_force)
                 if new_slot_box[s] >= 0:
                     self.events.append(Event(t, "placed", f"box{new_slot_box[s]}", f"slot{s}"))
                 else:
@@ -294,7 +307,8 @@ class ConstructionRuntime(TaskBase):
     def slot_open(self) -> NDArray[np.bool_]:
         """(S,) True for empty slots whose supporting slots are all filled."""
         filled = self.slot_box >= 0
-        return np.array([not filled[s] and bool(np.all(filled[self.support[s]])) for s in range(self.S)])
+        taken = filled | (self._guided_into() >= 0)
+        return np.array([not taken[s] and bool(np.all(filled[self.support[s]])) for s in range(self.S)])
 
     @property
     def boxes_placed(self) -> int:
@@ -311,7 +325,7 @@ class ConstructionRuntime(TaskBase):
         if agent in self.carried_by:
             return -1
         d = np.linalg.norm(self.grasp_points() - agent_pos, axis=1)
-        d[self.state != FREE] = np.inf
+        d[~self._free()] = np.inf
         i = int(np.argmin(d))
         if not np.isfinite(d[i]) or d[i] > self.spec.attach_threshold:
             return -1
@@ -340,7 +354,59 @@ class ConstructionRuntime(TaskBase):
         self.carried_by[i] = -1
         self.releases += 1
         self.events.append(Event(t, "release", f"agent{agent}", f"box{i}"))
+        if self.spec.placement == "guided":
+            self._capture(i, t)
         return i
+
+    # ------------------------------------------------------- guided placement
+    def _capture(self, box: int, t: float) -> None:
+        """Guided placement: a box released over an open slot, within the guide's reach, is pulled into it.
+
+        The model is a self-aligning brick: a chamfered socket (or guide pins) takes a box whose
+        centre is within ``guide_capture`` x box_size of the slot horizontally and at most
+        ``guide_height`` x box_size above it, and slides it down into place, squared to the
+        structure. The guide is a pin of ``guide_force`` N on the slot pose; the box does not
+        touch the placed boxes beside and under it on the way (the chamfers let it slide past
+        them), so a release beside a placed box never pushes it. Once placed, the pin becomes the
+        interlock (``bond_force``). Left out: the guide's own geometry (a box released outside the
+        reach falls freely and may land on the guide's rim), friction in the guide, wear.
+        """
+        p, _ = self.world.body_pose(self.bodies[box])
+        open_ = np.flatnonzero(self.slot_open & (self._guided_into() < 0))
+        if open_.size == 0:
+            return
+        rel = self.slots[open_] - p
+        reach = self.spec.guide_capture * self.size
+        ok = (np.hypot(rel[:, 0], rel[:, 1]) <= reach) & (-rel[:, 2] <= self.spec.guide_height * self.size + 1e-9)
+        ok &= rel[:, 2] <= reach  # not captured from below
+        if not np.any(ok):
+            return
+        cand = open_[ok]
+        s = int(cand[np.argmin(np.linalg.norm(rel[ok], axis=1))])
+        body = self.bodies[box]
+        for other in self._bonded_neighbours(s):
+            self.world.set_pair_collision(body, self.bodies[other], False)
+        self._guides[box] = self.world.pin(body, self.slots[s], None, self.spec.guide_force)
+        self.guided_slot[box] = s
+        self.events.append(Event(t, "guided", f"box{box}", f"slot{s}"))
+
+    def _free(self) -> NDArray[np.bool_]:
+        """(B,) boxes an agent may take: free, and not on their way into a slot."""
+        return (self.state == FREE) & (self.guided_slot < 0)
+
+    def _guided_into(self) -> NDArray[np.int64]:
+        """(S,) box being guided into or bonded in each slot, -1 when none."""
+        out = np.full(self.S, -1, dtype=np.int64)
+        has = np.flatnonzero(self.guided_slot >= 0)
+        out[self.guided_slot[has]] = has
+        return out
+
+    def _bonded_neighbours(self, slot: int) -> list[int]:
+        """Boxes guided or bonded in the slots touching ``slot`` (faces, edges or corners)."""
+        near = np.max(np.abs(self.slots - self.slots[slot]), axis=1) <= self.size * (1.0 + 1e-6)
+        near[slot] = False
+        into = self._guided_into()
+        return [int(b) for b in into[near] if b >= 0]
 
     def _ghost_partners(self, box: int, agent_body: int) -> list[int]:
         """Bodies a carried box must not touch: its carrier; in ghost mode also every agent and every
@@ -377,7 +443,7 @@ class ConstructionRuntime(TaskBase):
 
     def visible(self, p: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """Free boxes and open slots within the view radius of position ``p`` (3,) m."""
-        free = np.nonzero((self.state == FREE) & self.in_view(self.grasp_points() - p))[0]
+        free = np.nonzero(self._free() & self.in_view(self.grasp_points() - p))[0]
         open_ = np.nonzero(self.slot_open & self.in_view(self.slots + [0.0, 0.0, self.grasp_height] - p))[0]
         return free, open_
 
@@ -406,13 +472,18 @@ class ConstructionRuntime(TaskBase):
 
     def view(self, t: float) -> TaskView:
         """Boxes, their states, slots and who carries what."""
+        state, filled = self.state.copy(), self.slot_box.copy()
+        into = self._guided_into()
+        guided = (filled < 0) & (into >= 0)  # a box on its way into its slot counts as placed there
+        filled[guided] = into[guided]
+        state[into[guided]] = PLACED
         return TaskView(
             t,
             self.carrying(self.n),
             objects=self.positions.copy(),
-            object_state=self.state.copy(),
+            object_state=state,
             slots=self.slots,
-            slot_filled=self.slot_box.copy(),
+            slot_filled=filled,
             slot_open=self.slot_open,
         )
 
@@ -426,9 +497,7 @@ class ConstructionRuntime(TaskBase):
         """
         n = len(true_positions)
         gh = np.array([0.0, 0.0, self.grasp_height])
-        seen_b = (self.state == FREE)[None, :] & self.in_view(
-            self.grasp_points()[None, :, :] - true_positions[:, None, :]
-        )
+        seen_b = self._free()[None, :] & self.in_view(self.grasp_points()[None, :, :] - true_positions[:, None, :])
         seen_s = self.slot_open[None, :] & self.in_view((self.slots + gh)[None, :, :] - true_positions[:, None, :])
         shift = sensed_positions - true_positions
         out = []

@@ -358,6 +358,38 @@ class World:
         pb.changeConstraint(c, maxForce=float(max_force), physicsClientId=cid)
         return c
 
+    def pin(
+        self, body: int, position: Sequence[float], quaternion: Sequence[float] | None = None, max_force: float = 1.0
+    ) -> int:
+        """Hold ``body`` at a world pose with a constraint of at most ``max_force`` N; returns a handle.
+
+        A weak pin pulls the body there (a guide), a strong one keeps it there (a bond); either
+        gives way to a harder push and pulls back once it stops. ``quaternion`` None: the quarter
+        turn nearest to the body's own orientation (for a cube, the same shape, unturned).
+        """
+        cid = self._cid
+        self.wake(body)
+        if quaternion is None:
+            quaternion = _nearest_quarter_turn(pb.getBasePositionAndOrientation(body, physicsClientId=cid)[1])
+        c = pb.createConstraint(
+            body,
+            -1,
+            -1,
+            -1,
+            pb.JOINT_FIXED,
+            [0, 0, 0],
+            [0, 0, 0],
+            [float(v) for v in position],
+            childFrameOrientation=[float(v) for v in quaternion],
+            physicsClientId=cid,
+        )
+        pb.changeConstraint(c, maxForce=float(max_force), physicsClientId=cid)
+        return int(c)
+
+    def set_constraint_force(self, constraint: int, max_force: float) -> None:
+        """Change the largest force N a constraint made by ``attach`` or ``pin`` applies."""
+        pb.changeConstraint(constraint, maxForce=float(max_force), physicsClientId=self._cid)
+
     def set_pair_collision(self, a: int, b: int, enabled: bool) -> None:
         """Enable or disable contacts between two bodies."""
         pb.setCollisionFilterPair(a, b, -1, -1, int(enabled), physicsClientId=self._cid)

@@ -46,7 +46,7 @@ def test_carried_box_follows_and_released_box_settles_in_its_slot(make_sim):
     assert c.state[box] == PLACED
     assert c.slot_box[0] == box
     assert np.linalg.norm(c.positions[box] - slot) < c.spec.place_tolerance_m
-    assert [e.kind for e in c.events] == ["grasp", "release", "placed"]
+    assert [e.kind for e in c.events] == ["grasp", "release", "guided", "placed"]
 
 
 def test_grasp_refused_beyond_attach_threshold(make_sim):
@@ -199,3 +199,90 @@ def test_grip_squares_a_box_knocked_askew(make_sim, square):
         assert np.degrees(box_yaw[0]) < c.spec.place_tolerance_deg
     else:
         assert np.degrees(box_yaw[0]) == pytest.approx(14.0, abs=1.0)
+
+
+def _carry(sim, box, point, seconds=2.0):
+    """Agent 0 grasps ``box`` and holds it with its centre at ``point`` (teleported there, then flown)."""
+    c = sim.task
+    body = sim.world.agent_bodies[0]
+    grasp = c.grasp_points()[box]
+    sim.world.reset_agent(0, grasp)
+    sim.world.read_agent_states(sim.state_array)
+    c.read()
+    assert c.grasp(0, body, sim.state.positions[0], sim.time) == box
+    sim.controller.set_payload(0, c.spec.box_mass)
+    point = np.asarray(point, dtype=float)
+    sim.world.reset_agent(0, point)
+    sim.world.reset_body(c.bodies[box], point - [0.0, 0.0, c.grasp_height])
+    sim.world.read_agent_states(sim.state_array)
+    sim.shaper.reset(sim.state_array[:, :3])
+    _hover_to(sim, point, seconds)
+    assert np.linalg.norm(sim.state.positions[0] - point) < 0.003
+
+
+def _drop(sim, seconds=3.0):
+    c = sim.task
+    p = sim.state.positions[0].copy()
+    assert c.release(0, sim.world.agent_bodies[0], sim.time) >= 0
+    sim.controller.set_payload(0, 0.0)
+    _hover_to(sim, p + [0.0, 0.0, 0.3], seconds)
+    c.update(sim.time)
+
+
+@pytest.mark.parametrize("placement", ["guided", "free"])
+def test_a_box_released_beside_a_placed_one_never_pushes_it(make_sim, placement):
+    # a solid wall: pitch = box size; the second box comes down 8 mm off its slot, towards the first
+    size = 0.1
+    sc = load_scenario(
+        "construction_single",
+        {
+            "agents.start_jitter": 0.0,
+            "task.boxes": [[0.4, 0.3, 0.05], [0.4, 0.7, 0.05]],
+            "task.structure": [[2.0, 0.5, 0.05], [2.0, 0.5 + size, 0.05]],
+            "task.placement": placement,
+        },
+    )
+    sim = make_sim(sc)
+    c = sim.task
+    gh = c.grasp_height
+    _carry(sim, 0, c.slots[0] + [0.0, 0.0, gh + 0.004])
+    _drop(sim)
+    assert c.slot_box[0] == 0
+    first = c.positions[0].copy()
+    release_at = c.slots[1] + [0.0, -0.008, gh + 0.004]  # 8 mm towards the first box: the boxes rub on the way
+    _carry(sim, 1, release_at + [0.0, 0.0, size])
+    _hover_to(sim, release_at, 4.0)
+    _drop(sim)
+    moved = np.linalg.norm(c.positions[0] - first)
+    if placement == "guided":
+        assert c.slot_box.tolist() == [0, 1]
+        assert moved < 1e-3
+        assert np.linalg.norm(c.positions[1] - c.slots[1]) < 1e-3
+        assert [e.kind for e in c.events].count("guided") == 2
+    else:  # the boxes push each other: the first moves
+        assert moved > 1e-3
+        assert "guided" not in [e.kind for e in c.events]
+
+
+def test_a_bonded_box_springs_back_into_its_slot_after_a_shove(make_sim):
+    sc = load_scenario(
+        "construction_single",
+        {"agents.start_jitter": 0.0, "task.boxes": [[0.4, 0.3, 0.05]], "task.structure": [[2.0, 0.5, 0.05]]},
+    )
+    sim = make_sim(sc)
+    c = sim.task
+    _carry(sim, 0, c.slots[0] + [0.0, 0.0, c.grasp_height + 0.004])
+    _drop(sim)
+    assert c.slot_box[0] == 0
+    # a sideways shove of 10 N for 0.1 s (an agent's full thrust is about 3 N): the interlock gives and pulls back
+    import pybullet as pb
+
+    for _ in range(int(0.1 * sim.physics_hz)):
+        pb.applyExternalForce(
+            c.bodies[0], -1, [10.0, 0.0, 0.0], c.slots[0].tolist(), pb.WORLD_FRAME, physicsClientId=sim.world._cid
+        )
+        sim.world.step()
+    sim.step(int(1.0 * sim.physics_hz))
+    c.update(sim.time)
+    assert c.slot_box[0] == 0
+    assert np.linalg.norm(c.positions[0] - c.slots[0]) < 1e-3
