@@ -178,7 +178,8 @@ class ConstructionRuntime(TaskBase):
         world: the World to build the boxes in.
         agent_half_height: m, half the airframe's height (for the grasp point).
         agent_radius: m.
-        ghost: carried boxes pass through other agents, as the agents do.
+        ghost: carried boxes pass through other agents and their loads, as the agents do; their overlaps
+            are ghost pairs of the World (reported as contacts).
         starts: (n, 3) m, the agents' start positions (for the task's lower bound).
         v_max: (3,) m/s per-axis velocity limit (None: unlimited), for the lower bound.
         position_std: m, per-axis standard deviation of an agent's own position estimate (0 on true state).
@@ -202,7 +203,7 @@ class ConstructionRuntime(TaskBase):
         self.v_max = v_max
         self.position_std = float(position_std)
         self.world = world
-        self.ghost = ghost  # carried boxes pass through other agents, as the agents do
+        self.ghost = ghost  # carried boxes pass through other agents and loads; overlaps still reported
         self.size = spec.box_size
         self.start = np.asarray(spec.boxes, dtype=float)  # (B, 3)
         self.slots = np.asarray(spec.structure, dtype=float)  # (S, 3)
@@ -319,8 +320,9 @@ class ConstructionRuntime(TaskBase):
         self._constraints[i] = self.world.attach(
             agent_body, body, max_force=self.spec.grip_force, square=self.spec.square_grip
         )
+        self.world.set_pair_collision(agent_body, body, False)  # the grip: never a contact
         for other in self._ghost_partners(i, agent_body):
-            self.world.set_pair_collision(other, body, False)
+            self.world.set_ghost_pair(other, body, True)
         self.state[i] = CARRIED
         self.carried_by[i] = agent
         self.grasps += 1
@@ -334,8 +336,9 @@ class ConstructionRuntime(TaskBase):
             return -1
         i = int(held[0])
         self.world.detach(self._constraints.pop(i))
+        self.world.set_pair_collision(agent_body, self.bodies[i], True)
         for other in self._ghost_partners(i, agent_body):
-            self.world.set_pair_collision(other, self.bodies[i], True)
+            self.world.set_ghost_pair(other, self.bodies[i], False)
         self.state[i] = FREE
         self.carried_by[i] = -1
         self.releases += 1
@@ -343,12 +346,13 @@ class ConstructionRuntime(TaskBase):
         return i
 
     def _ghost_partners(self, box: int, agent_body: int) -> list[int]:
-        """Bodies a carried box must not touch: its carrier; in ghost mode also every agent and every
-        other carried box (agents and their loads pass through each other, contacts are still counted)."""
+        """Bodies a carried box passes through in ghost mode, their overlaps still reported as contacts: every
+        other agent and every other carried box (agents and their loads pass through each other). None in
+        physical mode."""
         if not self.ghost:
-            return [agent_body]
+            return []
         others = [self.bodies[j] for j in np.nonzero(self.state == CARRIED)[0] if j != box]
-        return [*self.world.agent_bodies, *others]
+        return [*(a for a in self.world.agent_bodies if a != agent_body), *others]
 
     def carrying(self, n: int) -> NDArray[np.int64]:
         """(n,) box held by each agent, or -1."""

@@ -88,7 +88,11 @@ class World:
         self._apply_torque = pb.applyExternalTorque
         self._step = pb.stepSimulation
         self._contacts = pb.getContactPoints
+        self._closest = pb.getClosestPoints
         self._poses: list[Any] = []
+        self._ghost_pairs: set[tuple[int, int]] = set()
+        self._ghosts: _GhostIndex | None = None  # built from _ghost_pairs when first needed
+        self._reach: dict[int, float] = {}  # m, per body: farthest point of its shape from its base position
 
     # ------------------------------------------------------------------ bodies
     def add_ground(self) -> int:
@@ -217,10 +221,10 @@ class World:
         self._poses = [self._get_pose(b, cid)[0] for b in self._agents]
 
     def set_agent_collisions(self, enabled: bool) -> None:
-        """Enable or disable contact response between agents (ghost mode passes them through)."""
-        cid = self._cid
+        """Enable or disable contact response between agents; disabled, every pair of agents is a ghost
+        pair (``set_ghost_pair``): they pass through each other and their overlaps are still reported."""
         for a, b in itertools.combinations(self._agents, 2):
-            pb.setCollisionFilterPair(a, b, -1, -1, int(enabled), physicsClientId=cid)
+            self.set_ghost_pair(a, b, not enabled)
 
     def _register(self, body: int, kind: BodyKind, name: str) -> None:
         self._kind[body] = kind
@@ -282,11 +286,72 @@ class World:
         self._step(self._cid)
 
     def contact_pairs(self) -> frozenset[tuple[int, int]] | set[tuple[int, int]]:
-        """Body pairs (a < b) in contact now, from one Bullet query."""
+        """Body pairs (a < b) in contact now: Bullet's contacts (one query) and the ghost pairs whose
+        shapes overlap (``set_ghost_pair``), as if their contacts were enabled."""
         pts = self._contacts(-1, -1, -2, -2, self._cid)
-        if not pts:
-            return _NO_PAIRS
-        return {(p[1], p[2]) if p[1] < p[2] else (p[2], p[1]) for p in pts}
+        pairs: frozenset[tuple[int, int]] | set[tuple[int, int]] = _NO_PAIRS
+        if pts:
+            pairs = {(p[1], p[2]) if p[1] < p[2] else (p[2], p[1]) for p in pts}
+        if self._ghost_pairs:
+            extra = self.ghost_overlaps()
+            if extra:
+                pairs = set(pairs)
+                pairs.update(extra)
+        return pairs
+
+    def ghost_overlaps(self) -> list[tuple[int, int]]:
+        """Ghost pairs (a < b) whose collision shapes overlap now.
+
+        One broad phase for all bodies of ghost pairs (bounding spheres about their base positions;
+        agents' positions from the last ``read_agent_states``, other bodies' read now), then Bullet's
+        exact closest-points query only for registered pairs whose spheres overlap.
+        """
+        g = self._ghosts if self._ghosts is not None else self._index_ghosts()
+        poses, gp, cid = self._poses, self._get_pose, self._cid
+        pts = [poses[r] for r in g.agent_rows]
+        pts += [gp(b, cid)[0] for b in g.others]
+        near = g.near_pairs(np.array(pts, dtype=float))
+        closest = self._closest
+        return [(a, b) for a, b in near if closest(a, b, 0.0, physicsClientId=cid)]
+
+    def set_ghost_pair(self, a: int, b: int, ghost: bool) -> None:
+        """Make two bodies ghosts of each other (``ghost``): no contact response between them, but their
+        overlaps are reported by ``contact_pairs`` as contacts; or give them contacts again."""
+        pb.setCollisionFilterPair(a, b, -1, -1, int(not ghost), physicsClientId=self._cid)
+        self._set_ghost(a, b, ghost)
+
+    @property
+    def ghost_pairs(self) -> frozenset[tuple[int, int]]:
+        """The registered ghost pairs (a < b)."""
+        return frozenset(self._ghost_pairs)
+
+    def _set_ghost(self, a: int, b: int, ghost: bool) -> None:
+        key = (a, b) if a < b else (b, a)
+        if ghost:
+            self._ghost_pairs.add(key)
+        else:
+            self._ghost_pairs.discard(key)
+        self._ghosts = None
+
+    def _index_ghosts(self) -> _GhostIndex:
+        bodies = sorted({b for pair in self._ghost_pairs for b in pair})
+        row = {b: i for i, b in enumerate(self._agents)}
+        agents = [b for b in bodies if b in row]
+        others = [b for b in bodies if b not in row]
+        order = agents + others
+        reach = np.array([self._body_reach(b) for b in order])
+        self._ghosts = _GhostIndex(order, [row[b] for b in agents], others, reach, self._ghost_pairs)
+        return self._ghosts
+
+    def _body_reach(self, body: int) -> float:
+        """m, an upper bound of the distance from a body's base position to any point of its collision shape
+        (the farthest corner of its bounding box; the shape is rigid, so it holds in any pose)."""
+        if body not in self._reach:
+            lo, hi = pb.getAABB(body, -1, physicsClientId=self._cid)
+            pos = np.asarray(pb.getBasePositionAndOrientation(body, physicsClientId=self._cid)[0])
+            corners = np.array(list(itertools.product(*zip(lo, hi))))
+            self._reach[body] = float(np.max(np.linalg.norm(corners - pos, axis=1)))
+        return self._reach[body]
 
     def reset_agent(
         self,
@@ -300,6 +365,7 @@ class World:
         b = self._agents[index]
         pb.resetBasePositionAndOrientation(b, list(position), list(quaternion), physicsClientId=self._cid)
         pb.resetBaseVelocity(b, list(velocity), list(angular_velocity), physicsClientId=self._cid)
+        self._poses[index] = tuple(float(v) for v in position)
 
     def reset_body(self, body: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1)) -> None:
         """Teleport any body to a pose, at rest."""
@@ -359,8 +425,10 @@ class World:
         return c
 
     def set_pair_collision(self, a: int, b: int, enabled: bool) -> None:
-        """Enable or disable contacts between two bodies."""
+        """Enable or disable contacts between two bodies; disabled, their overlaps are not reported either
+        (a held load and its carrier; see ``set_ghost_pair`` for pairs whose overlaps count)."""
         pb.setCollisionFilterPair(a, b, -1, -1, int(enabled), physicsClientId=self._cid)
+        self._set_ghost(a, b, False)
 
     def overlapping(self, a: int, b: int) -> bool:
         """True when two bodies' collision shapes overlap (works with their contacts disabled)."""
@@ -505,6 +573,90 @@ class World:
             self.close()
         except Exception:
             pass
+
+
+class _GhostIndex:
+    """The bodies of the registered ghost pairs, for the per-step broad phase.
+
+    Args:
+        bodies: body handles, agents first (in ``agent_rows`` order), then the others (in ``others`` order).
+        agent_rows: row of each ghost agent in the world's agent order.
+        others: ghost bodies that are not agents (their positions are read each step).
+        reach: (k,) m, bounding-sphere radius of each body about its base position.
+        pairs: the registered ghost pairs (a < b) of body handles.
+    """
+
+    #: up to this many registered pairs, every pair's spheres are tested (one vectorised test); beyond,
+    #: sort and sweep along x over the bodies, then keep the registered pairs among the candidates
+    DENSE_MAX_PAIRS = 4096
+    SLACK = 0.01  # m, added to the sum of two bounding radii
+
+    def __init__(
+        self,
+        bodies: list[int],
+        agent_rows: list[int],
+        others: list[int],
+        reach: NDArray[np.float64],
+        pairs: set[tuple[int, int]],
+    ) -> None:
+        self.bodies = np.asarray(bodies, dtype=np.int64)
+        self.agent_rows = agent_rows
+        self.others = others
+        self.reach = reach
+        self.pairs = frozenset(pairs)
+        self.dense = len(pairs) <= self.DENSE_MAX_PAIRS
+        if self.dense:
+            at = {b: i for i, b in enumerate(bodies)}
+            ordered = sorted(pairs)
+            self.i = np.array([at[a] for a, _ in ordered], dtype=np.int64)
+            self.j = np.array([at[b] for _, b in ordered], dtype=np.int64)
+            self.a = np.array([a for a, _ in ordered], dtype=np.int64)
+            self.b = np.array([b for _, b in ordered], dtype=np.int64)
+            self.limit2 = (reach[self.i] + reach[self.j] + self.SLACK) ** 2
+
+    def near_pairs(self, centres: NDArray[np.float64]) -> list[tuple[int, int]]:
+        """Registered pairs (a < b) whose bounding spheres overlap, given the base positions (k, 3) m."""
+        if len(centres) < 2:
+            return []
+        if self.dense:
+            d = centres[self.i] - centres[self.j]
+            near = np.flatnonzero(np.einsum("ij,ij->i", d, d) <= self.limit2)
+            if near.size == 0:
+                return []
+            return list(zip(self.a[near].tolist(), self.b[near].tolist()))
+        i, j = sweep_and_prune(centres, self.reach, self.SLACK)
+        a, b = self.bodies[i], self.bodies[j]
+        lo, hi = np.minimum(a, b).tolist(), np.maximum(a, b).tolist()
+        pairs = self.pairs
+        return [p for p in zip(lo, hi) if p in pairs]
+
+
+def sweep_and_prune(
+    centres: NDArray[np.float64], radii: NDArray[np.float64], slack: float = 0.0
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Index pairs (i, j), i != j, of spheres (centres (k, 3) m, radii (k,) m) that overlap within ``slack`` m.
+
+    Sorted along x, each sphere is paired with the following ones within the largest reach along x
+    (vectorised, no loop over spheres), and the candidates are then tested in full.
+    """
+    k = len(centres)
+    if k < 2:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty
+    order = np.argsort(centres[:, 0], kind="stable")
+    x = centres[order, 0]
+    window = 2.0 * float(np.max(radii)) + slack
+    count = np.searchsorted(x, x + window, side="right") - np.arange(1, k + 1)
+    total = int(count.sum())
+    if total == 0:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty
+    first = np.repeat(np.arange(k), count)
+    offset = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
+    i, j = order[first], order[first + 1 + offset]
+    d = centres[i] - centres[j]
+    keep = np.einsum("ij,ij->i", d, d) <= (radii[i] + radii[j] + slack) ** 2
+    return i[keep], j[keep]
 
 
 def _nearest_quarter_turn(q: Any) -> tuple[float, float, float, float]:
