@@ -90,6 +90,7 @@ class World:
         self._contacts = pb.getContactPoints
         self._closest = pb.getClosestPoints
         self._poses: list[Any] = []
+        self._states: NDArray[np.float64] | None = None  # (n, 13), the array of the last read_agent_states
         self._ghost_pairs: set[tuple[int, int]] = set()
         self._ghosts: _GhostIndex | None = None  # built from _ghost_pairs when first needed
         self._reach: dict[int, float] = {}  # m, per body: farthest point of its shape from its base position
@@ -267,6 +268,7 @@ class World:
             flat += ang
         self._poses = poses
         out.reshape(-1)[:] = flat
+        self._states = out
 
     def apply_agent_wrenches(self, forces: NDArray[np.float64], torques: NDArray[np.float64]) -> None:
         """Apply one world-frame force at the centre of mass and one torque per agent.
@@ -307,10 +309,14 @@ class World:
         exact closest-points query only for registered pairs whose spheres overlap.
         """
         g = self._ghosts if self._ghosts is not None else self._index_ghosts()
-        poses, gp, cid = self._poses, self._get_pose, self._cid
-        pts = [poses[r] for r in g.agent_rows]
-        pts += [gp(b, cid)[0] for b in g.others]
-        near = g.near_pairs(np.array(pts, dtype=float))
+        cid, c, m = self._cid, g.centres, g.n_agents
+        if m:
+            states = self._states if self._states is not None else np.array(self._poses, dtype=float)
+            c[:m] = states[g.agent_rows, :3]
+        if g.others:
+            gp = self._get_pose
+            c[m:] = [gp(b, cid)[0] for b in g.others]
+        near = g.near_pairs(c)
         closest = self._closest
         return [(a, b) for a, b in near if closest(a, b, 0.0, physicsClientId=cid)]
 
@@ -334,13 +340,12 @@ class World:
         self._ghosts = None
 
     def _index_ghosts(self) -> _GhostIndex:
-        bodies = sorted({b for pair in self._ghost_pairs for b in pair})
+        bodies = {b for pair in self._ghost_pairs for b in pair}
+        agents = [b for b in self._agents if b in bodies]
+        others = sorted(bodies.difference(agents))
         row = {b: i for i, b in enumerate(self._agents)}
-        agents = [b for b in bodies if b in row]
-        others = [b for b in bodies if b not in row]
-        order = agents + others
-        reach = np.array([self._body_reach(b) for b in order])
-        self._ghosts = _GhostIndex(order, [row[b] for b in agents], others, reach, self._ghost_pairs)
+        reach = np.array([self._body_reach(b) for b in agents + others])
+        self._ghosts = _GhostIndex([row[b] for b in agents], agents, others, reach, self._ghost_pairs)
         return self._ghosts
 
     def _body_reach(self, body: int) -> float:
@@ -366,6 +371,7 @@ class World:
         pb.resetBasePositionAndOrientation(b, list(position), list(quaternion), physicsClientId=self._cid)
         pb.resetBaseVelocity(b, list(velocity), list(angular_velocity), physicsClientId=self._cid)
         self._poses[index] = tuple(float(v) for v in position)
+        self._states = None  # no longer what the agents' states are
 
     def reset_body(self, body: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1)) -> None:
         """Teleport any body to a pose, at rest."""
@@ -576,87 +582,129 @@ class World:
 
 
 class _GhostIndex:
-    """The bodies of the registered ghost pairs, for the per-step broad phase.
+    """The bodies of the registered ghost pairs and the per-step broad phase over them.
 
     Args:
-        bodies: body handles, agents first (in ``agent_rows`` order), then the others (in ``others`` order).
-        agent_rows: row of each ghost agent in the world's agent order.
-        others: ghost bodies that are not agents (their positions are read each step).
-        reach: (k,) m, bounding-sphere radius of each body about its base position.
+        agent_rows: (m,) row of each ghost agent in the world's agent order.
+        agents: (m,) their body handles.
+        others: handles of the ghost bodies that are not agents (their positions are read each step).
+        reach: (m + len(others),) m, bounding-sphere radius of each body about its base position, agents first.
         pairs: the registered ghost pairs (a < b) of body handles.
     """
 
-    #: up to this many registered pairs, every pair's spheres are tested (one vectorised test); beyond,
-    #: sort and sweep along x over the bodies, then keep the registered pairs among the candidates
-    DENSE_MAX_PAIRS = 4096
+    #: up to this many bodies, one vectorised test of every registered pair's spheres; beyond, a uniform
+    #: grid (``grid_pairs``) finds the overlapping spheres, and the registered pairs among them are kept
+    DENSE_MAX_BODIES = 64
     SLACK = 0.01  # m, added to the sum of two bounding radii
 
     def __init__(
         self,
-        bodies: list[int],
         agent_rows: list[int],
+        agents: list[int],
         others: list[int],
         reach: NDArray[np.float64],
         pairs: set[tuple[int, int]],
     ) -> None:
+        bodies = agents + others
         self.bodies = np.asarray(bodies, dtype=np.int64)
-        self.agent_rows = agent_rows
+        m = len(agent_rows)
+        self.n_agents = m
+        # agents' rows in the state array; a slice when they are the first m agents (a view, no gather)
+        self.agent_rows: slice | NDArray[np.int64] = (
+            slice(0, m) if agent_rows == list(range(m)) else np.asarray(agent_rows, dtype=np.int64)
+        )
         self.others = others
         self.reach = reach
         self.pairs = frozenset(pairs)
-        self.dense = len(pairs) <= self.DENSE_MAX_PAIRS
-        if self.dense:
+        self.centres = np.zeros((len(bodies), 3))  # m, filled each step
+        self.dense = len(bodies) <= self.DENSE_MAX_BODIES
+        if self.dense:  # every registered pair: rows i, j of its bodies, handles a < b, squared reach
             at = {b: i for i, b in enumerate(bodies)}
             ordered = sorted(pairs)
             self.i = np.array([at[a] for a, _ in ordered], dtype=np.int64)
             self.j = np.array([at[b] for _, b in ordered], dtype=np.int64)
-            self.a = np.array([a for a, _ in ordered], dtype=np.int64)
-            self.b = np.array([b for _, b in ordered], dtype=np.int64)
+            self.ab = ordered
             self.limit2 = (reach[self.i] + reach[self.j] + self.SLACK) ** 2
 
     def near_pairs(self, centres: NDArray[np.float64]) -> list[tuple[int, int]]:
         """Registered pairs (a < b) whose bounding spheres overlap, given the base positions (k, 3) m."""
-        if len(centres) < 2:
-            return []
         if self.dense:
-            d = centres[self.i] - centres[self.j]
-            near = np.flatnonzero(np.einsum("ij,ij->i", d, d) <= self.limit2)
-            if near.size == 0:
+            d = centres[self.i]
+            d -= centres[self.j]
+            d *= d
+            near = d.sum(axis=1) <= self.limit2
+            if not near.any():
                 return []
-            return list(zip(self.a[near].tolist(), self.b[near].tolist()))
-        i, j = sweep_and_prune(centres, self.reach, self.SLACK)
+            ab = self.ab
+            return [ab[k] for k in np.flatnonzero(near).tolist()]
+        i, j = grid_pairs(centres, self.reach, self.SLACK)
         a, b = self.bodies[i], self.bodies[j]
         lo, hi = np.minimum(a, b).tolist(), np.maximum(a, b).tolist()
         pairs = self.pairs
         return [p for p in zip(lo, hi) if p in pairs]
 
 
-def sweep_and_prune(
+#: the 13 neighbour cells of a cell that come after it (lexicographically): each pair of cells once
+_HALF_SHELL = np.array([o for o in itertools.product((-1, 0, 1), repeat=3) if o > (0, 0, 0)], dtype=np.int64)
+
+
+def grid_pairs(
     centres: NDArray[np.float64], radii: NDArray[np.float64], slack: float = 0.0
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Index pairs (i, j), i != j, of spheres (centres (k, 3) m, radii (k,) m) that overlap within ``slack`` m.
+    """Index pairs (i, j), i != j, each once, of spheres (centres (k, 3) m, radii (k,) m) that overlap within
+    ``slack`` m.
 
-    Sorted along x, each sphere is paired with the following ones within the largest reach along x
-    (vectorised, no loop over spheres), and the candidates are then tested in full.
+    A uniform grid with cells as wide as the largest sphere plus slack: sorted by cell, each sphere is paired
+    with the spheres after it in its own cell and with those in the 13 neighbour cells after its cell (all
+    vectorised, no loop over spheres), and the candidates are then tested in full.
     """
     k = len(centres)
+    empty = np.zeros(0, dtype=np.int64)
     if k < 2:
-        empty = np.zeros(0, dtype=np.int64)
         return empty, empty
-    order = np.argsort(centres[:, 0], kind="stable")
-    x = centres[order, 0]
-    window = 2.0 * float(np.max(radii)) + slack
-    count = np.searchsorted(x, x + window, side="right") - np.arange(1, k + 1)
+    h = 2.0 * float(np.max(radii)) + slack
+    cell = np.floor(centres / h).astype(np.int64)
+    cell -= cell.min(axis=0) - 1  # >= 1: a neighbour's index never leaves the key's range
+    dims = cell.max(axis=0) + 2
+    order = np.argsort(_cell_key(cell, dims), kind="stable")
+    cell = cell[order]
+    keys = _cell_key(cell, dims)
+    own = np.arange(k)
+    # the same cell: the spheres after each one up to the end of its cell's run
+    first, second = _ranges(own, own + 1, np.searchsorted(keys, keys, side="right"))
+    # the 13 neighbour cells after it: the run of each
+    near = _cell_key((cell[:, None, :] + _HALF_SHELL[None, :, :]).reshape(-1, 3), dims)
+    rows = np.repeat(own, len(_HALF_SHELL))
+    cells = int(np.prod(dims))
+    if cells <= 64 * k:  # a table of every cell's run: one lookup per neighbour
+        count = np.bincount(keys, minlength=cells)
+        hi = np.cumsum(count)[near]
+        lo = hi - count[near]
+    else:  # sparse: binary search of each neighbour's run
+        lo, hi = np.searchsorted(keys, near, side="left"), np.searchsorted(keys, near, side="right")
+    f2, s2 = _ranges(rows, lo, hi)
+    i, j = order[np.concatenate([first, f2])], order[np.concatenate([second, s2])]
+    d = centres[i] - centres[j]
+    keep = np.einsum("ij,ij->i", d, d) <= (radii[i] + radii[j] + slack) ** 2
+    return i[keep], j[keep]
+
+
+def _cell_key(cell: NDArray[np.int64], dims: NDArray[np.int64]) -> NDArray[np.int64]:
+    """One integer per grid cell (k, 3) of a grid of ``dims`` (3,) cells."""
+    return (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
+
+
+def _ranges(
+    rows: NDArray[np.int64], lo: NDArray[np.int64], hi: NDArray[np.int64]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Pairs (rows[m], q) for every q in [lo[m], hi[m]), vectorised."""
+    count = np.maximum(hi - lo, 0)
     total = int(count.sum())
     if total == 0:
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty
-    first = np.repeat(np.arange(k), count)
-    offset = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
-    i, j = order[first], order[first + 1 + offset]
-    d = centres[i] - centres[j]
-    keep = np.einsum("ij,ij->i", d, d) <= (radii[i] + radii[j] + slack) ** 2
-    return i[keep], j[keep]
+    start = np.cumsum(count) - count
+    return np.repeat(rows, count), np.repeat(lo, count) + (np.arange(total) - np.repeat(start, count))
 
 
 def _nearest_quarter_turn(q: Any) -> tuple[float, float, float, float]:

@@ -14,7 +14,7 @@ import pytest
 
 from pybullet_swarm.rng import named_rng
 from pybullet_swarm.vehicle import load_vehicle
-from pybullet_swarm.world.world import BodyKind, World, _GhostIndex, sweep_and_prune
+from pybullet_swarm.world.world import BodyKind, World, _GhostIndex, grid_pairs
 
 
 def _crowd(n_agents: int, n_boxes: int) -> tuple[World, list[int], list[int]]:
@@ -49,10 +49,10 @@ def _brute_force(w: World) -> set[tuple[int, int]]:
     return {pair for pair in w.ghost_pairs if w.overlapping(*pair)}
 
 
-@pytest.mark.parametrize("dense", [True, False], ids=["every_pair", "sweep"])
+@pytest.mark.parametrize("dense", [True, False], ids=["every_pair", "grid"])
 def test_ghost_overlaps_are_exactly_the_registered_pairs_that_overlap(monkeypatch, dense):
     if not dense:
-        monkeypatch.setattr(_GhostIndex, "DENSE_MAX_PAIRS", 0)
+        monkeypatch.setattr(_GhostIndex, "DENSE_MAX_BODIES", 0)
     rng = named_rng(0, "test/ghost_pairs")
     w, agents, boxes = _crowd(8, 6)
     with w:
@@ -72,12 +72,12 @@ def test_ghost_overlaps_are_exactly_the_registered_pairs_that_overlap(monkeypatc
         assert found > 100  # crowded enough that the comparison means something
 
 
-@pytest.mark.parametrize("dense", [True, False], ids=["every_pair", "sweep"])
+@pytest.mark.parametrize("dense", [True, False], ids=["every_pair", "grid"])
 def test_grazing_overlaps_are_found(monkeypatch, dense):
     """Pairs turned at random and moved apart along a random direction until they barely touch (within
     0.5 mm): where a too-small bounding sphere would miss them first."""
     if not dense:
-        monkeypatch.setattr(_GhostIndex, "DENSE_MAX_PAIRS", 0)
+        monkeypatch.setattr(_GhostIndex, "DENSE_MAX_BODIES", 0)
     rng = named_rng(1, "test/ghost_grazing")
     w, agents, boxes = _crowd(2, 2)
     with w:
@@ -146,12 +146,23 @@ def test_ghost_bodies_apart_report_nothing():
         assert not any(a in pair and b in pair for pair in w.contact_pairs() for a in agents for b in agents)
 
 
+def _layout(kind: str, k: int, rng: np.random.Generator) -> np.ndarray:
+    if kind == "uniform":
+        return rng.uniform(-0.5, 0.7, size=(k, 3))
+    if kind == "lattice":  # 10 cm, 20 cm and 30 cm apart along x, y, z, nudged: pairs along every axis and diagonal
+        side = int(np.ceil(k ** (1 / 3)))
+        ijk = np.array(list(itertools.product(range(side), repeat=3))[:k], dtype=float).reshape(-1, 3)
+        return ijk * [0.1, 0.2, 0.3] + rng.normal(0.0, 0.01, size=(k, 3))
+    return rng.normal(0.0, 0.05, size=(k, 3))  # "cluster": nearly all in one cell
+
+
+@pytest.mark.parametrize("layout", ["uniform", "lattice", "cluster"])
 @pytest.mark.parametrize("k", [0, 1, 2, 7, 300])
-def test_sweep_and_prune_finds_every_overlapping_sphere_pair(k):
-    rng = named_rng(k, "test/sweep_and_prune")
-    centres = rng.uniform(0.0, 2.0, size=(k, 3))
+def test_grid_pairs_finds_every_overlapping_sphere_pair_once(k, layout):
+    rng = named_rng(k, f"test/grid_pairs/{layout}")
+    centres = _layout(layout, k, rng)
     radii = rng.uniform(0.02, 0.12, size=k)
-    i, j = sweep_and_prune(centres, radii, slack=0.01)
+    i, j = grid_pairs(centres, radii, slack=0.01)
     got = {(min(a, b), max(a, b)) for a, b in zip(i.tolist(), j.tolist())}
     assert len(got) == len(i)  # each pair once
     expected = {
