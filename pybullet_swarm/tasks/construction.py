@@ -227,6 +227,10 @@ class ConstructionRuntime(TaskBase):
         self.positions = self.start.copy()  # (B, 3) m
         self.quaternions = np.tile([0.0, 0.0, 0.0, 1.0], (self.B, 1))
         self.speeds = np.zeros(self.B)  # m/s
+        self._states = np.zeros((self.B, 13))  # the boxes' states as the World reads them
+        self._read_at: int | None = None  # the World's state version of the last read
+        self._slots_still: tuple[NDArray[np.float64], bytes] | None = None  # see _update_slots
+        self._open: tuple[bytes, NDArray[np.bool_]] | None = None  # slot_open of a slot_box
         self.state = np.zeros(self.B, dtype=np.int64)  # FREE / CARRIED / PLACED
         self.carried_by = np.full(self.B, -1, dtype=np.int64)
         self.slot_box = np.full(self.S, -1, dtype=np.int64)  # box in each slot, -1 when empty
@@ -253,15 +257,40 @@ class ConstructionRuntime(TaskBase):
 
     # ------------------------------------------------------------ bookkeeping
     def read(self) -> None:
-        """Read box poses and speeds from the World."""
-        for i, b in enumerate(self.bodies):
-            p, q = self.world.body_pose(b)
-            v, _ = self.world.body_velocity(b)
-            self.positions[i] = p
-            self.quaternions[i] = q
-            self.speeds[i] = float(np.linalg.norm(v))
+        """Read box poses and speeds from the World (once per state of the World: nothing moved since the
+        last read, nothing is read)."""
+        version = self.world.state_version
+        if version == self._read_at:
+            return
+        st = self._states
+        self.world.read_body_states(self.bodies, st)
+        self.positions[:] = st[:, :3]
+        self.quaternions[:] = st[:, 3:7]
+        self.speeds[:] = np.linalg.norm(st[:, 7:10], axis=1)
+        self._read_at = version
 
     def _update_slots(self, t: float) -> None:
+        """Fill and empty slots from the boxes' poses; nothing to do when the last update changed nothing and
+        since then no loose box has moved and no box's state or slot has changed (it would judge the same)."""
+        if self._slots_still is not None and self._still():
+            return
+        before = self.slot_box.tobytes()
+        self._judge_slots(t)
+        self._slots_still = None
+        if self.slot_box.tobytes() == before:
+            self._slots_still = (self._states[:, :7].copy(), self.state.tobytes() + before)
+
+    def _still(self) -> bool:
+        """True when no loose box has moved, and no box's state or slot changed, since the last update."""
+        assert self._slots_still is not None
+        poses, key = self._slots_still
+        if self.state.tobytes() + self.slot_box.tobytes() != key:
+            return False
+        moved = (poses != self._states[:, :7]).any(axis=1)
+        moved &= self.state != CARRIED  # where a carried box is does not fill or empty a slot
+        return not moved.any()
+
+    def _judge_slots(self, t: float) -> None:
         tilt, yaw = _box_tilt_and_yaw_error(self.quaternions)
         tol_a = math.radians(self.spec.place_tolerance_deg)
         aligned = (tilt <= tol_a) & (yaw <= tol_a)
@@ -294,8 +323,12 @@ class ConstructionRuntime(TaskBase):
     @property
     def slot_open(self) -> NDArray[np.bool_]:
         """(S,) True for empty slots whose supporting slots are all filled."""
-        filled = self.slot_box >= 0
-        return np.array([not filled[s] and bool(np.all(filled[self.support[s]])) for s in range(self.S)])
+        key = self.slot_box.tobytes()
+        if self._open is None or self._open[0] != key:
+            filled = self.slot_box >= 0
+            is_open = np.array([not filled[s] and bool(np.all(filled[self.support[s]])) for s in range(self.S)])
+            self._open = (key, is_open)
+        return self._open[1].copy()
 
     @property
     def boxes_placed(self) -> int:
@@ -435,12 +468,18 @@ class ConstructionRuntime(TaskBase):
         )
         seen_s = self.slot_open[None, :] & self.in_view((self.slots + gh)[None, :, :] - true_positions[:, None, :])
         shift = sensed_positions - true_positions
-        out = []
-        for i in range(n):
-            boxes = np.flatnonzero(seen_b[i])
-            slots = np.flatnonzero(seen_s[i])
-            out.append(LocalView(self.positions[boxes] + shift[i], boxes, self.slots[slots], slots))
-        return out
+        # every (agent, object) in view at once, in agent order; each agent's rows are one slice of them
+        ab, boxes = np.nonzero(seen_b)
+        at, slots = np.nonzero(seen_s)
+        box_pos = self.positions[boxes] + shift[ab]
+        slot_pos = self.slots[slots]
+        rows = np.arange(n + 1)
+        b_lo = np.searchsorted(ab, rows).tolist()
+        s_lo = np.searchsorted(at, rows).tolist()
+        return [
+            LocalView(box_pos[b0:b1], boxes[b0:b1], slot_pos[s0:s1], slots[s0:s1])
+            for b0, b1, s0, s1 in zip(b_lo, b_lo[1:], s_lo, s_lo[1:])
+        ]
 
     def apply(self, agent: int, action: Action, t: float, position: NDArray[np.float64]) -> float | None:
         """GRASP the free box at the agent's grasp point, or RELEASE the one it holds; returns the new

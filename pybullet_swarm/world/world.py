@@ -90,6 +90,7 @@ class World:
         self._contacts = pb.getContactPoints
         self._closest = pb.getClosestPoints
         self._poses: list[Any] = []
+        self._version = 0  # changes whenever a body may have moved (a step, a teleport)
         self._states: NDArray[np.float64] | None = None  # (n, 13), the array of the last read_agent_states
         self._ghost_pairs: set[tuple[int, int]] = set()
         self._ghosts: _GhostIndex | None = None  # built from _ghost_pairs when first needed
@@ -286,6 +287,27 @@ class World:
     def step(self) -> None:
         """Advance the physics by one time step."""
         self._step(self._cid)
+        self._version += 1
+
+    @property
+    def state_version(self) -> int:
+        """A counter that changes whenever a body may have moved (a physics step, a teleport): states read at
+        one value are still the states while it holds it."""
+        return self._version
+
+    def read_body_states(self, bodies: Sequence[int], out: NDArray[np.float64]) -> None:
+        """Read the states of ``bodies`` into ``out`` (k, 13), as ``read_agent_states`` does for the agents."""
+        cid = self._cid
+        gp, gv = self._get_pose, self._get_vel
+        flat: list[float] = []
+        for b in bodies:
+            pos, orn = gp(b, cid)
+            vel, ang = gv(b, cid)
+            flat += pos
+            flat += orn
+            flat += vel
+            flat += ang
+        out.reshape(-1)[:] = flat
 
     def contact_pairs(self) -> frozenset[tuple[int, int]] | set[tuple[int, int]]:
         """Body pairs (a < b) in contact now: Bullet's contacts (one query) and the ghost pairs whose
@@ -372,6 +394,7 @@ class World:
         pb.resetBaseVelocity(b, list(velocity), list(angular_velocity), physicsClientId=self._cid)
         self._poses[index] = tuple(float(v) for v in position)
         self._states = None  # no longer what the agents' states are
+        self._version += 1
 
     def reset_body(self, body: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1)) -> None:
         """Teleport any body to a pose, at rest."""
@@ -379,6 +402,10 @@ class World:
             body, list(map(float, position)), list(map(float, quaternion)), physicsClientId=self._cid
         )
         pb.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=self._cid)
+        self._version += 1
+        if self._kind.get(body) is BodyKind.AGENT:
+            self._poses[self._agents.index(body)] = tuple(float(v) for v in position)
+            self._states = None
 
     def body_pose(self, body: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Position (3,) m and quaternion (4,) of any body."""
