@@ -291,30 +291,28 @@ class ConstructionRuntime(TaskBase):
         return not moved.any()
 
     def _judge_slots(self, t: float) -> None:
+        """Every slot's box from the boxes' poses now (all slots at once), with place and unplace events."""
         tilt, yaw = _box_tilt_and_yaw_error(self.quaternions)
         tol_a = math.radians(self.spec.place_tolerance_deg)
         aligned = (tilt <= tol_a) & (yaw <= tol_a)
         loose = self.state != CARRIED
-        new_slot_box = np.full(self.S, -1, dtype=np.int64)
         d = np.linalg.norm(self.positions[None, :, :] - self.slots[:, None, :], axis=2)  # (S, B)
         # hysteresis: a box in its slot stays there until it has moved clearly out of the tolerances
         # (a box resting on the boundary would otherwise flicker between placed and free)
         wide = 1.0 + self.spec.place_hysteresis
         kept = loose & (tilt <= wide * tol_a) & (yaw <= wide * tol_a)
-        for s in range(self.S):
-            b = self.slot_box[s]
-            if b >= 0 and kept[b] and d[s, b] <= wide * self.spec.place_tolerance_m:
-                new_slot_box[s] = b
-                continue
-            cand = np.nonzero((d[s] <= self.spec.place_tolerance_m) & aligned & loose)[0]
-            if cand.size:
-                new_slot_box[s] = cand[np.argmin(d[s, cand])]
-        for s in range(self.S):
-            if new_slot_box[s] != self.slot_box[s]:
-                if new_slot_box[s] >= 0:
-                    self.events.append(Event(t, "placed", f"box{new_slot_box[s]}", f"slot{s}"))
-                else:
-                    self.events.append(Event(t, "unplaced", f"box{self.slot_box[s]}", f"slot{s}"))
+        old = self.slot_box
+        held = np.maximum(old, 0)
+        stays = (old >= 0) & kept[held] & (d[np.arange(self.S), held] <= wide * self.spec.place_tolerance_m)
+        # otherwise the nearest aligned loose box within the tolerance (the first of equals)
+        cand = (d <= self.spec.place_tolerance_m) & (aligned & loose)[None, :]
+        nearest = np.argmin(np.where(cand, d, np.inf), axis=1)
+        new_slot_box = np.where(stays, old, np.where(cand.any(axis=1), nearest, -1)).astype(np.int64)
+        for s in np.flatnonzero(new_slot_box != old).tolist():
+            if new_slot_box[s] >= 0:
+                self.events.append(Event(t, "placed", f"box{new_slot_box[s]}", f"slot{s}"))
+            else:
+                self.events.append(Event(t, "unplaced", f"box{old[s]}", f"slot{s}"))
         self.slot_box = new_slot_box
         placed = np.zeros(self.B, dtype=bool)
         placed[new_slot_box[new_slot_box >= 0]] = True
