@@ -8,7 +8,9 @@ Only ``Simulation.run`` is profiled (not the set-up or the results). Prints the 
 profiled run (by wall clock and by process CPU time; cProfile slows Python calls down, so both are below
 an unprofiled run's), the functions with the most own time, and for each ``--share NAME`` the cumulative
 time of the functions whose name contains NAME as a share of the run. ``--out FILE`` keeps the profile for
-``python -m pstats FILE``. Figures depend on the machine; nothing here is asserted.
+``python -m pstats FILE``. ``--timing N`` first runs it N times unprofiled and prints the best real-time
+factor by wall clock and by CPU time (on a shared machine the CPU figure is the steadier one). Figures
+depend on the machine; nothing here is asserted.
 """
 
 from __future__ import annotations
@@ -32,9 +34,19 @@ def main() -> None:
     ap.add_argument("--top", type=int, default=20, help="functions listed by own time")
     ap.add_argument("--share", action="append", default=[], metavar="NAME", help="report this function's share")
     ap.add_argument("--out", default=None, help="write the profile to this file")
+    ap.add_argument("--timing", type=int, default=0, metavar="N", help="first time N unprofiled runs")
     args = ap.parse_args()
 
     sc = load_scenario(args.scenario, {"task.time_limit_s": args.seconds})
+    if args.timing > 0:
+        best_wall = best_cpu = 0.0
+        for _ in range(args.timing):
+            with Simulation(sc, planner=args.planner, avoidance=args.avoidance, seed=args.seed) as sim:
+                wall, cpu = time.perf_counter(), time.process_time()
+                sim.run()
+                wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+                best_wall, best_cpu = max(best_wall, sim.time / wall), max(best_cpu, sim.time / cpu)
+        print(f"unprofiled, best of {args.timing}: {best_wall:.1f}x real time by wall clock, {best_cpu:.1f}x by CPU")
     with Simulation(sc, planner=args.planner, avoidance=args.avoidance, seed=args.seed, record=True) as sim:
         prof = cProfile.Profile()
         wall, cpu = time.perf_counter(), time.process_time()
