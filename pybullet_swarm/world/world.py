@@ -619,8 +619,8 @@ class _GhostIndex:
         pairs: the registered ghost pairs (a < b) of body handles.
     """
 
-    #: up to this many bodies, one vectorised test of every registered pair's spheres; beyond, a uniform
-    #: grid (``grid_pairs``) finds the overlapping spheres, and the registered pairs among them are kept
+    #: up to this many bodies, one vectorised test of every registered pair's spheres; beyond, a k-d tree
+    #: (``sphere_pairs``) finds the overlapping spheres, and the registered pairs among them are kept
     DENSE_MAX_BODIES = 64
     SLACK = 0.01  # m, added to the sum of two bounding radii
 
@@ -666,7 +666,7 @@ class _GhostIndex:
                 return []
             ab = self.ab
             return [ab[k] for k in np.flatnonzero(near).tolist()]
-        i, j = grid_pairs(centres, self.reach, self.SLACK)
+        i, j = sphere_pairs(centres, self.reach, self.SLACK)
         a, b = self.bodies[i], self.bodies[j]
         lo, hi = np.minimum(a, b).tolist(), np.maximum(a, b).tolist()
         pairs = self.pairs
@@ -675,67 +675,25 @@ class _GhostIndex:
 
 _ONES3 = np.ones(3)
 
-#: the 13 neighbour cells of a cell that come after it (lexicographically): each pair of cells once
-_HALF_SHELL = np.array([o for o in itertools.product((-1, 0, 1), repeat=3) if o > (0, 0, 0)], dtype=np.int64)
 
-
-def grid_pairs(
+def sphere_pairs(
     centres: NDArray[np.float64], radii: NDArray[np.float64], slack: float = 0.0
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Index pairs (i, j), i != j, each once, of spheres (centres (k, 3) m, radii (k,) m) that overlap within
-    ``slack`` m.
+    """Index pairs (i, j), i < j, of spheres (centres (k, 3) m, radii (k,) m) that overlap within ``slack`` m.
 
-    A uniform grid with cells as wide as the largest sphere plus slack: sorted by cell, each sphere is paired
-    with the spheres after it in its own cell and with those in the 13 neighbour cells after its cell (all
-    vectorised, no loop over spheres), and the candidates are then tested in full.
+    One k-d tree query for the pairs within the largest reach (compiled, no loop over spheres), then each
+    candidate tested with its own radii.
     """
-    k = len(centres)
+    from scipy.spatial import cKDTree
+
     empty = np.zeros(0, dtype=np.int64)
-    if k < 2:
+    if len(centres) < 2:
         return empty, empty
-    h = 2.0 * float(np.max(radii)) + slack
-    cell = np.floor(centres / h).astype(np.int64)
-    cell -= cell.min(axis=0) - 1  # >= 1: a neighbour's index never leaves the key's range
-    dims = cell.max(axis=0) + 2
-    order = np.argsort(_cell_key(cell, dims), kind="stable")
-    cell = cell[order]
-    keys = _cell_key(cell, dims)
-    own = np.arange(k)
-    # the same cell: the spheres after each one up to the end of its cell's run
-    first, second = _ranges(own, own + 1, np.searchsorted(keys, keys, side="right"))
-    # the 13 neighbour cells after it: the run of each
-    near = _cell_key((cell[:, None, :] + _HALF_SHELL[None, :, :]).reshape(-1, 3), dims)
-    rows = np.repeat(own, len(_HALF_SHELL))
-    cells = int(np.prod(dims))
-    if cells <= 64 * k:  # a table of every cell's run: one lookup per neighbour
-        count = np.bincount(keys, minlength=cells)
-        hi = np.cumsum(count)[near]
-        lo = hi - count[near]
-    else:  # sparse: binary search of each neighbour's run
-        lo, hi = np.searchsorted(keys, near, side="left"), np.searchsorted(keys, near, side="right")
-    f2, s2 = _ranges(rows, lo, hi)
-    i, j = order[np.concatenate([first, f2])], order[np.concatenate([second, s2])]
+    ij = cKDTree(centres).query_pairs(2.0 * float(np.max(radii)) + slack, output_type="ndarray")
+    i, j = ij[:, 0].astype(np.int64), ij[:, 1].astype(np.int64)
     d = centres[i] - centres[j]
     keep = np.einsum("ij,ij->i", d, d) <= (radii[i] + radii[j] + slack) ** 2
     return i[keep], j[keep]
-
-
-def _cell_key(cell: NDArray[np.int64], dims: NDArray[np.int64]) -> NDArray[np.int64]:
-    """One integer per grid cell (k, 3) of a grid of ``dims`` (3,) cells."""
-    return (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
-
-
-def _ranges(
-    rows: NDArray[np.int64], lo: NDArray[np.int64], hi: NDArray[np.int64]
-) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Pairs (rows[m], q) for every q in [lo[m], hi[m]), vectorised."""
-    count = np.maximum(hi - lo, 0)
-    total = int(count.sum())
-    if total == 0:
-        empty = np.zeros(0, dtype=np.int64)
-        return empty, empty
-    start = np.cumsum(count) - count
-    return np.repeat(rows, count), np.repeat(lo, count) + (np.arange(total) - np.repeat(start, count))
 
 
 def _nearest_quarter_turn(q: Any) -> tuple[float, float, float, float]:

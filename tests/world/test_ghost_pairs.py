@@ -14,7 +14,7 @@ import pytest
 
 from pybullet_swarm.rng import named_rng
 from pybullet_swarm.vehicle import load_vehicle
-from pybullet_swarm.world.world import BodyKind, World, _GhostIndex, grid_pairs
+from pybullet_swarm.world.world import BodyKind, World, _GhostIndex, sphere_pairs
 
 
 def _crowd(n_agents: int, n_boxes: int) -> tuple[World, list[int], list[int]]:
@@ -49,7 +49,7 @@ def _brute_force(w: World) -> set[tuple[int, int]]:
     return {pair for pair in w.ghost_pairs if w.overlapping(*pair)}
 
 
-@pytest.mark.parametrize("dense", [True, False], ids=["every_pair", "grid"])
+@pytest.mark.parametrize("dense", [True, False], ids=["every_pair", "kdtree"])
 def test_ghost_overlaps_are_exactly_the_registered_pairs_that_overlap(monkeypatch, dense):
     if not dense:
         monkeypatch.setattr(_GhostIndex, "DENSE_MAX_BODIES", 0)
@@ -72,7 +72,7 @@ def test_ghost_overlaps_are_exactly_the_registered_pairs_that_overlap(monkeypatc
         assert found > 100  # crowded enough that the comparison means something
 
 
-@pytest.mark.parametrize("dense", [True, False], ids=["every_pair", "grid"])
+@pytest.mark.parametrize("dense", [True, False], ids=["every_pair", "kdtree"])
 def test_grazing_overlaps_are_found(monkeypatch, dense):
     """Pairs turned at random and moved apart along a random direction until they barely touch (within
     0.5 mm): where a too-small bounding sphere would miss them first."""
@@ -158,11 +158,11 @@ def _layout(kind: str, k: int, rng: np.random.Generator) -> np.ndarray:
 
 @pytest.mark.parametrize("layout", ["uniform", "lattice", "cluster"])
 @pytest.mark.parametrize("k", [0, 1, 2, 7, 300])
-def test_grid_pairs_finds_every_overlapping_sphere_pair_once(k, layout):
-    rng = named_rng(k, f"test/grid_pairs/{layout}")
+def test_sphere_pairs_finds_every_overlapping_pair_once(k, layout):
+    rng = named_rng(k, f"test/sphere_pairs/{layout}")
     centres = _layout(layout, k, rng)
     radii = rng.uniform(0.02, 0.12, size=k)
-    i, j = grid_pairs(centres, radii, slack=0.01)
+    i, j = sphere_pairs(centres, radii, slack=0.01)
     got = {(min(a, b), max(a, b)) for a, b in zip(i.tolist(), j.tolist())}
     assert len(got) == len(i)  # each pair once
     expected = {
