@@ -1,6 +1,6 @@
 """Ghost pairs of the World: no contact response, overlaps reported as contacts, found by one broad phase.
 
-The broad phase (bounding spheres, vectorised over all registered pairs or swept along x) must never
+The broad phase (bounding spheres, tested over all registered pairs at once or found by a k-d tree) must never
 miss a pair that Bullet's exact closest-points query finds overlapping: every test here compares it
 with that query run on every registered pair.
 """
