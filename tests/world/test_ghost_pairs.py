@@ -105,9 +105,9 @@ def test_grazing_overlaps_are_found(monkeypatch, dense):
 def _put(w: World, agents: list[int], poses: dict[int, tuple[np.ndarray, np.ndarray]]) -> None:
     for body, (p, q) in poses.items():
         if body in agents:
-            w.reset_agent(agents.index(body), p, q)
+            w.reset_agent(agents.index(body), p.tolist(), q.tolist())
         else:
-            w.reset_body(body, p, q)
+            w.reset_body(body, p.tolist(), q.tolist())
 
 
 def test_a_ghost_pair_is_reported_as_a_contact_and_only_while_registered():
