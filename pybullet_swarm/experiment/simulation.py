@@ -590,7 +590,6 @@ class Simulation:
         sensed = self.sensed_state_array
         running = ExitStatus.RUNNING
         closed = not self.open_loop
-        ghost = self.ghost and self.n > 1
         k = self.step_count
         end = k + steps
         while k < end and self.exit_status is running:
@@ -608,9 +607,7 @@ class Simulation:
             k += 1
             self.step_count = k
             read(state)
-            pairs = contact_pairs()
-            if ghost:
-                pairs = self._with_ghost_overlaps(pairs)
+            pairs = contact_pairs()  # ghost mode's overlaps included (World.set_ghost_pair)
             if pairs or contacts._prev:
                 self._on_contacts(pairs)
             if worst:
@@ -621,26 +618,6 @@ class Simulation:
                     self._frame()
         self._wall_time += time.perf_counter() - t0
         return self.exit_status
-
-    def _with_ghost_overlaps(self, pairs: Any) -> Any:
-        """Add overlapping agent pairs (their contacts are disabled in ghost mode) to ``pairs``."""
-        pos = self.state_array[:, :3]
-        reach = 2.0 * self.params.radius + 0.01
-        if self.n <= 64:
-            d2 = np.sum((pos[:, None, :] - pos[None, :, :]) ** 2, axis=2)
-            ii, jj = np.nonzero(np.triu(d2 < reach * reach, 1))
-            cand = zip(ii.tolist(), jj.tolist())
-        else:
-            from scipy.spatial import cKDTree
-
-            cand = cKDTree(pos).query_pairs(reach)
-        bodies = self.world.agent_bodies
-        extra = set()
-        for i, j in cand:
-            a, b = bodies[i], bodies[j]
-            if self.world.overlapping(a, b):
-                extra.add((a, b) if a < b else (b, a))
-        return (set(pairs) | extra) if extra else pairs
 
     def _sample(self) -> None:
         """Work done at the recording rate: the recorder and the altitude high-water mark."""

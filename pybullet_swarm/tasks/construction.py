@@ -186,7 +186,8 @@ class ConstructionRuntime(TaskBase):
         world: the World to build the boxes in.
         agent_half_height: m, half the airframe's height (for the grasp point).
         agent_radius: m.
-        ghost: carried boxes pass through other agents, as the agents do.
+        ghost: carried boxes pass through other agents and their loads, as the agents do; their overlaps
+            are ghost pairs of the World (reported as contacts).
         starts: (n, 3) m, the agents' start positions (for the task's lower bound).
         v_max: (3,) m/s per-axis velocity limit (None: unlimited), for the lower bound.
         position_std: m, per-axis standard deviation of an agent's own position estimate (0 on true state).
@@ -210,7 +211,7 @@ class ConstructionRuntime(TaskBase):
         self.v_max = v_max
         self.position_std = float(position_std)
         self.world = world
-        self.ghost = ghost  # carried boxes pass through other agents, as the agents do
+        self.ghost = ghost  # carried boxes pass through other agents and loads; overlaps still reported
         self.size = spec.box_size
         self.start = np.asarray(spec.boxes, dtype=float)  # (B, 3)
         self.slots = np.asarray(spec.structure, dtype=float)  # (S, 3)
@@ -234,6 +235,10 @@ class ConstructionRuntime(TaskBase):
         self.positions = self.start.copy()  # (B, 3) m
         self.quaternions = np.tile([0.0, 0.0, 0.0, 1.0], (self.B, 1))
         self.speeds = np.zeros(self.B)  # m/s
+        self._states = np.zeros((self.B, 13))  # the boxes' states as the World reads them
+        self._read_at: int | None = None  # the World's state version of the last read
+        self._slots_still: tuple[NDArray[np.float64], bytes] | None = None  # see _update_slots
+        self._open: tuple[bytes, NDArray[np.bool_]] | None = None  # slot_open of a slot_box
         self.state = np.zeros(self.B, dtype=np.int64)  # FREE / CARRIED / PLACED
         self.carried_by = np.full(self.B, -1, dtype=np.int64)
         self.slot_box = np.full(self.S, -1, dtype=np.int64)  # box in each slot, -1 when empty
@@ -262,42 +267,65 @@ class ConstructionRuntime(TaskBase):
 
     # ------------------------------------------------------------ bookkeeping
     def read(self) -> None:
-        """Read box poses and speeds from the World."""
-        for i, b in enumerate(self.bodies):
-            p, q = self.world.body_pose(b)
-            v, _ = self.world.body_velocity(b)
-            self.positions[i] = p
-            self.quaternions[i] = q
-            self.speeds[i] = float(np.linalg.norm(v))
+        """Read box poses and speeds from the World (once per state of the World: nothing moved since the
+        last read, nothing is read)."""
+        version = self.world.state_version
+        if version == self._read_at:
+            return
+        st = self._states
+        self.world.read_body_states(self.bodies, st)
+        self.positions[:] = st[:, :3]
+        self.quaternions[:] = st[:, 3:7]
+        self.speeds[:] = np.linalg.norm(st[:, 7:10], axis=1)
+        self._read_at = version
 
     def _update_slots(self, t: float) -> None:
+        """Fill and empty slots from the boxes' poses; nothing to do when the last update changed nothing and
+        since then no loose box has moved and no box's state or slot has changed (it would judge the same)."""
+        if self._slots_still is not None and self._still():
+            return
+        before = self.slot_box.tobytes()
+        self._judge_slots(t)
+        self._slots_still = None
+        if self.slot_box.tobytes() == before:
+            self._slots_still = (self._states[:, :7].copy(), self.state.tobytes() + before)
+
+    def _still(self) -> bool:
+        """True when no loose box has moved, and no box's state or slot changed, since the last update."""
+        assert self._slots_still is not None
+        poses, key = self._slots_still
+        if self.state.tobytes() + self.slot_box.tobytes() != key:
+            return False
+        moved = (poses != self._states[:, :7]).any(axis=1)
+        moved &= self.state != CARRIED  # where a carried box is does not fill or empty a slot
+        return not moved.any()
+
+    def _judge_slots(self, t: float) -> None:
+        """Every slot's box from the boxes' poses now (all slots at once), with place and unplace events."""
         tilt, yaw = _box_tilt_and_yaw_error(self.quaternions)
         tol_a = math.radians(self.spec.place_tolerance_deg)
         aligned = (tilt <= tol_a) & (yaw <= tol_a)
         loose = self.state != CARRIED
-        new_slot_box = np.full(self.S, -1, dtype=np.int64)
         d = np.linalg.norm(self.positions[None, :, :] - self.slots[:, None, :], axis=2)  # (S, B)
         # hysteresis: a box in its slot stays there until it has moved clearly out of the tolerances
         # (a box resting on the boundary would otherwise flicker between placed and free)
         wide = 1.0 + self.spec.place_hysteresis
         kept = loose & (tilt <= wide * tol_a) & (yaw <= wide * tol_a)
-        for s in range(self.S):
-            b = self.slot_box[s]
-            if b >= 0 and kept[b] and d[s, b] <= wide * self.spec.place_tolerance_m:
-                new_slot_box[s] = b
-                continue
-            cand = np.nonzero((d[s] <= self.spec.place_tolerance_m) & aligned & loose)[0]
-            if cand.size:
-                new_slot_box[s] = cand[np.argmin(d[s, cand])]
-        for s in range(self.S):
-            if new_slot_box[s] != self.slot_box[s]:
-                b = new_slot_box[s]
-                if b >= 0 and self.guided_slot[b] == s and b in self._guides:
-                    self.world.set_constraint_force(self._guides[b], self.spec.bond_force)
-                if new_slot_box[s] >= 0:
-                    self.events.append(Event(t, "placed", f"box{new_slot_box[s]}", f"slot{s}"))
-                else:
-                    self.events.append(Event(t, "unplaced", f"box{self.slot_box[s]}", f"slot{s}"))
+        old = self.slot_box
+        held = np.maximum(old, 0)
+        stays = (old >= 0) & kept[held] & (d[np.arange(self.S), held] <= wide * self.spec.place_tolerance_m)
+        # otherwise the nearest aligned loose box within the tolerance (the first of equals)
+        cand = (d <= self.spec.place_tolerance_m) & (aligned & loose)[None, :]
+        nearest = np.argmin(np.where(cand, d, np.inf), axis=1)
+        new_slot_box = np.where(stays, old, np.where(cand.any(axis=1), nearest, -1)).astype(np.int64)
+        for s in np.flatnonzero(new_slot_box != old).tolist():
+            b = int(new_slot_box[s])
+            if b >= 0 and self.guided_slot[b] == s and b in self._guides:  # in its slot: the guide bonds it
+                self.world.set_constraint_force(self._guides[b], self.spec.bond_force)
+            if b >= 0:
+                self.events.append(Event(t, "placed", f"box{b}", f"slot{s}"))
+            else:
+                self.events.append(Event(t, "unplaced", f"box{old[s]}", f"slot{s}"))
         self.slot_box = new_slot_box
         placed = np.zeros(self.B, dtype=bool)
         placed[new_slot_box[new_slot_box >= 0]] = True
@@ -306,9 +334,14 @@ class ConstructionRuntime(TaskBase):
     @property
     def slot_open(self) -> NDArray[np.bool_]:
         """(S,) True for empty slots whose supporting slots are all filled."""
-        filled = self.slot_box >= 0
-        taken = filled | (self._guided_into() >= 0)
-        return np.array([not taken[s] and bool(np.all(filled[self.support[s]])) for s in range(self.S)])
+        into = self._guided_into()
+        key = self.slot_box.tobytes() + into.tobytes()
+        if self._open is None or self._open[0] != key:
+            filled = self.slot_box >= 0
+            taken = filled | (into >= 0)  # a slot a box is being guided into is no longer open
+            is_open = np.array([not taken[s] and bool(np.all(filled[self.support[s]])) for s in range(self.S)])
+            self._open = (key, is_open)
+        return self._open[1].copy()
 
     @property
     def boxes_placed(self) -> int:
@@ -333,8 +366,9 @@ class ConstructionRuntime(TaskBase):
         self._constraints[i] = self.world.attach(
             agent_body, body, max_force=self.spec.grip_force, square=self.spec.square_grip
         )
+        self.world.set_pair_collision(agent_body, body, False)  # the grip: never a contact
         for other in self._ghost_partners(i, agent_body):
-            self.world.set_pair_collision(other, body, False)
+            self.world.set_ghost_pair(other, body, True)
         self.state[i] = CARRIED
         self.carried_by[i] = agent
         self.grasps += 1
@@ -348,8 +382,9 @@ class ConstructionRuntime(TaskBase):
             return -1
         i = int(held[0])
         self.world.detach(self._constraints.pop(i))
+        self.world.set_pair_collision(agent_body, self.bodies[i], True)
         for other in self._ghost_partners(i, agent_body):
-            self.world.set_pair_collision(other, self.bodies[i], True)
+            self.world.set_ghost_pair(other, self.bodies[i], False)
         self.state[i] = FREE
         self.carried_by[i] = -1
         self.releases += 1
@@ -409,12 +444,13 @@ class ConstructionRuntime(TaskBase):
         return [int(b) for b in into[near] if b >= 0]
 
     def _ghost_partners(self, box: int, agent_body: int) -> list[int]:
-        """Bodies a carried box must not touch: its carrier; in ghost mode also every agent and every
-        other carried box (agents and their loads pass through each other, contacts are still counted)."""
+        """Bodies a carried box passes through in ghost mode, their overlaps still reported as contacts: every
+        other agent and every other carried box (agents and their loads pass through each other). None in
+        physical mode."""
         if not self.ghost:
-            return [agent_body]
+            return []
         others = [self.bodies[j] for j in np.nonzero(self.state == CARRIED)[0] if j != box]
-        return [*self.world.agent_bodies, *others]
+        return [*(a for a in self.world.agent_bodies if a != agent_body), *others]
 
     def carrying(self, n: int) -> NDArray[np.int64]:
         """(n,) box held by each agent, or -1."""
@@ -500,12 +536,18 @@ class ConstructionRuntime(TaskBase):
         seen_b = self._free()[None, :] & self.in_view(self.grasp_points()[None, :, :] - true_positions[:, None, :])
         seen_s = self.slot_open[None, :] & self.in_view((self.slots + gh)[None, :, :] - true_positions[:, None, :])
         shift = sensed_positions - true_positions
-        out = []
-        for i in range(n):
-            boxes = np.flatnonzero(seen_b[i])
-            slots = np.flatnonzero(seen_s[i])
-            out.append(LocalView(self.positions[boxes] + shift[i], boxes, self.slots[slots], slots))
-        return out
+        # every (agent, object) in view at once, in agent order; each agent's rows are one slice of them
+        ab, boxes = np.nonzero(seen_b)
+        at, slots = np.nonzero(seen_s)
+        box_pos = self.positions[boxes] + shift[ab]
+        slot_pos = self.slots[slots]
+        rows = np.arange(n + 1)
+        b_lo = np.searchsorted(ab, rows).tolist()
+        s_lo = np.searchsorted(at, rows).tolist()
+        return [
+            LocalView(box_pos[b0:b1], boxes[b0:b1], slot_pos[s0:s1], slots[s0:s1])
+            for b0, b1, s0, s1 in zip(b_lo, b_lo[1:], s_lo, s_lo[1:])
+        ]
 
     def apply(self, agent: int, action: Action, t: float, position: NDArray[np.float64]) -> float | None:
         """GRASP the free box at the agent's grasp point, or RELEASE the one it holds; returns the new

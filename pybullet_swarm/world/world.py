@@ -88,7 +88,13 @@ class World:
         self._apply_torque = pb.applyExternalTorque
         self._step = pb.stepSimulation
         self._contacts = pb.getContactPoints
+        self._closest = pb.getClosestPoints
         self._poses: list[Any] = []
+        self._version = 0  # changes whenever a body may have moved (a step, a teleport)
+        self._states: NDArray[np.float64] | None = None  # (n, 13), the array of the last read_agent_states
+        self._ghost_pairs: set[tuple[int, int]] = set()
+        self._ghosts: _GhostIndex | None = None  # built from _ghost_pairs when first needed
+        self._reach: dict[int, float] = {}  # m, per body: farthest point of its shape from its base position
 
     # ------------------------------------------------------------------ bodies
     def add_ground(self) -> int:
@@ -217,10 +223,10 @@ class World:
         self._poses = [self._get_pose(b, cid)[0] for b in self._agents]
 
     def set_agent_collisions(self, enabled: bool) -> None:
-        """Enable or disable contact response between agents (ghost mode passes them through)."""
-        cid = self._cid
+        """Enable or disable contact response between agents; disabled, every pair of agents is a ghost
+        pair (``set_ghost_pair``): they pass through each other and their overlaps are still reported."""
         for a, b in itertools.combinations(self._agents, 2):
-            pb.setCollisionFilterPair(a, b, -1, -1, int(enabled), physicsClientId=cid)
+            self.set_ghost_pair(a, b, not enabled)
 
     def _register(self, body: int, kind: BodyKind, name: str) -> None:
         self._kind[body] = kind
@@ -263,6 +269,7 @@ class World:
             flat += ang
         self._poses = poses
         out.reshape(-1)[:] = flat
+        self._states = out
 
     def apply_agent_wrenches(self, forces: NDArray[np.float64], torques: NDArray[np.float64]) -> None:
         """Apply one world-frame force at the centre of mass and one torque per agent.
@@ -280,13 +287,98 @@ class World:
     def step(self) -> None:
         """Advance the physics by one time step."""
         self._step(self._cid)
+        self._version += 1
+
+    @property
+    def state_version(self) -> int:
+        """A counter that changes whenever a body may have moved (a physics step, a teleport): states read at
+        one value are still the states while it holds it."""
+        return self._version
+
+    def read_body_states(self, bodies: Sequence[int], out: NDArray[np.float64]) -> None:
+        """Read the states of ``bodies`` into ``out`` (k, 13), as ``read_agent_states`` does for the agents."""
+        cid = self._cid
+        gp, gv = self._get_pose, self._get_vel
+        flat: list[float] = []
+        for b in bodies:
+            pos, orn = gp(b, cid)
+            vel, ang = gv(b, cid)
+            flat += pos
+            flat += orn
+            flat += vel
+            flat += ang
+        out.reshape(-1)[:] = flat
 
     def contact_pairs(self) -> frozenset[tuple[int, int]] | set[tuple[int, int]]:
-        """Body pairs (a < b) in contact now, from one Bullet query."""
+        """Body pairs (a < b) in contact now: Bullet's contacts (one query) and the ghost pairs whose
+        shapes overlap (``set_ghost_pair``), as if their contacts were enabled."""
         pts = self._contacts(-1, -1, -2, -2, self._cid)
-        if not pts:
-            return _NO_PAIRS
-        return {(p[1], p[2]) if p[1] < p[2] else (p[2], p[1]) for p in pts}
+        pairs: frozenset[tuple[int, int]] | set[tuple[int, int]] = _NO_PAIRS
+        if pts:
+            pairs = {(p[1], p[2]) if p[1] < p[2] else (p[2], p[1]) for p in pts}
+        if self._ghost_pairs:
+            extra = self.ghost_overlaps()
+            if extra:
+                pairs = set(pairs)
+                pairs.update(extra)
+        return pairs
+
+    def ghost_overlaps(self) -> list[tuple[int, int]]:
+        """Ghost pairs (a < b) whose collision shapes overlap now.
+
+        One broad phase for all bodies of ghost pairs (bounding spheres about their base positions;
+        agents' positions from the last ``read_agent_states``, other bodies' read now), then Bullet's
+        exact closest-points query only for registered pairs whose spheres overlap.
+        """
+        g = self._ghosts if self._ghosts is not None else self._index_ghosts()
+        cid, c, m = self._cid, g.centres, g.n_agents
+        if m:
+            states = self._states if self._states is not None else np.array(self._poses, dtype=float)
+            c[:m] = states[g.agent_rows, :3]
+        if g.others:
+            gp = self._get_pose
+            c[m:] = [gp(b, cid)[0] for b in g.others]
+        near = g.near_pairs(c)
+        closest = self._closest
+        return [(a, b) for a, b in near if closest(a, b, 0.0, physicsClientId=cid)]
+
+    def set_ghost_pair(self, a: int, b: int, ghost: bool) -> None:
+        """Make two bodies ghosts of each other (``ghost``): no contact response between them, but their
+        overlaps are reported by ``contact_pairs`` as contacts; or give them contacts again."""
+        pb.setCollisionFilterPair(a, b, -1, -1, int(not ghost), physicsClientId=self._cid)
+        self._set_ghost(a, b, ghost)
+
+    @property
+    def ghost_pairs(self) -> frozenset[tuple[int, int]]:
+        """The registered ghost pairs (a < b)."""
+        return frozenset(self._ghost_pairs)
+
+    def _set_ghost(self, a: int, b: int, ghost: bool) -> None:
+        key = (a, b) if a < b else (b, a)
+        if ghost:
+            self._ghost_pairs.add(key)
+        else:
+            self._ghost_pairs.discard(key)
+        self._ghosts = None
+
+    def _index_ghosts(self) -> _GhostIndex:
+        bodies = {b for pair in self._ghost_pairs for b in pair}
+        agents = [b for b in self._agents if b in bodies]
+        others = sorted(bodies.difference(agents))
+        row = {b: i for i, b in enumerate(self._agents)}
+        reach = np.array([self._body_reach(b) for b in agents + others])
+        self._ghosts = _GhostIndex([row[b] for b in agents], agents, others, reach, self._ghost_pairs)
+        return self._ghosts
+
+    def _body_reach(self, body: int) -> float:
+        """m, an upper bound of the distance from a body's base position to any point of its collision shape
+        (the farthest corner of its bounding box; the shape is rigid, so it holds in any pose)."""
+        if body not in self._reach:
+            lo, hi = pb.getAABB(body, -1, physicsClientId=self._cid)
+            pos = np.asarray(pb.getBasePositionAndOrientation(body, physicsClientId=self._cid)[0])
+            corners = np.array(list(itertools.product(*zip(lo, hi))))
+            self._reach[body] = float(np.max(np.linalg.norm(corners - pos, axis=1)))
+        return self._reach[body]
 
     def reset_agent(
         self,
@@ -300,6 +392,9 @@ class World:
         b = self._agents[index]
         pb.resetBasePositionAndOrientation(b, list(position), list(quaternion), physicsClientId=self._cid)
         pb.resetBaseVelocity(b, list(velocity), list(angular_velocity), physicsClientId=self._cid)
+        self._poses[index] = tuple(float(v) for v in position)
+        self._states = None  # no longer what the agents' states are
+        self._version += 1
 
     def reset_body(self, body: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1)) -> None:
         """Teleport any body to a pose, at rest."""
@@ -307,6 +402,10 @@ class World:
             body, list(map(float, position)), list(map(float, quaternion)), physicsClientId=self._cid
         )
         pb.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=self._cid)
+        self._version += 1
+        if self._kind.get(body) is BodyKind.AGENT:
+            self._poses[self._agents.index(body)] = tuple(float(v) for v in position)
+            self._states = None
 
     def body_pose(self, body: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Position (3,) m and quaternion (4,) of any body."""
@@ -391,8 +490,10 @@ class World:
         pb.changeConstraint(constraint, maxForce=float(max_force), physicsClientId=self._cid)
 
     def set_pair_collision(self, a: int, b: int, enabled: bool) -> None:
-        """Enable or disable contacts between two bodies."""
+        """Enable or disable contacts between two bodies; disabled, their overlaps are not reported either
+        (a held load and its carrier; see ``set_ghost_pair`` for pairs whose overlaps count)."""
         pb.setCollisionFilterPair(a, b, -1, -1, int(enabled), physicsClientId=self._cid)
+        self._set_ghost(a, b, False)
 
     def overlapping(self, a: int, b: int) -> bool:
         """True when two bodies' collision shapes overlap (works with their contacts disabled)."""
@@ -537,6 +638,94 @@ class World:
             self.close()
         except Exception:
             pass
+
+
+class _GhostIndex:
+    """The bodies of the registered ghost pairs and the per-step broad phase over them.
+
+    Args:
+        agent_rows: (m,) row of each ghost agent in the world's agent order.
+        agents: (m,) their body handles.
+        others: handles of the ghost bodies that are not agents (their positions are read each step).
+        reach: (m + len(others),) m, bounding-sphere radius of each body about its base position, agents first.
+        pairs: the registered ghost pairs (a < b) of body handles.
+    """
+
+    #: up to this many bodies, one vectorised test of every registered pair's spheres; beyond, a k-d tree
+    #: (``sphere_pairs``) finds the overlapping spheres, and the registered pairs among them are kept
+    DENSE_MAX_BODIES = 48  # where the two cost about the same (about 27 us a step on this machine)
+    SLACK = 0.01  # m, added to the sum of two bounding radii
+
+    def __init__(
+        self,
+        agent_rows: list[int],
+        agents: list[int],
+        others: list[int],
+        reach: NDArray[np.float64],
+        pairs: set[tuple[int, int]],
+    ) -> None:
+        bodies = agents + others
+        self.bodies = np.asarray(bodies, dtype=np.int64)
+        m = len(agent_rows)
+        self.n_agents = m
+        # agents' rows in the state array; a slice when they are the first m agents (a view, no gather)
+        self.agent_rows: slice | NDArray[np.int64] = (
+            slice(0, m) if agent_rows == list(range(m)) else np.asarray(agent_rows, dtype=np.int64)
+        )
+        self.others = others
+        self.reach = reach
+        self.pairs = frozenset(pairs)
+        self.centres = np.zeros((len(bodies), 3))  # m, filled each step
+        self.dense = len(bodies) <= self.DENSE_MAX_BODIES
+        if self.dense:  # every registered pair (handles a < b): its squared reach, and +1 / -1 at its bodies
+            at = {b: i for i, b in enumerate(bodies)}
+            self.ab = sorted(pairs)
+            i = np.array([at[a] for a, _ in self.ab], dtype=np.int64)
+            j = np.array([at[b] for _, b in self.ab], dtype=np.int64)
+            self.limit2 = (reach[i] + reach[j] + self.SLACK) ** 2
+            # (p, k): one matrix product gives every pair's separation (faster than gathers on small arrays)
+            self.difference = np.zeros((len(i), len(bodies)))
+            self.difference[np.arange(len(i)), i] = 1.0
+            self.difference[np.arange(len(i)), j] = -1.0
+
+    def near_pairs(self, centres: NDArray[np.float64]) -> list[tuple[int, int]]:
+        """Registered pairs (a < b) whose bounding spheres overlap, given the base positions (k, 3) m."""
+        if self.dense:
+            d = self.difference @ centres
+            d *= d
+            near = d @ _ONES3 <= self.limit2
+            if not near.any():
+                return []
+            ab = self.ab
+            return [ab[k] for k in np.flatnonzero(near).tolist()]
+        i, j = sphere_pairs(centres, self.reach, self.SLACK)
+        a, b = self.bodies[i], self.bodies[j]
+        lo, hi = np.minimum(a, b).tolist(), np.maximum(a, b).tolist()
+        pairs = self.pairs
+        return [p for p in zip(lo, hi) if p in pairs]
+
+
+_ONES3 = np.ones(3)
+
+
+def sphere_pairs(
+    centres: NDArray[np.float64], radii: NDArray[np.float64], slack: float = 0.0
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Index pairs (i, j), i < j, of spheres (centres (k, 3) m, radii (k,) m) that overlap within ``slack`` m.
+
+    One k-d tree query for the pairs within the largest reach (compiled, no loop over spheres), then each
+    candidate tested with its own radii.
+    """
+    from scipy.spatial import cKDTree
+
+    empty = np.zeros(0, dtype=np.int64)
+    if len(centres) < 2:
+        return empty, empty
+    ij = cKDTree(centres).query_pairs(2.0 * float(np.max(radii)) + slack, output_type="ndarray")
+    i, j = ij[:, 0].astype(np.int64), ij[:, 1].astype(np.int64)
+    d = centres[i] - centres[j]
+    keep = np.einsum("ij,ij->i", d, d) <= (radii[i] + radii[j] + slack) ** 2
+    return i[keep], j[keep]
 
 
 def _nearest_quarter_turn(q: Any) -> tuple[float, float, float, float]:

@@ -506,14 +506,16 @@ def test_same_seed_same_run_and_each_agent_draws_its_own_random_numbers():
 @pytest.mark.slow
 def test_thesis_task_both_planners_complete_and_the_presence_layer_cuts_time_in_collision():
     """Thesis chapters 5 and 6 on the full task (5 agents, 9 boxes, ghost collisions): both finish;
-    the layered variant spends far less time with agents overlapping."""
+    the layered variant spends far less time with agents overlapping each other and the boxes others carry
+    (ghost mode counts an agent in another's load as physical mode would: 18 onsets plain, 6 layered)."""
     m = {p: pybullet_swarm.run("construction", planner=p, seed=1).metrics for p in ("stigmergy", "layered_stigmergy")}
     for metrics in m.values():
         assert metrics["exit_status"] == "completed", metrics
         assert metrics["boxes_placed"] == 9 and metrics["pheromone"]["tallies"]["goals_found"] == 9
-        assert metrics["collisions"]["agent_structure"] == 0 and metrics["collisions"]["agent_box"] == 0
-    plain, layered = (m[p]["collision_time_s"]["agent_agent"] for p in ("stigmergy", "layered_stigmergy"))
-    assert layered < 0.5 * plain
+        assert metrics["collisions"]["agent_structure"] == 0
+    for cls in ("agent_agent", "agent_box"):
+        plain, layered = (m[p]["collision_time_s"][cls] for p in ("stigmergy", "layered_stigmergy"))
+        assert layered < 0.5 * plain, cls
     assert m["layered_stigmergy"]["pheromone"]["tallies"]["presence_replans"] > 0
 
 

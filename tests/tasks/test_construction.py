@@ -286,3 +286,68 @@ def test_a_bonded_box_springs_back_into_its_slot_after_a_shove(make_sim):
     c.update(sim.time)
     assert c.slot_box[0] == 0
     assert np.linalg.norm(c.positions[0] - c.slots[0]) < 1e-3
+
+
+def _judge_slot_by_slot(c, tilt, yaw):
+    """The slot rule written out one slot at a time (the reference for the vectorised judgement)."""
+    tol_a = np.radians(c.spec.place_tolerance_deg)
+    wide = 1.0 + c.spec.place_hysteresis
+    loose = c.state != CARRIED
+    aligned = (tilt <= tol_a) & (yaw <= tol_a)
+    kept = loose & (tilt <= wide * tol_a) & (yaw <= wide * tol_a)
+    d = np.linalg.norm(c.positions[None, :, :] - c.slots[:, None, :], axis=2)
+    out = np.full(c.S, -1)
+    for s in range(c.S):
+        b = c.slot_box[s]
+        if b >= 0 and kept[b] and d[s, b] <= wide * c.spec.place_tolerance_m:
+            out[s] = b
+            continue
+        cand = np.nonzero((d[s] <= c.spec.place_tolerance_m) & aligned & loose)[0]
+        if cand.size:
+            out[s] = cand[np.argmin(d[s, cand])]
+    return out
+
+
+def test_slots_judged_at_once_as_slot_by_slot(make_sim):
+    """Boxes scattered near the slots (inside, on and beyond the tolerances, some tilted, some carried,
+    some slots already holding a box): the judgement of every slot at once matches the rule slot by slot."""
+    from pybullet_swarm.rng import named_rng
+    from pybullet_swarm.tasks.construction import _box_tilt_and_yaw_error
+
+    c = make_sim(load_scenario("construction")).task
+    rng = named_rng(0, "test/judge_slots")
+    tol = c.spec.place_tolerance_m
+    changed = 0
+    for _ in range(300):
+        near = rng.integers(0, c.S, size=c.B)
+        c._states[:, :3] = c.slots[near] + rng.normal(0.0, tol, size=(c.B, 3))
+        c._states[:, 3:7] = np.array([0.0, 0.0, 0.0, 1.0]) + rng.normal(0.0, 0.1, size=(c.B, 4)) * (
+            rng.random((c.B, 1)) < 0.3
+        )
+        c._states[:, 3:7] /= np.linalg.norm(c._states[:, 3:7], axis=1, keepdims=True)
+        c.positions[:], c.quaternions[:] = c._states[:, :3], c._states[:, 3:7]
+        c.state = np.where(rng.random(c.B) < 0.2, CARRIED, np.where(c.state == CARRIED, FREE, c.state))
+        before = c.slot_box.copy()
+        expected = _judge_slot_by_slot(c, *_box_tilt_and_yaw_error(c.quaternions))
+        c._judge_slots(0.0)
+        assert np.array_equal(c.slot_box, expected)
+        changed += int(np.any(c.slot_box != before))
+    assert changed > 50
+
+
+def test_boxes_are_read_once_per_state_of_the_world(make_sim, monkeypatch):
+    sim = make_sim(load_scenario("construction_single", {"agents.start_jitter": 0.0}))
+    c, world = sim.task, sim.world
+    reads = []
+    read = world.read_body_states
+    monkeypatch.setattr(world, "read_body_states", lambda bodies, out: (reads.append(1), read(bodies, out)))
+    c.read()
+    c.sample()
+    c.update(sim.time)
+    assert len(reads) == 1  # one state, one read
+    world.reset_body(c.bodies[0], c.slots[0])  # a teleport is a new state
+    c.update(sim.time)
+    assert len(reads) == 2 and c.slot_box[0] == 0
+    sim.step(1)  # so is a step
+    c.sample()
+    assert len(reads) == 3
