@@ -380,7 +380,8 @@ class Simulation:
         if ka is not BodyKind.AGENT:
             a, b, ka, kb = b, a, kb, ka
         if ka is not BodyKind.AGENT:
-            return None
+            load = self.task.body_contact_class(a, b)
+            return None if load is None else CollisionClass(load)
         if kb is BodyKind.AGENT:
             return CollisionClass.AGENT_AGENT
         if kb is BodyKind.GROUND:
@@ -489,6 +490,7 @@ class Simulation:
         payload = self.task.apply(agent, action, self.time if t is None else t, self.state_array[agent, :3])
         if payload is not None:
             self.controller.set_payload(agent, payload)
+            self.contacts.reclassify_all()  # a box changed role: its touching pairs count differently
 
     def perceive(self, *, neighbours: bool | None = None) -> Perception:
         """The swarm's perception snapshot now (one spatial query; neighbour noise drawn when flying on

@@ -9,13 +9,16 @@ import numpy as np
 
 
 class CollisionClass(str, enum.Enum):
-    """Classes of agent contacts."""
+    """Classes of contacts: an agent's, and a carried load's (a box an agent holds) with other task bodies."""
 
     AGENT_AGENT = "agent_agent"
     AGENT_BOX = "agent_box"
     AGENT_STRUCTURE = "agent_structure"
     AGENT_GROUND = "agent_ground"
     AGENT_OBSTACLE = "agent_obstacle"
+    LOAD_LOAD = "load_load"  # two agents' carried boxes
+    LOAD_BOX = "load_box"  # a carried box and a free box
+    LOAD_STRUCTURE = "load_structure"  # a carried box and a placed one
 
 
 COLLISION_CLASSES: tuple[str, ...] = tuple(c.value for c in CollisionClass)
@@ -71,6 +74,12 @@ class ContactTracker:
     def reclassify(self, pair: tuple[int, int]) -> None:
         """Classify an active pair again (its bodies changed role, e.g. a box was released)."""
         if pair in self._active:
+            self._active[pair] = self.classify(*pair)
+
+    def reclassify_all(self) -> None:
+        """Classify every touching pair again (a body changed role: a box grasped or released); a pair
+        that now counts accumulates contact time from here, it is not a new onset."""
+        for pair in self._active:
             self._active[pair] = self.classify(*pair)
 
 

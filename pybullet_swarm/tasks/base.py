@@ -115,6 +115,10 @@ class TaskRuntime(Protocol):
         body ``body``, None when it does not count (a carried load and its carrier), ``NOT_MINE`` for a
         body the task does not own."""
 
+    def body_contact_class(self, a: int, b: int) -> str | None:
+        """The collision class of a contact between two bodies neither of which is an agent (e.g. a carried
+        load touching the structure), None when it does not count or the task does not own them."""
+
     def sample(self) -> dict[str, NDArray[np.float64]]:
         """Channels to record at the recording rate (e.g. box positions), by name."""
 
@@ -151,6 +155,10 @@ class TaskBase:
     def contact_class(self, agent: int, body: int) -> str | None:
         """The task owns no bodies."""
         return NOT_MINE
+
+    def body_contact_class(self, a: int, b: int) -> str | None:
+        """No contact between bodies that are not agents counts."""
+        return None
 
     def sample(self) -> dict[str, NDArray[np.float64]]:
         """Nothing extra to record."""

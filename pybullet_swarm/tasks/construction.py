@@ -569,6 +569,22 @@ class ConstructionRuntime(TaskBase):
             return None
         return (CollisionClass.AGENT_STRUCTURE if self.state[box] == PLACED else CollisionClass.AGENT_BOX).value
 
+    def body_contact_class(self, a: int, b: int) -> str | None:
+        """A carried box touching another carried box (``load_load``), a free box (``load_box``) or a placed
+        one (``load_structure``; a box being guided into its slot counts as placed); nothing else counts."""
+        i, j = self.body_to_box.get(a), self.body_to_box.get(b)
+        if i is None or j is None:
+            return None
+        if self.state[i] != CARRIED:
+            i, j = j, i
+        if self.state[i] != CARRIED:
+            return None
+        if self.state[j] == CARRIED:
+            return CollisionClass.LOAD_LOAD.value
+        if self.state[j] == PLACED or self.guided_slot[j] >= 0:
+            return CollisionClass.LOAD_STRUCTURE.value
+        return CollisionClass.LOAD_BOX.value
+
     def refresh(self) -> None:
         """Read the boxes' poses now."""
         self.read()

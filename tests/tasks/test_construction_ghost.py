@@ -1,5 +1,6 @@
 """Ghost mode counts what physical mode counts: the same overlaps of agents and carried boxes, placed in
-both modes, give the same contact pairs and the same counts per class."""
+both modes, give the same contact pairs and the same counts per class (agent with agent, agent with a
+carried box, carried box with carried box, carried box with the structure)."""
 
 from __future__ import annotations
 
@@ -64,8 +65,12 @@ def _carried_box_on_structure(sim) -> None:
 CASES = {
     "agent_agent": (_agent_agent, lambda c: [("agent", 0), ("agent", 1)], {"agent_agent": 1}),
     "agent_in_carried_box": (_agent_in_carried_box, lambda c: [("agent", 1), ("box", 0)], {"agent_box": 1}),
-    "carried_boxes": (_carried_boxes, lambda c: [("box", 0), ("box", 1)], {"agent_box": 1}),
-    "carried_box_on_structure": (_carried_box_on_structure, lambda c: [("box", 0), ("box", 2)], {}),
+    "carried_boxes": (_carried_boxes, lambda c: [("box", 0), ("box", 1)], {"agent_box": 1, "load_load": 1}),
+    "carried_box_on_structure": (
+        _carried_box_on_structure,
+        lambda c: [("box", 0), ("box", 2)],
+        {"load_structure": 1},
+    ),
 }
 
 
