@@ -223,9 +223,14 @@ class ConstructionRuntime(TaskBase):
         ]
         self.body_to_box = {b: i for i, b in enumerate(self.bodies)}
         self.support = supporters(self.slots, spec.box_size)
+        self._supported_by = np.zeros((self.S, self.S), dtype=bool)  # (S, S) slot s rests on slot k
+        for k, under in enumerate(self.support):
+            self._supported_by[k, under] = True
         self.positions = self.start.copy()  # (B, 3) m
         self.quaternions = np.tile([0.0, 0.0, 0.0, 1.0], (self.B, 1))
         self.speeds = np.zeros(self.B)  # m/s
+        self._states = np.zeros((self.B, 13))  # (B, 13) rows of World.read_body_states
+        self._read_at = -1  # World.version of the last read
         self.state = np.zeros(self.B, dtype=np.int64)  # FREE / CARRIED / PLACED
         self.carried_by = np.full(self.B, -1, dtype=np.int64)
         self.slot_box = np.full(self.S, -1, dtype=np.int64)  # box in each slot, -1 when empty
@@ -252,13 +257,19 @@ class ConstructionRuntime(TaskBase):
 
     # ------------------------------------------------------------ bookkeeping
     def read(self) -> None:
-        """Read box poses and speeds from the World."""
-        for i, b in enumerate(self.bodies):
-            p, q = self.world.body_pose(b)
-            v, _ = self.world.body_velocity(b)
-            self.positions[i] = p
-            self.quaternions[i] = q
-            self.speeds[i] = float(np.linalg.norm(v))
+        """Read box poses and speeds from the World (one pass over the boxes)."""
+        st = self._states
+        self.world.read_body_states(self.bodies, st)
+        self.positions[:] = st[:, :3]
+        self.quaternions[:] = st[:, 3:7]
+        self.speeds[:] = np.sqrt(np.einsum("ij,ij->i", st[:, 7:10], st[:, 7:10]))
+        self._read_at = self.world.version
+
+    def _fresh(self) -> None:
+        """Read the boxes unless nothing moved since the last read (the planner tick and the
+        recording tick often fall between the same two physics steps)."""
+        if self._read_at != self.world.version:
+            self.read()
 
     def _update_slots(self, t: float) -> None:
         tilt, yaw = _box_tilt_and_yaw_error(self.quaternions)
@@ -271,20 +282,21 @@ class ConstructionRuntime(TaskBase):
         # (a box resting on the boundary would otherwise flicker between placed and free)
         wide = 1.0 + self.spec.place_hysteresis
         kept = loose & (tilt <= wide * tol_a) & (yaw <= wide * tol_a)
-        for s in range(self.S):
-            b = self.slot_box[s]
-            if b >= 0 and kept[b] and d[s, b] <= wide * self.spec.place_tolerance_m:
-                new_slot_box[s] = b
-                continue
-            cand = np.nonzero((d[s] <= self.spec.place_tolerance_m) & aligned & loose)[0]
-            if cand.size:
-                new_slot_box[s] = cand[np.argmin(d[s, cand])]
-        for s in range(self.S):
-            if new_slot_box[s] != self.slot_box[s]:
-                if new_slot_box[s] >= 0:
-                    self.events.append(Event(t, "placed", f"box{new_slot_box[s]}", f"slot{s}"))
-                else:
-                    self.events.append(Event(t, "unplaced", f"box{self.slot_box[s]}", f"slot{s}"))
+        # every slot at once: a slot keeps its box while it stays within the wide tolerances, else it
+        # takes the nearest loose, aligned box within the tolerance (the lowest id among equals)
+        rows = np.arange(self.S)
+        old = self.slot_box
+        b = np.maximum(old, 0)
+        stays = (old >= 0) & kept[b] & (d[rows, b] <= wide * self.spec.place_tolerance_m)
+        cand = np.where((d <= self.spec.place_tolerance_m) & (aligned & loose)[None, :], d, np.inf)  # (S, B)
+        nearest = np.argmin(cand, axis=1)
+        found = np.isfinite(cand[rows, nearest])
+        new_slot_box[:] = np.where(stays, old, np.where(found, nearest, -1))
+        for s in np.flatnonzero(new_slot_box != old).tolist():
+            if new_slot_box[s] >= 0:
+                self.events.append(Event(t, "placed", f"box{new_slot_box[s]}", f"slot{s}"))
+            else:
+                self.events.append(Event(t, "unplaced", f"box{old[s]}", f"slot{s}"))
         self.slot_box = new_slot_box
         placed = np.zeros(self.B, dtype=bool)
         placed[new_slot_box[new_slot_box >= 0]] = True
@@ -294,7 +306,7 @@ class ConstructionRuntime(TaskBase):
     def slot_open(self) -> NDArray[np.bool_]:
         """(S,) True for empty slots whose supporting slots are all filled."""
         filled = self.slot_box >= 0
-        return np.array([not filled[s] and bool(np.all(filled[self.support[s]])) for s in range(self.S)])
+        return ~filled & ~np.any(self._supported_by & ~filled[None, :], axis=1)
 
     @property
     def boxes_placed(self) -> int:
@@ -361,7 +373,7 @@ class ConstructionRuntime(TaskBase):
     def update(self, t: float, positions: NDArray[np.float64] | None = None) -> bool:
         """Read the boxes, update the slots and check completion at time ``t``; True once completed
         (the agents' ``positions`` are not needed)."""
-        self.read()
+        self._fresh()
         self._update_slots(t)
         if self.completed_at is not None:
             return True
@@ -464,7 +476,7 @@ class ConstructionRuntime(TaskBase):
 
     def sample(self) -> dict[str, NDArray[np.float64]]:
         """Box positions (B, 3) m, orientations (B, 4) (x, y, z, w) and carriers (B,) (agent, -1: none) now."""
-        self.read()
+        self._fresh()
         return {"box_positions": self.positions, "box_quaternions": self.quaternions, "box_carried_by": self.carried_by}
 
     def metrics(

@@ -89,6 +89,9 @@ class World:
         self._step = pb.stepSimulation
         self._contacts = pb.getContactPoints
         self._poses: list[Any] = []
+        #: advances whenever bodies may have moved (a physics step, a teleport): readers that keep
+        #: what they read compare it to know whether to read again
+        self.version = 0
 
     # ------------------------------------------------------------------ bodies
     def add_ground(self) -> int:
@@ -264,6 +267,20 @@ class World:
         self._poses = poses
         out.reshape(-1)[:] = flat
 
+    def read_body_states(self, bodies: Sequence[int], out: NDArray[np.float64]) -> None:
+        """Read the states of any bodies into ``out`` (k, 13), rows as in ``read_agent_states``."""
+        cid = self._cid
+        gp, gv = self._get_pose, self._get_vel
+        flat: list[float] = []
+        for b in bodies:
+            pos, orn = gp(b, cid)
+            vel, ang = gv(b, cid)
+            flat += pos
+            flat += orn
+            flat += vel
+            flat += ang
+        out.reshape(-1)[:] = flat
+
     def apply_agent_wrenches(self, forces: NDArray[np.float64], torques: NDArray[np.float64]) -> None:
         """Apply one world-frame force at the centre of mass and one torque per agent.
 
@@ -280,6 +297,7 @@ class World:
     def step(self) -> None:
         """Advance the physics by one time step."""
         self._step(self._cid)
+        self.version += 1
 
     def contact_pairs(self) -> frozenset[tuple[int, int]] | set[tuple[int, int]]:
         """Body pairs (a < b) in contact now, from one Bullet query."""
@@ -300,6 +318,7 @@ class World:
         b = self._agents[index]
         pb.resetBasePositionAndOrientation(b, list(position), list(quaternion), physicsClientId=self._cid)
         pb.resetBaseVelocity(b, list(velocity), list(angular_velocity), physicsClientId=self._cid)
+        self.version += 1
 
     def reset_body(self, body: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1)) -> None:
         """Teleport any body to a pose, at rest."""
@@ -307,6 +326,7 @@ class World:
             body, list(map(float, position)), list(map(float, quaternion)), physicsClientId=self._cid
         )
         pb.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=self._cid)
+        self.version += 1
 
     def body_pose(self, body: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Position (3,) m and quaternion (4,) of any body."""
