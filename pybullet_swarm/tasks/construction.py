@@ -434,21 +434,32 @@ class ConstructionRuntime(TaskBase):
         """Free boxes and open slots in each agent's view (measured from where the airframe truly is).
 
         Boxes are seen relative to the airframe, so they appear in the agent's own (possibly
-        estimated) frame; slots are planned coordinates and are given as they are.
+        estimated) frame; slots are planned coordinates and are given as they are. One pass over
+        all agents: every view is a read-only slice of the same few arrays.
         """
         n = len(true_positions)
         gh = np.array([0.0, 0.0, self.grasp_height])
-        seen_b = (self.state == FREE)[None, :] & self.in_view(
-            self.grasp_points()[None, :, :] - true_positions[:, None, :]
-        )
-        seen_s = self.slot_open[None, :] & self.in_view((self.slots + gh)[None, :, :] - true_positions[:, None, :])
-        shift = sensed_positions - true_positions
-        out = []
-        for i in range(n):
-            boxes = np.flatnonzero(seen_b[i])
-            slots = np.flatnonzero(seen_s[i])
-            out.append(LocalView(self.positions[boxes] + shift[i], boxes, self.slots[slots], slots))
-        return out
+        free, open_ = np.flatnonzero(self.state == FREE), np.flatnonzero(self.slot_open)
+        seen_b = self.in_view((self.positions[free] + gh)[None, :, :] - true_positions[:, None, :])  # (n, free)
+        seen_s = self.in_view((self.slots[open_] + gh)[None, :, :] - true_positions[:, None, :])  # (n, open)
+        ab, kb = np.nonzero(seen_b)  # agents ascending, then ids ascending
+        a_s, ks = np.nonzero(seen_s)
+        box_ids, slot_ids = free[kb], open_[ks]
+        boxes = self.positions[box_ids] + (sensed_positions - true_positions)[ab]
+        slots = self.slots[slot_ids]
+        for arr in (box_ids, slot_ids, boxes, slots):
+            arr.flags.writeable = False
+        bs = np.searchsorted(ab, np.arange(n + 1)).tolist()
+        ss = np.searchsorted(a_s, np.arange(n + 1)).tolist()
+        return [
+            LocalView(
+                boxes[bs[i] : bs[i + 1]],
+                box_ids[bs[i] : bs[i + 1]],
+                slots[ss[i] : ss[i + 1]],
+                slot_ids[ss[i] : ss[i + 1]],
+            )
+            for i in range(n)
+        ]
 
     def apply(self, agent: int, action: Action, t: float, position: NDArray[np.float64]) -> float | None:
         """GRASP the free box at the agent's grasp point, or RELEASE the one it holds; returns the new
