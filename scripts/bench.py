@@ -42,12 +42,17 @@ import platform
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
 from pybullet_swarm.experiment.scenario import load_scenario
 from pybullet_swarm.experiment.simulation import Simulation
+
+
+#: the clock of every measurement: wall-clock time (default), or this process's CPU time with
+#: ``--clock cpu`` (on a machine shared with other work, CPU time is what the process itself spent)
+CLOCK = time.perf_counter
 
 
 #: default scenarios, planner and avoidance layer of each task (None: the scenario's own)
@@ -79,7 +84,7 @@ class StepTimer:
     def __init__(self, sim: Simulation) -> None:
         self.seconds = 0.0
         step = sim.world.step
-        clock = time.perf_counter
+        clock = CLOCK
 
         def timed() -> None:
             t0 = clock()
@@ -105,9 +110,9 @@ def start_hovering(sim: Simulation) -> None:
 def bench_full(sim: Simulation, sim_seconds: float) -> float:
     """Wall-clock seconds for ``sim_seconds`` of the full stack."""
     steps = int(round(sim_seconds * sim.physics_hz))
-    t0 = time.perf_counter()
+    t0 = CLOCK()
     sim.step(steps)
-    wall = time.perf_counter() - t0
+    wall = CLOCK() - t0
     if sim.exit_status.value != "running":
         raise RuntimeError(f"benchmark run ended early: {sim.exit_status.value}")
     return wall
@@ -133,7 +138,7 @@ def bench_floor(sim: Simulation, sim_seconds: float, *, timed: bool = False) -> 
     f = [0.0, 0.0, sim.params.mass * sim.scenario.sim.gravity]
     zero = [0.0, 0.0, 0.0]
     steps = int(round(sim_seconds * sim.physics_hz))
-    clock = time.perf_counter
+    clock = CLOCK
     in_step = 0.0
     t0 = clock()
     for _ in range(steps):
@@ -156,18 +161,22 @@ def bench_task(sim: Simulation, sim_seconds: float, timer: StepTimer) -> tuple[f
     """Run the task for ``sim_seconds`` (less when it ends first): wall seconds, simulated seconds
     advanced and seconds spent in ``stepSimulation``."""
     k0, s0 = sim.step_count, timer.seconds
-    t0 = time.perf_counter()
+    t0 = CLOCK()
     sim.step(int(round(sim_seconds * sim.physics_hz)))
-    wall = time.perf_counter() - t0
+    wall = CLOCK() - t0
     return wall, (sim.step_count - k0) / sim.physics_hz, timer.seconds - s0
 
 
-def task_scenario(name: str, agents: int | None, sim_seconds: float):
-    """The bundled scenario ``name`` with a time limit just past the measurement (and ``agents``)."""
-    overrides: dict = {"task.time_limit_s": float(sim_seconds) + 5.0}
+def task_scenario(name: str, agents: int | None, sim_seconds: float, overrides: Sequence[str] = ()):
+    """The bundled scenario ``name`` with ``overrides`` (``key.path=value``), a time limit just past
+    the measurement (and ``agents``)."""
+    from pybullet_swarm.experiment.scenario import parse_override
+
+    data: dict = dict(parse_override(o) for o in overrides)
+    data["task.time_limit_s"] = float(sim_seconds) + 5.0
     if agents is not None:
-        overrides["agents.count"] = agents
-    return load_scenario(name, overrides)
+        data["agents.count"] = agents
+    return load_scenario(name, data)
 
 
 def bench_tasks(
@@ -178,6 +187,7 @@ def bench_tasks(
     repeats: int,
     planner: str | None,
     avoidance: str | None,
+    overrides: Sequence[str] = (),
 ) -> list[dict]:
     """One row per scenario and agent count: the task against hover and floor of as many agents."""
     rows = []
@@ -189,7 +199,7 @@ def bench_tasks(
     print(head)
     for name in scenarios:
         for n_req in agents:
-            scenario = task_scenario(name, n_req, sim_seconds + 1.0)
+            scenario = task_scenario(name, n_req, sim_seconds + 1.0, overrides)
             sim = Simulation(scenario, planner=planner, avoidance=avoidance)
             n = sim.n
             hover = Simulation(hover_scenario(n, scenario.agents.vehicle, sim_seconds))
@@ -218,6 +228,7 @@ def bench_tasks(
                 "avoidance": sim.avoidance_name,
                 "vehicle": scenario.agents.vehicle,
                 "collisions": scenario.collisions,
+                "overrides": list(overrides),
                 "agents": n,
                 "boxes": len(getattr(scenario.task, "boxes", []) or []),
                 "sim_seconds": round(t_sim, 6),
@@ -271,16 +282,16 @@ def bench_env(counts: list[int], sim_seconds: float, repeats: int, period: str) 
         steps = max(1, int(round(sim_seconds / max(repeats, 1) / env.dt)))
 
         def run_env() -> float:
-            t0 = time.perf_counter()
+            t0 = CLOCK()
             for _ in range(steps):
                 env.step(actions)
-            return time.perf_counter() - t0
+            return CLOCK() - t0
 
         def run_plain() -> float:
-            t0 = time.perf_counter()
+            t0 = CLOCK()
             for _ in range(steps):
                 plain.step(chunk)
-            return time.perf_counter() - t0
+            return CLOCK() - t0
 
         warm = max(1, int(round(0.5 / env.dt)))  # warm-up: compiled kernels loaded, caches hot
         for _ in range(warm):
@@ -342,12 +353,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--planner", default=None, help="with --task: planner (default: the task's)")
     ap.add_argument("--avoidance", default=None, help="with --task: avoidance layer (default: the task's)")
     ap.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=VALUE",
+        help="with --task: override a field of every task scenario (repeatable), e.g. collisions=physical",
+    )
+    ap.add_argument(
         "--repeats",
         type=int,
         default=3,
         help="alternate full and floor measurements this many times; the best of each is kept",
     )
     ap.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the results as JSON")
+    ap.add_argument(
+        "--clock",
+        choices=("wall", "cpu"),
+        default="wall",
+        help="time with the wall clock (default) or this process's CPU time (a machine shared with other work)",
+    )
     ap.add_argument(
         "--env",
         action="store_true",
@@ -360,7 +385,11 @@ def main(argv: list[str] | None = None) -> int:
         help="simulated time of one environment step in --env mode",
     )
     args = ap.parse_args(argv)
+    global CLOCK
+    CLOCK = time.process_time if args.clock == "cpu" else time.perf_counter
     meta = {
+        "clock": args.clock,
+        "load_average": [round(x, 2) for x in os.getloadavg()],
         "python": sys.version.split()[0],
         "machine": platform.machine(),
         "numpy": np.__version__,
@@ -380,6 +409,7 @@ def main(argv: list[str] | None = None) -> int:
             args.repeats,
             args.planner or planner,
             args.avoidance or avoidance,
+            args.overrides,
         )
         if args.json is not None:
             args.json.write_text(json.dumps([{**r, **meta} for r in rows], indent=2) + "\n")
