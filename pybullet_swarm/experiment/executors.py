@@ -117,10 +117,18 @@ def _start_worker(pid: int, designs: Mapping[tuple[Any, ...], Any]) -> None:
 
 
 def _known_designs() -> dict[tuple[Any, ...], Any]:
-    """The controller designs this process made (planning a sweep validates every configuration)."""
+    """The controller designs this process made (planning a sweep validates every configuration), or
+    none when they cannot be sent to another process (workers then design their own)."""
+    import pickle
+
     from pybullet_swarm.control.design import known_designs
 
-    return known_designs()
+    designs = known_designs()
+    try:
+        pickle.dumps(designs)
+    except Exception:  # noqa: BLE001 - an optimisation only
+        return {}
+    return designs
 
 
 def prestart(method: str | None = None) -> None:
