@@ -5,11 +5,18 @@
                                     [--set key.path=value ...] [--json out.json]
 
 Each measurement is the whole command ``pybullet-swarm sweep SCENARIO --seeds N --workers W
---quiet --no-plots`` in a fresh process and a fresh sweep directory (nothing skipped), timed
-from start to exit: imports, worker start-up, every run, the summary. With ``--repeats`` the
-two are alternated and the fastest of each is kept. Prints the wall times, the speed-up
-``T1 / TK``, the efficiency ``speed-up / K`` and the load average before and after, and checks
-that both sweeps recorded the same numbers (runs are deterministic).
+--no-plots`` in a fresh process and a fresh sweep directory (nothing skipped), timed from start
+to exit: imports, worker start-up, every run, the summary. With ``--repeats`` the two are
+alternated and the fastest of each is kept. Prints the wall times, the speed-up ``T1 / TK``, the
+efficiency ``speed-up / K`` and the load average before and after, and checks that both sweeps
+recorded the same numbers (runs are deterministic).
+
+Where the time went, per measurement (the command's own ``time:`` line and ``runs.csv``):
+``serial_s`` is the command's wall time outside the runs phase (interpreter and imports,
+planning, the summary, the report page), ``runs_s`` the runs phase (first run submitted to
+last row received), ``busy_s`` the runs' own time in their workers summed, and ``busy_share``
+= busy / (K x runs_s): what is left of it is worker start-up and load imbalance at the end.
+The machine's other load shows in the load averages: on a shared machine wall times are noisy.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ import argparse
 import csv
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -25,8 +33,15 @@ import time
 from pathlib import Path
 
 
-def timed_sweep(args: argparse.Namespace, out: Path, workers: int) -> tuple[float, dict[str, str]]:
-    """Wall seconds of one sweep command into an empty directory, and each run's ``energy_j`` by id."""
+TIME_LINE = re.compile(
+    r"time: planning (?P<plan_s>[\d.]+) s, runs (?P<runs_s>[\d.]+) s \(the runs themselves "
+    r"(?P<busy_s>[\d.]+) s in their workers\), summary and figures (?P<finish_s>[\d.]+) s"
+)
+
+
+def timed_sweep(args: argparse.Namespace, out: Path, workers: int) -> tuple[float, dict[str, str], dict[str, float]]:
+    """Wall seconds of one sweep command into an empty directory, each run's ``energy_j`` by id, and
+    the command's own timings (its ``time:`` line)."""
     cmd = [
         sys.executable,
         "-m",
@@ -39,7 +54,6 @@ def timed_sweep(args: argparse.Namespace, out: Path, workers: int) -> tuple[floa
         str(workers),
         "--out",
         str(out),
-        "--quiet",
         "--no-plots",
     ]
     for o in args.overrides:
@@ -49,8 +63,10 @@ def timed_sweep(args: argparse.Namespace, out: Path, workers: int) -> tuple[floa
     wall = time.perf_counter() - t0
     if done.returncode != 0:
         raise SystemExit(f"sweep failed ({done.returncode}): {done.stderr.strip()}")
+    found = TIME_LINE.search(done.stdout)
+    timings = {k: float(v) for k, v in found.groupdict().items()} if found else {}
     with open(out / "runs.csv", newline="") as fh:
-        return wall, {r["run_id"]: r["energy_j"] for r in csv.DictReader(fh)}
+        return wall, {r["run_id"]: r["energy_j"] for r in csv.DictReader(fh)}, timings
 
 
 def main() -> None:
@@ -65,13 +81,17 @@ def main() -> None:
 
     load_before = os.getloadavg()
     times: dict[int, list[float]] = {1: [], args.workers: []}
+    parts: dict[int, list[dict[str, float]]] = {1: [], args.workers: []}
     rows: dict[int, dict[str, str]] = {}
     with tempfile.TemporaryDirectory(prefix="sweep-speedup-") as tmp:
         for rep in range(args.repeats):
             order = (1, args.workers) if rep % 2 == 0 else (args.workers, 1)
             for w in order:
-                wall, rows[w] = timed_sweep(args, Path(tmp) / f"r{rep}-w{w}", w)
+                wall, rows[w], t = timed_sweep(args, Path(tmp) / f"r{rep}-w{w}", w)
                 times[w].append(round(wall, 2))
+                if t:
+                    t = {**t, "serial_s": wall - t["runs_s"], "busy_share": t["busy_s"] / (w * t["runs_s"])}
+                parts[w].append({k: round(v, 3) for k, v in t.items()})
     load_after = os.getloadavg()
     if rows[1] != rows[args.workers]:
         raise SystemExit("the two sweeps recorded different numbers")
@@ -86,6 +106,8 @@ def main() -> None:
         f"wall_{args.workers}_s": times[args.workers],
         "speedup": round(speedup, 3),
         "efficiency": round(speedup / args.workers, 3),
+        "parts_1": parts[1],
+        f"parts_{args.workers}": parts[args.workers],
         "cores": os.cpu_count(),
         "load_before": [round(x, 2) for x in load_before],
         "load_after": [round(x, 2) for x in load_after],

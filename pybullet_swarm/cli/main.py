@@ -636,6 +636,12 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             f"sweep directory: {result.out} ({result.n_planned} runs: {result.n_run} run now, "
             f"{result.n_skipped} skipped, {result.n_failed} failed; {result.wall_time_s:.1f} s)"
         )
+        t = result.timings
+        if t:
+            print(
+                f"time: planning {t['plan_s']:.2f} s, runs {t['runs_s']:.2f} s (the runs themselves "
+                f"{t['busy_s']:.2f} s in their workers), summary and figures {t['finish_s']:.2f} s"
+            )
         print(f"report: {page}")
     if result.n_failed:
         return _fail(

@@ -58,10 +58,10 @@ from __future__ import annotations
 
 import dataclasses
 import enum
-import functools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import control
 import numpy as np
@@ -1157,13 +1157,35 @@ def design_controller(
     check_rates(physics_hz, position_hz)
     if not (gravity > 0 and math.isfinite(gravity)):
         raise ValueError(f"gravity: must be positive, got {gravity}")
-    return _design_cached(
-        params, float(physics_hz), float(position_hz), spec or DesignSpec(), step or ReferenceStep(), float(gravity)
-    )
+    key = (params, float(physics_hz), float(position_hz), spec or DesignSpec(), step or ReferenceStep(), float(gravity))
+    design = _DESIGNS.get(key)
+    if design is None:
+        design = _design(*key)
+        if len(_DESIGNS) >= _MAX_DESIGNS:
+            _DESIGNS.pop(next(iter(_DESIGNS)))  # the oldest
+        _DESIGNS[key] = design
+    return design
 
 
-@functools.lru_cache(maxsize=64)
-def _design_cached(
+#: designs made in this process, by their inputs (vehicle, rates, spec, step, gravity)
+_DESIGNS: dict[tuple[Any, ...], ControllerDesign] = {}
+_MAX_DESIGNS = 64
+
+
+def known_designs() -> dict[tuple[Any, ...], ControllerDesign]:
+    """The designs this process has made, by their inputs: a process that starts workers hands them
+    over (``add_designs``), so that no worker designs the same controller again."""
+    return dict(_DESIGNS)
+
+
+def add_designs(designs: Mapping[tuple[Any, ...], ControllerDesign]) -> None:
+    """Take designs made by another process (``known_designs``): ``design_controller`` returns them
+    for the same inputs."""
+    for key, design in designs.items():
+        _DESIGNS.setdefault(key, design)
+
+
+def _design(
     params: VehicleParams, physics_hz: float, position_hz: float, spec: DesignSpec, step: ReferenceStep, gravity: float
 ) -> ControllerDesign:
     h, n_sub, tau = 1.0 / physics_hz, check_rates(physics_hz, position_hz), float(params.motor_time_constant)

@@ -24,7 +24,7 @@ import os
 import threading
 import time
 from types import TracebackType
-from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, Sequence
 
 from pybullet_swarm.errors import ConfigError
 
@@ -34,8 +34,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
     Worker = Callable[[RunSpec], Row]
 
-#: Modules the forkserver imports once, so that forked workers start warm.
-PRELOAD = ("pybullet_swarm.experiment.sweep", "pybullet_swarm.experiment.runner")
+#: Modules the forkserver imports once, so that forked workers start warm (``warm`` also loads the
+#: compiled kernels).
+PRELOAD = ("pybullet_swarm.experiment.sweep", "pybullet_swarm.experiment.runner", "pybullet_swarm.experiment.warm")
 
 
 class ExecutorKind(str, enum.Enum):
@@ -106,6 +107,30 @@ def _watch_parent(pid: int, period_s: float = 1.0) -> None:
     threading.Thread(target=watch, name="sweep-parent-watch", daemon=True).start()
 
 
+def _start_worker(pid: int, designs: Mapping[tuple[Any, ...], Any]) -> None:
+    """Worker initialiser: watch the sweep process ``pid`` (``_watch_parent``) and take the controller
+    designs it made while planning, so that the worker's runs do not design them again."""
+    _watch_parent(pid)
+    from pybullet_swarm.control.design import add_designs
+
+    add_designs(designs)
+
+
+def _known_designs() -> dict[tuple[Any, ...], Any]:
+    """The controller designs this process made (planning a sweep validates every configuration), or
+    none when they cannot be sent to another process (workers then design their own)."""
+    import pickle
+
+    from pybullet_swarm.control.design import known_designs
+
+    designs = known_designs()
+    try:
+        pickle.dumps(designs)
+    except Exception:  # noqa: BLE001 - an optimisation only
+        return {}
+    return designs
+
+
 def prestart(method: str | None = None) -> None:
     """Start the forkserver now, so that it imports the simulation stack while this process
     is still busy (planning the sweep); a later pool then starts at once. No-op for ``spawn``."""
@@ -159,7 +184,11 @@ class LocalExecutor(_Executor):
         if self.max_tasks_per_child is not None:
             kwargs["max_tasks_per_child"] = self.max_tasks_per_child
         pool = cf.ProcessPoolExecutor(
-            max_workers=self.workers, mp_context=ctx, initializer=_watch_parent, initargs=(os.getpid(),), **kwargs
+            max_workers=self.workers,
+            mp_context=ctx,
+            initializer=_start_worker,
+            initargs=(os.getpid(), _known_designs()),
+            **kwargs,
         )
         try:
             pool.submit(_ping).result()
@@ -232,7 +261,11 @@ class RunFailed(RuntimeError):
     """Raised inside a Ray task for a run that ended with ``exit_status = error``, so that Ray retries it."""
 
 
-def _ray_task(worker: Worker, spec: RunSpec) -> Row:
+def _ray_task(worker: Worker, spec: RunSpec, designs: Mapping[tuple[Any, ...], Any] | None = None) -> Row:
+    if designs:
+        from pybullet_swarm.control.design import add_designs
+
+        add_designs(designs)  # the sweep process's controller designs: not designed again
     row = worker(spec)
     if row.get("exit_status") == "error":
         raise RunFailed(str(row.get("error")))
@@ -300,12 +333,13 @@ class RayExecutor(_Executor):
 
         ray = self._ray
         worker_ref = ray.put(self.worker)
+        designs_ref = ray.put(_known_designs())
         queue = collections.deque(specs)
         inflight: dict[Any, RunSpec] = {}
         while queue or inflight:
             while queue and len(inflight) < self.limit:
                 spec = queue.popleft()
-                inflight[self._task.remote(worker_ref, spec)] = spec
+                inflight[self._task.remote(worker_ref, spec, designs_ref)] = spec
             done, _ = ray.wait(list(inflight), num_returns=1)
             for ref in done:
                 spec = inflight.pop(ref)

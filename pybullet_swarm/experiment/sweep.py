@@ -405,6 +405,10 @@ class SweepResult:
         wall_time_s: seconds spent by this call.
         files: the figures drawn.
         interrupted: stopped early (Ctrl-C); re-running resumes.
+        timings: where this call's wall time went, s: ``plan_s`` (validating and building every
+            configuration), ``runs_s`` (from the first run submitted to the last row received, worker
+            start-up included), ``busy_s`` (the runs' own time in their workers, summed), ``finish_s``
+            (summary, tables and figures) and ``total_s``.
     """
 
     out: Path
@@ -418,6 +422,7 @@ class SweepResult:
     wall_time_s: float
     files: tuple[Path, ...] = ()
     interrupted: bool = False
+    timings: Mapping[str, float] = dataclasses.field(default_factory=dict)
 
     def table(self, metrics: Sequence[str] | None = None) -> str:
         """The comparison table (see ``summary.format_table``)."""
@@ -468,7 +473,9 @@ def run_sweep(
     if check_executor(executor, workers=workers, address=address) is ExecutorKind.LOCAL:
         prestart()  # the workers' imports overlap with the planning below
     out = Path(out) if out is not None else default_out(sweep)
+    t_plan = time.perf_counter()
     plan = plan_sweep(sweep, out, plots=plots)
+    t_plan = time.perf_counter() - t_plan
     out = plan.out
     from pybullet_swarm.experiment.rundir import check_output_dir
 
@@ -503,6 +510,8 @@ def run_sweep(
             )
         interrupted = False
         n_run = 0
+        busy = 0.0
+        t_runs = t_last = time.perf_counter()
         try:
             if todo:
                 with (
@@ -514,6 +523,8 @@ def run_sweep(
                     for row in ex.imap_unordered(todo):
                         table.append(row)
                         n_run += 1
+                        busy += float(row.get("worker_time_s") or 0.0)
+                        t_last = time.perf_counter()
                         bar.record(row.get("exit_status") == RunStatus.ERROR.value)
         except KeyboardInterrupt:
             interrupted = True
@@ -525,6 +536,14 @@ def run_sweep(
         files: list[Path] = []
         if figures and not interrupted and rows:
             files = draw_comparison(rows, _group_by(manifest), out / "plots")
+    t_done = time.perf_counter()
+    timings = {
+        "plan_s": t_plan,
+        "runs_s": t_last - t_runs,
+        "busy_s": busy,
+        "finish_s": t_done - t_last,
+        "total_s": t_done - t0,
+    }
     n_failed = sum(1 for s in plan.runs if (table.get(s.run_id) or {}).get("exit_status") == RunStatus.ERROR.value)
     return SweepResult(
         out=out,
@@ -538,6 +557,7 @@ def run_sweep(
         wall_time_s=time.perf_counter() - t0,
         files=tuple(files),
         interrupted=interrupted,
+        timings={k: round(v, 3) for k, v in timings.items()},
     )
 
 

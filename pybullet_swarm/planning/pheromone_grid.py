@@ -174,9 +174,20 @@ class PheromoneGrid:
 
     def sample(self, layer: str, p: ArrayLike, *, exclude_source: int | None = None) -> float:
         """Value of the cell holding position ``p`` (3,) m."""
-        return float(
-            self.values_at(layer, np.reshape(np.asarray(p, dtype=float), (1, 3)), exclude_source=exclude_source)[0]
-        )
+        # one point, as planners ask for every agent at every tick: the cell index in Python scalars
+        # (the same float64 arithmetic as ``index``), without building (1, 3) arrays
+        self._check(layer)
+        q = np.asarray(p, dtype=float)
+        c, (nx, ny, nz) = self.cell, self.shape
+        try:
+            i = min(max(math.floor(float(q[0]) / c + 1e-9), 0), nx - 1)
+            j = min(max(math.floor(float(q[1]) / c + 1e-9), 0), ny - 1)
+            k = min(max(math.floor(float(q[2]) / c + 1e-9), 0), nz - 1)
+        except (ValueError, OverflowError):  # not finite: as ``values_at`` clips it
+            return float(self.values_at(layer, np.reshape(q, (1, 3)), exclude_source=exclude_source)[0])
+        if exclude_source is not None and self.sources[layer][i, j, k] == exclude_source:
+            return 0.0
+        return float(self.values[layer][i, j, k])
 
     def strongest(
         self,

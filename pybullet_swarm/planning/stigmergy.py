@@ -132,6 +132,7 @@ import enum
 import math
 from typing import Any, ClassVar
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -482,27 +483,52 @@ class Zone:
 
     def contains(self, xy: NDArray[np.float64]) -> bool:
         """True when the point (2,) m lies in the zone."""
-        return bool(np.any(np.all((xy >= self.lo) & (xy <= self.hi), axis=1)))
+        return bool(_zone_contains(self.lo, self.hi, float(xy[0]), float(xy[1])))
 
     def entry(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> float | None:
         """Fraction of the way from a (2,) to b (2,) m at which the segment enters the zone (0 when a
         is inside), or None when it stays out."""
-        if len(self.lo) == 0:
-            return None
-        d = b - a
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t1 = (self.lo - a) / d
-            t2 = (self.hi - a) / d
-        tlo, thi = np.minimum(t1, t2), np.maximum(t1, t2)
-        flat = d == 0.0  # axis without motion: inside the slab or never
-        within = (a >= self.lo) & (a <= self.hi)
-        tlo = np.where(flat, np.where(within, -np.inf, np.inf), tlo)
-        thi = np.where(flat, np.where(within, np.inf, -np.inf), thi)
-        t_in, t_out = tlo.max(axis=1), thi.min(axis=1)
-        hit = (t_out >= np.maximum(t_in, 0.0)) & (t_in <= 1.0)
-        if not hit.any():
-            return None
-        return float(max(0.0, t_in[hit].min()))
+        t = _zone_entry(self.lo, self.hi, float(a[0]), float(a[1]), float(b[0]), float(b[1]))
+        return None if t < 0.0 else t
+
+
+# The zone tests run for every agent at every planner tick (a zone of a 100-box depot is 100
+# rectangles): compiled slab tests, one rectangle at a time, instead of (k, 2) arrays per call.
+@numba.njit(cache=True)
+def _zone_contains(lo: NDArray[np.float64], hi: NDArray[np.float64], x: float, y: float) -> bool:
+    """True when (x, y) m lies in one of the rectangles lo (k, 2) .. hi (k, 2) m (edges included)."""
+    for k in range(lo.shape[0]):
+        if lo[k, 0] <= x <= hi[k, 0] and lo[k, 1] <= y <= hi[k, 1]:
+            return True
+    return False
+
+
+@numba.njit(cache=True)
+def _slab(lo: float, hi: float, a: float, d: float) -> tuple[float, float]:
+    """Entry and exit fractions of the line a + t d through the slab [lo, hi] (d = 0: inside or never)."""
+    if d == 0.0:
+        if lo <= a <= hi:
+            return -np.inf, np.inf
+        return np.inf, -np.inf
+    t1, t2 = (lo - a) / d, (hi - a) / d
+    return min(t1, t2), max(t1, t2)
+
+
+@numba.njit(cache=True)
+def _zone_entry(lo: NDArray[np.float64], hi: NDArray[np.float64], ax: float, ay: float, bx: float, by: float) -> float:
+    """Least fraction in [0, 1] of the way from (ax, ay) to (bx, by) m at which the segment is inside one of
+    the rectangles lo (k, 2) .. hi (k, 2) m (0 when it starts inside), or -1 when it stays out."""
+    dx, dy = bx - ax, by - ay
+    best = np.inf
+    for k in range(lo.shape[0]):
+        xin, xout = _slab(lo[k, 0], hi[k, 0], ax, dx)
+        yin, yout = _slab(lo[k, 1], hi[k, 1], ay, dy)
+        t_in, t_out = max(xin, yin), min(xout, yout)
+        if t_out >= max(t_in, 0.0) and t_in <= 1.0 and t_in < best:
+            best = t_in
+    if best == np.inf:
+        return -1.0
+    return max(0.0, best)
 
 
 def _around(xy: NDArray[np.float64], half: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -445,3 +445,22 @@ def test_plot_design_writes_pngs(tmp_path: Path) -> None:
     assert [p.name for p in paths] == ["bode.png", "step_response.png"]
     for p in paths:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_designs_handed_to_another_process_are_used_as_they_are() -> None:
+    import pickle
+
+    from pybullet_swarm.control import design as d
+
+    made = d.design_controller(load_vehicle("cf2x"), physics_hz=240.0, position_hz=48.0, gravity=9.7)
+    shipped = pickle.loads(pickle.dumps(d.known_designs()))  # what a worker process receives
+    saved = dict(d._DESIGNS)
+    try:
+        d._DESIGNS.clear()
+        d.add_designs(shipped)
+        again = d.design_controller(load_vehicle("cf2x"), physics_hz=240.0, position_hz=48.0, gravity=9.7)
+        assert again is next(v for v in shipped.values() if v.vehicle == "cf2x" and v.airframe.gravity == 9.7)
+        assert np.array_equal(again.attitude_gains, made.attitude_gains)
+    finally:
+        d._DESIGNS.clear()
+        d._DESIGNS.update(saved)

@@ -24,6 +24,19 @@ SHORT_WAYPOINTS = ["--set", "task.waypoints=[{t_s: 0, position: [0.0, 0.0, 1.0]}
 #: scenario -> command-line choices and overrides (every run shortened to a few simulated seconds)
 CASES: dict[str, list[str]] = {
     "construction": ["--planner", "stigmergy", "--avoidance", "orca", "--seed", "3", "--set", "task.time_limit_s=12"],
+    # 6 of the 50 agents (the start grid follows agents.count), for 2 simulated seconds
+    "construction_large": [
+        "--planner",
+        "stigmergy",
+        "--avoidance",
+        "orca",
+        "--seed",
+        "2",
+        "--set",
+        "task.time_limit_s=2",
+        "--set",
+        "agents.count=6",
+    ],
     "construction_single": [
         "--planner",
         "shortest_path",

@@ -16,7 +16,7 @@ from scipy import stats
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.results import RunsTable, flatten_metrics, parse_cell
 from pybullet_swarm.experiment.summary import CIMethod, describe, summarize
-from pybullet_swarm.experiment.sweep import RunSpec, Sweep, execute_run, plan_sweep, run_sweep
+from pybullet_swarm.experiment.sweep import RunSpec, Sweep, execute_run, make_row, plan_sweep, run_sweep
 
 #: hover, shortened to ~1 s simulated: climb to an absolute point 0.3 m above the start layout's
 #: centre and hold it 0.2 s. The start is jittered per seed, so seeds give different paths.
@@ -293,6 +293,44 @@ def test_a_dead_worker_process_is_retried_then_recorded(tmp_path: Path) -> None:
     assert (res.n_run, res.n_failed, len(rows)) == (3, 1, 3)
     assert rows[1]["exit_status"] == "error" and "worker lost 2 times" in rows[1]["error"]
     assert rows[0]["exit_status"] == rows[2]["exit_status"] == "completed"
+
+
+def _design_label(key: tuple[Any, ...]) -> str:
+    """A design's inputs as text (vehicle, rates, reference step, gravity), the same in every process."""
+    return f"{key[0].name} {key[1]} {key[2]} {key[4]!r} {key[5]}"
+
+
+def warm_state_worker(spec: RunSpec) -> dict[str, Any]:
+    """What a worker process holds before it runs anything: designs handed over, kernels loaded."""
+    import sys
+
+    from pybullet_swarm.control import kernels
+    from pybullet_swarm.control.design import known_designs
+    from pybullet_swarm.planning import orca
+
+    return {
+        **make_row(spec, {"exit_status": "completed"}),
+        "designs": ";".join(sorted(_design_label(k) for k in known_designs())),
+        "physics_kernel_loaded": bool(kernels.physics_tick.signatures),
+        "orca_kernel_loaded": bool(orca._orca_batch.signatures),
+        "warm": "pybullet_swarm.experiment.warm" in sys.modules,
+    }
+
+
+def test_local_workers_start_warm_with_the_sweeps_controller_designs(tmp_path: Path) -> None:
+    from pybullet_swarm.control.design import known_designs
+
+    # another gravity than the warm-up's: a controller no process designed before this sweep
+    sweep = Sweep("hover", seeds=2, overrides={**HOVER, "sim.gravity": 9.75})
+    res = run_sweep(sweep, tmp_path / "sw", workers=2, worker=warm_state_worker)
+    planned = {_design_label(k) for k in known_designs()}  # planning designed the sweep's controller here
+    assert planned and res.n_run == 2
+    for r in res.rows:  # forked from the warmed forkserver: every kernel loaded, every design known
+        assert planned <= set(r["designs"].split(";"))
+        assert r["physics_kernel_loaded"] and r["orca_kernel_loaded"] and r["warm"]
+    t = res.timings
+    assert set(t) == {"plan_s", "runs_s", "busy_s", "finish_s", "total_s"}
+    assert 0.0 < t["plan_s"] < t["total_s"] and t["runs_s"] < t["total_s"]
 
 
 # ------------------------------------------------------------------------ Ray

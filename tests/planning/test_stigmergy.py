@@ -712,3 +712,44 @@ def test_layered_without_detour_goes_for_a_seen_box_right_after_a_replan():
             med.step(0.1)
         a.plan(_obs(p, boxes=[box], box_ids=[4], t=1.2), med)
         assert a.phase == phase
+
+
+def _entry_reference(lo: np.ndarray, hi: np.ndarray, a: np.ndarray, b: np.ndarray) -> float | None:
+    """Zone.entry as (k, 2) slab arithmetic in numpy (the formulation the compiled test replaced)."""
+    if len(lo) == 0:
+        return None
+    d = b - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (lo - a) / d, (hi - a) / d
+    tlo, thi = np.minimum(t1, t2), np.maximum(t1, t2)
+    flat, within = d == 0.0, (a >= lo) & (a <= hi)
+    tlo = np.where(flat, np.where(within, -np.inf, np.inf), tlo)
+    thi = np.where(flat, np.where(within, np.inf, -np.inf), thi)
+    t_in, t_out = tlo.max(axis=1), thi.min(axis=1)
+    hit = (t_out >= np.maximum(t_in, 0.0)) & (t_in <= 1.0)
+    return float(max(0.0, t_in[hit].min())) if hit.any() else None
+
+
+def test_zone_entry_and_contains_equal_the_slab_arithmetic_on_random_segments() -> None:
+    from pybullet_swarm.planning.stigmergy import Zone
+
+    rng = np.random.default_rng(5)
+    geo = FlightGeometry.from_task(_info(), StigmergyParams())
+    grid = np.round(rng.uniform(0.0, 3.0, size=(40, 2)), 1)  # rounded: segments along edges and axes
+    for zone in (*geo.zones, Zone(np.zeros((0, 2)), np.zeros((0, 2)), 0.3)):
+        entries = 0
+        for _ in range(400):
+            a, b = grid[rng.integers(40)], grid[rng.integers(40)]
+            if rng.random() < 0.2:
+                b = a.copy()  # no motion at all
+            elif rng.random() < 0.3:
+                b[rng.integers(2)] = a[rng.integers(2)]  # motion along one axis only
+            want = _entry_reference(zone.lo, zone.hi, a, b)
+            got = zone.entry(a, b)
+            assert (got is None) == (want is None), (a, b)
+            if want is not None:
+                entries += 1
+                assert got == pytest.approx(want, abs=1e-12)
+            inside = bool(np.any(np.all((a >= zone.lo) & (a <= zone.hi), axis=1)))
+            assert zone.contains(a) is inside
+        assert entries > 0 or len(zone.lo) == 0
