@@ -41,6 +41,7 @@ class Preset(str, enum.Enum):
     """Named sets of parameter values (a model's ``preset`` field)."""
 
     THESIS = "thesis"  # the thesis's algorithms as its chapters and appendix code write them: every extension off
+    PAPER = "paper"  # a published algorithm alone, as its paper writes it (ORCA: every extension rule off)
 
 
 class Params(pydantic.BaseModel):
