@@ -56,8 +56,8 @@ RULE_DOCS: dict[Rule, str] = {
     "are not motion to answer",
     Rule.WEIGHTED_WAY_OUT: "a box VO's way out counts vertical changes vertical_cost times horizontal ones "
     "(off: the nearest way out)",
-    Rule.CLIMB_OVER: "on a collision course with a vertical way out, the upper agent takes the pair's whole share "
-    "when the lower one flies level",
+    Rule.CLIMB_OVER: "on a collision course with a vertical way out, the upper agent takes the whole of it when "
+    "the lower one flies level",
     Rule.FLOOR_RULE: "below floor_height avoidance never pushes an agent down, above it by at most its height over "
     "it per horizon",
     Rule.COLUMN_RULE: "below floor_height an agent within column_radius of its target (horizontally) is only "
