@@ -174,3 +174,14 @@ def test_the_paper_preset_switches_every_rule_off_and_nothing_else():
     assert list(extensions(OrcaParams, "paper")) == [r.value for r in Rule]
     assert OrcaParams().rules == tuple(Rule)
     assert OrcaParams.model_validate({"preset": "paper", "climb_over": True}).rules == (Rule.CLIMB_OVER,)
+
+
+def test_every_kernel_is_cached_with_the_whole_package_as_its_stamp():
+    """A kernel inlines code of the package's other files, so an edit of any of them must recompile it."""
+    from pybullet_swarm.planning.orca import cache, core, kernel, rules
+
+    files = {p.name for p in cache._PACKAGE.glob("*.py")}
+    assert {"core.py", "rules.py", "kernel.py", "vec.py"} <= files
+    for fn in (kernel.orca_batch, core.solve, rules.clear_paths):
+        stamp = fn._cache._impl.locator.get_source_stamp()
+        assert {name for name, *_ in stamp[1]} == files

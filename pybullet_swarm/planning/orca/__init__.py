@@ -15,28 +15,27 @@ The paper's core and our extension rules are kept apart:
 * ``rules``: each extension is a ``Rule`` with a one-line description and a switch of the same
   name in ``OrcaParams`` (on by default; ``avoidance_params: {preset: paper}`` switches all off):
 
-  ==================== ===============================================================================
-  ``lag_margin``       shapes grow by ``lag_margin_s`` x closing speed (the cascade follows a new velocity
-                       about 0.3 s late and overshoots it by up to 100 %)
-  ``uncertainty_margin`` flying on estimates, shapes grow by ``uncertainty_sigmas`` standard deviations
-  ``clipped_reference`` ORCA linearises about the sensed velocity clipped to the limits
-  ``weighted_way_out`` a box VO's way out counts vertical changes ``vertical_cost`` times horizontal ones
-                       (0.75 favours passing over: a 2 cm thin airframe clears a neighbour a few cm
-                       above it, where a sideways dodge needs two airframe widths)
-  ``climb_over``       the upper agent of a pair takes the whole share of a vertical way out when the
-                       lower one flies level: an empty agent hops over a carrier and its box
-  ``floor_rule``       below ``floor_height`` avoidance never pushes an agent down
-  ``column_rule``      low on a vertical leg (within ``column_radius`` of its target) an agent is only
-                       slowed or lifted: a sideways dodge there tilts it into the box under it
-  ``minimal_intervention`` a command that violates no half-space is kept unchanged
-  ``passthrough``      within ``capture_radius`` of a POSITION/HOLD target the command passes unchanged
-                       when the swept box is clear (grasp and release need millimetres)
-  ``sidestep``         a stalled agent adds ``right_bias`` of its preferred speed sideways (right, or the
-                       side a neighbour nearly straight ahead leaves free): crowds become roundabouts
-  ``climb_past``       a stalled agent above the one in its way climbs past it instead
-  ``make_way``         an agent descending onto its goal's occupant rises straight up, the only way
-                       the one below can leave
-  ==================== ===============================================================================
+  - ``lag_margin``: shapes grow by ``lag_margin_s`` x closing speed (the cascade follows a new
+    velocity about 0.3 s late and overshoots it by up to 100 %);
+  - ``uncertainty_margin``: flying on estimates, shapes grow by ``uncertainty_sigmas`` standard
+    deviations of a pair's relative position error;
+  - ``clipped_reference``: ORCA linearises about the sensed velocity clipped to the limits;
+  - ``weighted_way_out``: a box VO's way out counts vertical changes ``vertical_cost`` times
+    horizontal ones (0.75 favours passing over: a 2 cm thin airframe clears a neighbour a few cm
+    above it, where a sideways dodge needs two airframe widths);
+  - ``climb_over``: the upper agent of a pair takes the whole of a vertical way out when the lower
+    one flies level: an empty agent hops over a carrier and its box;
+  - ``floor_rule``: below ``floor_height`` avoidance never pushes an agent down;
+  - ``column_rule``: low on a vertical leg (within ``column_radius`` of its target) an agent is
+    only slowed or lifted: a sideways dodge there tilts it into the box under it;
+  - ``minimal_intervention``: a command that violates no half-space is kept unchanged;
+  - ``passthrough``: within ``capture_radius`` of a POSITION/HOLD target the command passes
+    unchanged when the swept box is clear (grasp and release need millimetres);
+  - ``sidestep``: a stalled agent adds ``right_bias`` of its preferred speed sideways (right, or
+    the side a neighbour nearly straight ahead leaves free): crowds become roundabouts;
+  - ``climb_past``: a stalled agent above the one in its way climbs past it instead;
+  - ``make_way``: an agent descending onto its goal's occupant rises straight up, the only way the
+    one below can leave.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.
@@ -64,9 +63,8 @@ Design decisions the rules share (numbers are ``OrcaParams`` defaults):
   agent asks for the sideways step alone. A neighbour sitting on the goal is waited for.
 * Measured (``construction.yaml``, stigmergy, seeds 0..49): median completion 128.6 s with
   ``vertical_cost`` 3.0 and no climbing over, 117.7 s with both, no contact either way. The
-  simulator's downwash model is separate; a study of airframes that suffer more from it raises
-  ``vertical_cost`` (or ``safety_margin``). ``scripts/orca_ablation.py`` switches the rules off
-  one at a time.
+  simulator models no downwash; a study of airframes that suffer from it raises ``vertical_cost``
+  (or ``safety_margin``). ``scripts/orca_ablation.py`` switches the rules off one at a time.
 
 Public pieces: ``orca_plane`` (one half-space), ``solve_velocity`` (one LP), ``orca_velocities``
 (all agents, plain arrays), ``OrcaLayer`` (the ``--avoidance orca`` layer), ``OrcaParams``, ``Rule``.
