@@ -13,7 +13,7 @@ All runs go through one sweep (``pybullet_swarm.experiment.sweep``, the grid bei
 ``avoidance_params``) in ``OUT/``: resumable, run the same command again to finish an
 interrupted batch or add seeds. Per configuration the script tables:
 
-* completed runs;
+* completed runs (and how the others ended: ``timeout``, ``crashed`` ...);
 * ``agent_agent`` contact events (mean and 95 % t-interval; with ``collisions: ghost``, the
   default of ``construction.yaml``, overlaps that a physical run would turn into contacts) and
   how many runs had any;
@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections import Counter
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -119,6 +120,7 @@ def table_rows(
             "avoidance_params": params,
             "runs": len(runs),
             "completed": sum(r["completed"] for r in runs),
+            "other_exits": dict(sorted(Counter(str(r["exit_status"]) for r in runs if not r["completed"]).items())),
             "runs_with_contact": sum(r["agent_agent"] > 0 for r in runs),
             "completion_time_median_s": med,
             "completion_time_ci95_low_s": lo,
@@ -155,6 +157,11 @@ def _median_cell(rec: Mapping[str, Any]) -> str:
     return f"{_fmt(med, '.1f')} [{_fmt(lo, '.1f')}, {_fmt(hi, '.1f')}]"
 
 
+def _completed_cell(rec: Mapping[str, Any]) -> str:
+    others = ", ".join(f"{v} {k}" for k, v in rec["other_exits"].items())
+    return f"{rec['completed']}/{rec['runs']}" + (f" ({others})" if others else "")
+
+
 def markdown(table: Sequence[Mapping[str, Any]]) -> str:
     """The table as Markdown."""
     lines = [
@@ -164,7 +171,7 @@ def markdown(table: Sequence[Mapping[str, Any]]) -> str:
     ]
     for r in table:
         lines.append(
-            f"| {r['planner']} | {r['configuration']} | {r['completed']}/{r['runs']} | {_mean_cell(r, 'agent_agent')} "
+            f"| {r['planner']} | {r['configuration']} | {_completed_cell(r)} | {_mean_cell(r, 'agent_agent')} "
             f"| {r['runs_with_contact']} | {_mean_cell(r, 'thesis_collisions')} | {_median_cell(r)} |"
         )
     return "\n".join(lines)

@@ -49,6 +49,8 @@ PROJECTION_SPEED = 1e3  # m/s, speed sphere of the projection onto a box VO: lar
 FALLBACK_SLACK = 1e-9  # m/s, the least-violation velocity is re-solved with the planes moved out by this more
 SPEED_SPHERE_SLACK = 1e-9  # relative: the default speed sphere encloses the velocity-limit box by this much
 DEFAULT_SPEED_SPHERE = 1.0  # m/s, speed sphere when there are no velocity limits and no max_speed
+BOX_ROWS = 7  # rows of a box VO in s = 1/t: a lower and an upper face per axis, then s >= 1/tau
+BOX_PLANES = 24  # at most this many planes bound a box VO (pairs of those rows)
 
 #: the core's settings as the kernels read them (one record)
 SETTINGS = np.dtype(
@@ -161,28 +163,28 @@ def box_u(c: Vec, H: Vec, v: Vec, inv_tau: float, inv_rec: float, wz: float) -> 
         gap = abs(c[k_pen]) - H[k_pen]
         return scale(s, -1.0), scale(s, gap * inv_rec - dot(v, s))
     # rows a s <= g . v + h: lower and upper faces of each axis, then s >= 1/tau
-    ra = np.empty(7)
-    rg = np.zeros((7, 3))
-    rh = np.zeros(7)
+    ra = np.empty(BOX_ROWS)
+    rg = np.zeros((BOX_ROWS, 3))
+    rh = np.zeros(BOX_ROWS)
     for k in range(3):
         ra[2 * k] = c[k] - H[k]  # s (c - H) <= v_k
         rg[2 * k, k] = 1.0
         ra[2 * k + 1] = -(c[k] + H[k])  # -s (c + H) <= -v_k
         rg[2 * k + 1, k] = -1.0
-    ra[6] = -1.0  # -s <= -1/tau
-    rh[6] = -inv_tau
+    ra[BOX_ROWS - 1] = -1.0  # -s <= -1/tau
+    rh[BOX_ROWS - 1] = -inv_tau
     best = FAR
     best_f = 0.0
     bn = (0.0, 0.0, 0.0)
     iw = 1.0 / wz
-    FN = np.empty((24, 3))  # the VO's planes, for the projection of an outside v
-    FP = np.empty((24, 3))
+    FN = np.empty((BOX_PLANES, 3))  # the VO's planes, for the projection of an outside v
+    FP = np.empty((BOX_PLANES, 3))
     nf = 0
-    for p in range(7):
+    for p in range(BOX_ROWS):
         if ra[p] > 0.0:
             continue
         gp = row(rg, p)
-        for q in range(-1, 7):
+        for q in range(-1, BOX_ROWS):
             if q < 0:
                 if ra[p] != 0.0:
                     continue
