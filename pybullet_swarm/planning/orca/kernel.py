@@ -12,6 +12,7 @@ bounding boxes, preferred and commanded velocities).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -43,6 +44,12 @@ def core_settings(params: OrcaParams, v_max: NDArray[np.float64] | None) -> NDAr
     s["responsibility"] = params.responsibility
     s["max_speed"] = core.speed_sphere(core.limits(v_max), params.max_speed)
     return s
+
+
+@functools.lru_cache(maxsize=64)
+def _settings(params: OrcaParams, v_max: tuple[float, ...] | None) -> tuple[NDArray[np.void], NDArray[np.void]]:
+    """Both records of ``params`` (built once per parameter set and limits: a planner tick reuses them)."""
+    return core_settings(params, None if v_max is None else np.array(v_max)), rule_settings(params)
 
 
 def rule_settings(params: OrcaParams) -> NDArray[np.void]:
@@ -303,6 +310,7 @@ def orca_velocities(
     v_cmd = pref if commanded is None else np.ascontiguousarray(commanded, dtype=float)
     out = np.empty((n, 3))
     flags = np.zeros(n, dtype=np.int64)
+    core_rec, rule_rec = _settings(params, None if v_max is None else tuple(map(float, vm)))
     orca_batch(
         pos,
         np.ascontiguousarray(velocities, dtype=float),
@@ -317,8 +325,8 @@ def orca_velocities(
         has_goal,
         lo,
         hi,
-        core_settings(params, v_max),
-        rule_settings(params),
+        core_rec,
+        rule_rec,
         out,
         flags,
     )
