@@ -41,6 +41,7 @@ class Preset(str, enum.Enum):
     """Named sets of parameter values (a model's ``preset`` field)."""
 
     THESIS = "thesis"  # the thesis's algorithms as its chapters and appendix code write them: every extension off
+    PAPER = "paper"  # a published algorithm alone, as its paper writes it (ORCA: every extension rule off)
 
 
 class Params(pydantic.BaseModel):
@@ -195,9 +196,13 @@ class ParamInfo:
 def describe(model: type[pydantic.BaseModel]) -> list[ParamInfo]:
     """Every field of a parameter model with its type, default, range and description."""
     out = []
+    presets: Mapping[Preset, Any] = getattr(model, "PRESETS", {})
     for name, f in model.model_fields.items():
         default = f.get_default(call_default_factory=True)
-        out.append(field_info(name, f.annotation, f.metadata, default=_plain(default), description=f.description or ""))
+        info = field_info(name, f.annotation, f.metadata, default=_plain(default), description=f.description or "")
+        if name == "preset" and presets:  # the presets this model has, not every one of the enum
+            info = dataclasses.replace(info, type=" | ".join([*(p.value for p in presets), "null"]))
+        out.append(info)
     return out
 
 

@@ -547,7 +547,7 @@ def test_a_stalled_agent_above_the_one_in_its_way_climbs_past_it():
             pos,
             vel,
             pref,
-            params=OrcaParams(climb_over=climb),
+            params=OrcaParams(climb_past=climb),
             sensing_radius=1.0,
             v_max=vm,
             radii=np.array([R_AGENT, R_CARRY]),

@@ -1,0 +1,453 @@
+"""One planner tick of ORCA for all agents: the paper's core composed with the switched-on rules, one compiled call.
+
+Per agent: the hard planes (velocity limits, narrowed by ``FLOOR_RULE`` and ``COLUMN_RULE``), one
+ORCA plane per neighbour (``core``; shapes grown by ``LAG_MARGIN``, the way out weighted by
+``WEIGHTED_WAY_OUT``, the shares moved by ``CLIMB_OVER``), then either the command unchanged
+(``MINIMAL_INTERVENTION``) or the LP's velocity, which a stalled agent may solve again with a
+bias (``SIDESTEP``, ``CLIMB_PAST``, ``MAKE_WAY``).
+
+Also here: the arrays the kernel is fed from commands and sensed state (neighbour table,
+bounding boxes, preferred and commanded velocities).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from pybullet_swarm.planning.base import CommandKind
+from pybullet_swarm.planning.orca import core, rules
+from pybullet_swarm.planning.orca.cache import njit
+from pybullet_swarm.planning.orca.params import OrcaParams, Shape
+from pybullet_swarm.planning.orca.rules import Rule
+from pybullet_swarm.planning.orca.vec import Vec, add, dot, row, scale, set_row
+
+#: flags returned per agent by ``orca_velocities``
+FLAG_INFEASIBLE = 1  # the ORCA planes had no common velocity: least-violating velocity used (core)
+FLAG_BIASED = 2  # stalled by a neighbour: the sideways (or upward) bias was applied (SIDESTEP, MAKE_WAY)
+FLAG_FREE = 4  # the commanded velocity satisfies every plane: nothing was changed (MINIMAL_INTERVENTION)
+FLAG_CLIMB = 8  # took a pair's whole share of a vertical way out (CLIMB_OVER)
+
+HARD_PLANES = 6  # at most two velocity bounds per axis
+
+
+def core_settings(params: OrcaParams, v_max: NDArray[np.float64] | None) -> NDArray[np.void]:
+    """The core's record (``core.SETTINGS``) for ``params`` and the per-axis limits ``v_max`` (3,) m/s."""
+    s = np.zeros(1, dtype=core.SETTINGS)
+    s["margin"] = params.margin
+    s["inv_tau"] = 1.0 / params.time_horizon
+    s["inv_rec"] = 1.0 / params.recovery_time
+    s["responsibility"] = params.responsibility
+    s["max_speed"] = core.speed_sphere(core.limits(v_max), params.max_speed)
+    return s
+
+
+@functools.lru_cache(maxsize=64)
+def _settings(params: OrcaParams, v_max: tuple[float, ...] | None) -> tuple[NDArray[np.void], NDArray[np.void]]:
+    """Both records of ``params`` (built once per parameter set and limits: a planner tick reuses them)."""
+    return core_settings(params, None if v_max is None else np.array(v_max)), rule_settings(params)
+
+
+def rule_settings(params: OrcaParams) -> NDArray[np.void]:
+    """The rules' record (``rules.RULES``): every switch and the parameters the kernel reads."""
+    s = np.zeros(1, dtype=rules.RULES)
+    for r in Rule:
+        s[r.value] = params.on(r)
+    s["lag_margin_s"] = params.lag_margin_s
+    s["vertical_cost"] = params.vertical_cost
+    s["time_horizon"] = params.time_horizon
+    s["right_bias"] = params.right_bias
+    s["stuck_fraction"] = params.stuck_fraction
+    return s
+
+
+# ----------------------------------------------------------------------------- the compiled tick
+@njit
+def pair_u(
+    a: int,
+    b: int,
+    pos: NDArray[np.float64],
+    vel: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    cs: np.record,
+    rs: np.record,
+) -> tuple[Vec, Vec]:
+    """(n, u) of agent a against agent b; agent b uses (-n, -u)."""
+    v = add(row(vel, a), row(vel, b), -1.0)
+    m2 = 2.0 * cs.margin
+    on, lag = rs.lag_margin, rs.lag_margin_s
+    if boxes:
+        c = add(add(row(pos, b), row(centre, b), 1.0), add(row(pos, a), row(centre, a), 1.0), -1.0)
+        H = (
+            half[a, 0] + half[b, 0] + m2 + rules.lag_growth(on, lag, abs(v[0])),
+            half[a, 1] + half[b, 1] + m2 + rules.lag_growth(on, lag, abs(v[1])),
+            half[a, 2] + half[b, 2] + m2 + rules.lag_growth(on, lag, abs(v[2])),
+        )
+        wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
+        return core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz)
+    p = add(row(pos, b), row(pos, a), -1.0)
+    R = radius[a] + radius[b] + m2 + rules.lag_growth(on, lag, math.sqrt(dot(v, v)))
+    return core.sphere_u(p, v, R, cs.inv_tau, cs.inv_rec)
+
+
+@njit
+def agent_planes(
+    i: int,
+    pos: NDArray[np.float64],
+    vel: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    nbr: NDArray[np.int64],
+    cs: np.record,
+    rs: np.record,
+    N: NDArray[np.float64],
+    P: NDArray[np.float64],
+    k: int,
+) -> tuple[int, bool]:
+    """Append agent i's ORCA planes (one per neighbour in row i of ``nbr``) after row k; returns the new
+    count and whether agent i climbs over a neighbour (``CLIMB_OVER``).
+
+    A pair's (n, u) is computed once in index order and negated for the other agent, so both
+    halves match to the last bit.
+    """
+    n = pos.shape[0]
+    vi = row(vel, i)
+    climbs = False
+    for c in range(nbr.shape[1]):
+        j = nbr[i, c]
+        if j < 0 or j >= n or j == i:
+            continue
+        if i < j:
+            nrm, u = pair_u(i, j, pos, vel, radius, centre, half, boxes, cs, rs)
+        else:
+            nrm, u = pair_u(j, i, pos, vel, radius, centre, half, boxes, cs, rs)
+            nrm = scale(nrm, -1.0)
+            u = scale(u, -1.0)
+        r, up = rules.climb_share(rs.climb_over, nrm, u, vel[i, 2], vel[j, 2], cs.responsibility)
+        climbs = climbs or up
+        set_row(N, k, nrm)
+        set_row(P, k, add(vi, u, r))
+        k += 1
+    return k, climbs
+
+
+@njit
+def orca_batch(
+    pos: NDArray[np.float64],
+    vel: NDArray[np.float64],
+    pref: NDArray[np.float64],
+    v_cmd: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    nbr: NDArray[np.int64],
+    goal: NDArray[np.float64],
+    has_goal: NDArray[np.bool_],
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+    core_rec: NDArray[np.void],
+    rule_rec: NDArray[np.void],
+    out: NDArray[np.float64],
+    flags: NDArray[np.int64],
+) -> None:
+    """Safe velocities of all agents (see ``orca_velocities``)."""
+    cs = core_rec[0]
+    rs = rule_rec[0]
+    n = pos.shape[0]
+    m_max = nbr.shape[1] + HARD_PLANES
+    N = np.empty((m_max, 3))
+    P = np.empty((m_max, 3))
+    SN = np.empty((m_max, 3))
+    SP = np.empty((m_max, 3))
+    max_speed, right_bias, stuck = cs.max_speed, rs.right_bias, rs.stuck_fraction
+    side_on = rs.sidestep and right_bias > 0.0
+    stall_on = side_on or rs.make_way
+    for i in range(n):
+        n_hard = core.bound_planes(lo, hi, i, N, P)
+        m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, n_hard)
+        up = FLAG_CLIMB if climbs else 0
+        vc = row(v_cmd, i)
+        if rs.minimal_intervention and dot(vc, vc) <= max_speed * max_speed and not core.violates(N, P, m, vc):
+            set_row(out, i, vc)  # nothing to avoid: the planner's command stands
+            flags[i] = FLAG_FREE | up
+            continue
+        pr = row(pref, i)
+        feasible, res = core.solve(N, P, m, n_hard, max_speed, pr, SN, SP)
+        f = 0 if feasible else FLAG_INFEASIBLE
+        sp = math.sqrt(dot(pr, pr))
+        if stall_on and sp > rules.MIN_PREFERRED_SPEED and dot(res, pr) < stuck * sp * sp:
+            j, make_way = rules.stalled_by(
+                i,
+                pos,
+                pr,
+                sp,
+                radius,
+                centre,
+                half,
+                boxes,
+                nbr,
+                goal,
+                has_goal[i],
+                2.0 * cs.margin,
+                rs.time_horizon,
+                rs.make_way,
+            )
+            if make_way:
+                feasible, res = core.solve(N, P, m, n_hard, max_speed, (0.0, 0.0, sp), SN, SP)
+                f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
+            elif j >= 0 and side_on:
+                if rs.climb_past and pos[i, 2] > pos[j, 2]:
+                    side = (0.0, 0.0, 1.0)  # above the one in the way: over it
+                else:
+                    side = rules.sidestep(scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0))
+                feasible, res = core.solve(N, P, m, n_hard, max_speed, add(pr, side, right_bias * sp), SN, SP)
+                if dot(res, res) < stuck * stuck * sp * sp:
+                    # still held: the bias cancelled what the neighbours' planes left free (a box VO
+                    # leaves the axis across the blocking face free; the bias can exactly cancel the
+                    # preferred velocity along it): ask for the sideways step alone
+                    feasible, res = core.solve(N, P, m, n_hard, max_speed, scale(side, sp), SN, SP)
+                f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
+        set_row(out, i, res)
+        flags[i] = f | up
+
+
+# ----------------------------------------------------------------------------- array API
+def neighbour_table(positions: NDArray[np.float64], sensing_radius: float, max_neighbours: int) -> NDArray[np.int64]:
+    """Up to ``max_neighbours`` nearest other agents within ``sensing_radius`` of each agent (k-d tree).
+
+    Args:
+        positions: (n, 3) m.
+
+    Returns:
+        (n, k) agent indices, nearest first, padded with -1 (k = min(max_neighbours, n - 1) + 1).
+    """
+    n = positions.shape[0]
+    if n < 2:
+        return np.full((n, 1), -1, dtype=np.int64)
+    k = min(max_neighbours, n - 1) + 1
+    _, idx = cKDTree(positions).query(positions, k=k, distance_upper_bound=sensing_radius)
+    idx = np.asarray(idx, dtype=np.int64).reshape(n, k)
+    idx[idx >= n] = -1
+    idx[idx == np.arange(n)[:, None]] = -1
+    return idx
+
+
+def orca_velocities(
+    positions: NDArray[np.float64],
+    velocities: NDArray[np.float64],
+    preferred: NDArray[np.float64],
+    *,
+    params: OrcaParams,
+    sensing_radius: float,
+    v_max: NDArray[np.float64] | None,
+    radii: NDArray[np.float64] | None = None,
+    boxes: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    goals: NDArray[np.float64] | None = None,
+    has_goal: NDArray[np.bool_] | None = None,
+    bounds: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    commanded: NDArray[np.float64] | None = None,
+    neighbours: NDArray[np.int64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Collision-avoiding velocities of all agents from sensed state (one compiled call).
+
+    Args:
+        positions: (n, 3) m, sensed.
+        velocities: (n, 3) m/s, the velocities ORCA linearises about (see ``rules.reference_velocities``).
+        preferred: (n, 3) m/s, each agent's preferred velocity.
+        params: layer parameters (``params.shape`` says which of ``radii`` / ``boxes`` is used;
+            ``params.margin`` is added to either; the rule switches say which rules act).
+        sensing_radius: m, only neighbours within it are considered.
+        v_max: (3,) m/s per-axis limit, or None.
+        radii: (n,) m, sphere radius of each agent (needed for ``Shape.SPHERE``).
+        boxes: (centre offsets (n, 3) m, half extents (n, 3) m) of each agent's bounding box (see
+            ``bounding_boxes``; needed for ``Shape.BOX``).
+        goals: (n, 3) m, position targets (only used to tell "a neighbour on my goal" from "in my way").
+        has_goal: (n,) True where ``goals`` holds a target.
+        bounds: (lower (n, 3), upper (n, 3)) m/s, hard per-axis bounds of each agent's velocity
+            (default: the velocity limits; see ``rules.velocity_bounds``).
+        commanded: (n, 3) m/s, the velocity each agent's own command would give it (default:
+            ``preferred``). With ``MINIMAL_INTERVENTION`` an agent whose commanded velocity
+            satisfies all its planes is left alone (flag ``FLAG_FREE``, returned velocity =
+            commanded); the others get the LP's velocity closest to ``preferred``.
+        neighbours: (n, k) neighbour table from ``neighbour_table`` (computed when None).
+
+    Returns:
+        (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE | FLAG_CLIMB``).
+    """
+    pos = np.ascontiguousarray(positions, dtype=float)
+    n = pos.shape[0]
+    vm = core.limits(v_max)
+    use_boxes = params.shape is Shape.BOX
+    if use_boxes:
+        if boxes is None:
+            raise ValueError("shape 'box' needs boxes=(centres, half_extents)")
+        centre, half = (np.ascontiguousarray(b, dtype=float).reshape(n, 3) for b in boxes)
+        radius = np.linalg.norm(half, axis=1)
+    else:
+        if radii is None:
+            raise ValueError("shape 'sphere' needs radii")
+        radius = np.ascontiguousarray(radii, dtype=float).reshape(n)
+        centre = half = np.zeros((n, 3))
+    if neighbours is None:
+        neighbours = neighbour_table(pos, sensing_radius, params.max_neighbours)
+    goals = np.zeros((n, 3)) if goals is None else np.ascontiguousarray(goals, dtype=float)
+    has_goal = np.zeros(n, dtype=np.bool_) if has_goal is None else np.ascontiguousarray(has_goal, dtype=np.bool_)
+    if bounds is None:
+        lo, hi = np.tile(-vm, (n, 1)), np.tile(vm, (n, 1))
+    else:
+        lo, hi = (np.ascontiguousarray(b, dtype=float).reshape(n, 3) for b in bounds)
+    pref = np.ascontiguousarray(preferred, dtype=float)
+    v_cmd = pref if commanded is None else np.ascontiguousarray(commanded, dtype=float)
+    out = np.empty((n, 3))
+    flags = np.zeros(n, dtype=np.int64)
+    core_rec, rule_rec = _settings(params, None if v_max is None else tuple(map(float, vm)))
+    orca_batch(
+        pos,
+        np.ascontiguousarray(velocities, dtype=float),
+        pref,
+        v_cmd,
+        radius,
+        centre,
+        half,
+        use_boxes,
+        np.ascontiguousarray(neighbours, dtype=np.int64),
+        goals,
+        has_goal,
+        lo,
+        hi,
+        core_rec,
+        rule_rec,
+        out,
+        flags,
+    )
+    return out, flags
+
+
+def preferred_velocities(
+    kinds: NDArray[np.int64],
+    vectors: NDArray[np.float64],
+    positions: NDArray[np.float64],
+    *,
+    arrive_time: float,
+    v_max: NDArray[np.float64] | None,
+    max_speed: float | None = None,
+) -> NDArray[np.float64]:
+    """Preferred velocity of each agent from its command (what avoidance stays closest to).
+
+    A POSITION target e away is approached at ``e / arrive_time`` per axis, clipped to the
+    velocity limit: a smooth approach that slows down on arrival and does not overshoot with the
+    airframe lagging its reference; VELOCITY commands are their own preferred velocity; HOLD
+    prefers rest.
+
+    Args:
+        kinds: (n,) ``CommandKind`` values.
+        vectors: (n, 3) command vectors (m for POSITION, m/s for VELOCITY).
+        positions: (n, 3) m, sensed.
+        arrive_time: s, time constant of the approach.
+        v_max: (3,) m/s per-axis limit, or None.
+        max_speed: m/s, cap on the speed (optional).
+
+    Returns:
+        (n, 3) m/s.
+    """
+    kinds = np.asarray(kinds)
+    vectors = np.asarray(vectors, dtype=float)
+    pref = np.zeros_like(vectors)
+    pos_cmd = kinds == int(CommandKind.POSITION)
+    pref[pos_cmd] = (vectors[pos_cmd] - positions[pos_cmd]) / arrive_time
+    vel_cmd = kinds == int(CommandKind.VELOCITY)
+    pref[vel_cmd] = vectors[vel_cmd]
+    if v_max is not None:
+        np.clip(pref, -v_max, v_max, out=pref)
+    if max_speed is not None:
+        s = np.linalg.norm(pref, axis=1)
+        over = s > max_speed
+        pref[over] *= (max_speed / s[over])[:, None]
+    return pref
+
+
+def commanded_velocities(
+    kinds: NDArray[np.int64],
+    vectors: NDArray[np.float64],
+    positions: NDArray[np.float64],
+    *,
+    v_max: NDArray[np.float64] | None,
+    a_max: NDArray[np.float64],
+    dt: float,
+) -> NDArray[np.float64]:
+    """Velocity (n, 3) m/s each command would give its agent through the reference shaper.
+
+    Position mode of the shaper: per axis the velocity limit, braking at ``a_max``
+    (``sqrt(2 a_max |e|)``) and at most ``|e| / dt``; velocity mode: the command clipped; HOLD: 0.
+
+    Args:
+        kinds: (n,) ``CommandKind`` values.
+        vectors: (n, 3) command vectors.
+        positions: (n, 3) m, sensed.
+        v_max: (3,) m/s per-axis limit, or None (then position commands are steps: |e| / dt).
+        a_max: (3,) m/s^2.
+        dt: s, the shaper's tick.
+    """
+    kinds = np.asarray(kinds)
+    vectors = np.asarray(vectors, dtype=float)
+    out = np.zeros_like(vectors)
+    pos_cmd = kinds == int(CommandKind.POSITION)
+    e = vectors[pos_cmd] - positions[pos_cmd]
+    speed = np.minimum(np.sqrt(2.0 * np.asarray(a_max, dtype=float) * np.abs(e)), np.abs(e) / dt)
+    out[pos_cmd] = np.sign(e) * speed
+    vel_cmd = kinds == int(CommandKind.VELOCITY)
+    out[vel_cmd] = vectors[vel_cmd]
+    if v_max is not None:
+        np.clip(out, -v_max, v_max, out=out)
+    return out
+
+
+def bounding_boxes(
+    quaternions: NDArray[np.float64],
+    half_extent: NDArray[np.float64],
+    carrying: NDArray[np.bool_],
+    box_size: float,
+    box_drop: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """World-axis bounding boxes of airframes (and hanging boxes) from sensed attitudes.
+
+    Args:
+        quaternions: (n, 4) (x, y, z, w).
+        half_extent: (3,) m, half the airframe's collision box.
+        carrying: (n,) True where an agent holds a box.
+        box_size: m, edge of a box.
+        box_drop: m, box centre below the agent centre in the body frame.
+
+    Returns:
+        (centre offsets (n, 3) m from each agent's position, half extents (n, 3) m).
+    """
+    x, y, z, w = (quaternions[:, k] for k in range(4))
+    R = np.empty((len(quaternions), 3, 3))
+    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    R[:, 0, 1] = 2 * (x * y - z * w)
+    R[:, 0, 2] = 2 * (x * z + y * w)
+    R[:, 1, 0] = 2 * (x * y + z * w)
+    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    R[:, 1, 2] = 2 * (y * z - x * w)
+    R[:, 2, 0] = 2 * (x * z - y * w)
+    R[:, 2, 1] = 2 * (y * z + x * w)
+    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    absR = np.abs(R)
+    half = absR @ half_extent  # (n, 3)
+    lo, hi = -half, half.copy()
+    if np.any(carrying):
+        c = -box_drop * R[:, :, 2]  # box centre offset, world frame
+        hb = absR @ np.full(3, 0.5 * box_size)
+        lo = np.where(carrying[:, None], np.minimum(lo, c - hb), lo)
+        hi = np.where(carrying[:, None], np.maximum(hi, c + hb), hi)
+    return np.ascontiguousarray(0.5 * (lo + hi)), np.ascontiguousarray(0.5 * (hi - lo))

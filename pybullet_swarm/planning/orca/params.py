@@ -1,0 +1,143 @@
+"""Parameters of the ORCA layer (scenario ``avoidance_params``): the core's, then each rule's switch and its own.
+
+Every extension rule of ``rules.py`` has one bool field of its name (``climb_over: false``), on by
+default, with its one-line description; the parameters a rule uses follow its switch and act
+only while it is on. ``preset: paper`` switches every rule off (the paper's ORCA); a rule given
+explicitly beside the preset keeps its value (``{preset: paper, floor_rule: true}``).
+"""
+
+from __future__ import annotations
+
+import enum
+from typing import Any, ClassVar
+
+from pydantic import Field
+
+from pybullet_swarm.planning.orca.rules import Rule
+from pybullet_swarm.planning.params import Params, Preset
+
+
+class Shape(enum.Enum):
+    """How agents are modelled for avoidance."""
+
+    BOX = "box"  # attitude-aware bounding boxes of airframe and load (exact VO of boxes)
+    SPHERE = "sphere"  # enclosing spheres (the classic ORCA model)
+
+
+#: m, safety margin of each shape when ``safety_margin`` is null: two airframes side by side at the
+#: construction task's 20 cm pitch keep 2 cm of slack with boxes
+DEFAULT_MARGIN: dict[Shape, float] = {Shape.BOX: 0.015, Shape.SPHERE: 0.03}
+
+
+def _switch(rule: Rule) -> Any:
+    """The bool field of a rule: on by default, described by the rule's line."""
+    return Field(True, description=rule.doc)
+
+
+class OrcaParams(Params):
+    """Parameters of the ORCA layer (scenario field ``avoidance_params``); see the package notes."""
+
+    preset: Preset | None = Field(
+        None, strict=False, description="paper: every rule off, the paper's ORCA alone (explicit values still win)"
+    )
+    # ------------------------------------------------------------------ the paper's core
+    shape: Shape = Field(
+        Shape.BOX, strict=False, description="box (attitude-aware bounding boxes of airframe and load) or sphere"
+    )
+    time_horizon: float = Field(1.5, gt=0.0, le=60.0, description="s, collisions predicted later than this are ignored")
+    safety_margin: float | None = Field(
+        None,
+        ge=0.0,
+        le=1.0,
+        description="m, added on every side of each shape (null: 0.015 for boxes, 0.03 for spheres)",
+    )
+    max_neighbours: int = Field(10, ge=1, le=100, description="the nearest this many sensed neighbours give planes")
+    recovery_time: float = Field(0.5, gt=0.0, le=60.0, description="s, shapes that already overlap separate over this")
+    responsibility: float = Field(
+        0.5, gt=0.0, le=1.0, description="share of each pair's avoidance an agent takes (0.5: reciprocal)"
+    )
+    arrive_time: float = Field(
+        0.5, gt=0.0, le=60.0, description="s, POSITION targets are approached at distance / arrive_time per axis"
+    )
+    max_speed: float | None = Field(
+        None,
+        gt=0.0,
+        le=100.0,
+        description="m/s, radius of the speed sphere (null: the corner of the velocity-"
+        "limit box, or 1 m/s without limits)",
+    )
+    # ------------------------------------------------------------------ the rules
+    lag_margin: bool = _switch(Rule.LAG_MARGIN)
+    lag_margin_s: float = Field(
+        0.4, ge=0.0, le=10.0, description="s, a pair's shapes also grow by this times their closing speed"
+    )
+    uncertainty_margin: bool = _switch(Rule.UNCERTAINTY_MARGIN)
+    uncertainty_sigmas: float = Field(
+        2.0,
+        ge=0.0,
+        le=10.0,
+        description="flying on estimates, shapes grow by this many standard deviations "
+        "of a pair's relative position error",
+    )
+    clipped_reference: bool = _switch(Rule.CLIPPED_REFERENCE)
+    weighted_way_out: bool = _switch(Rule.WEIGHTED_WAY_OUT)
+    vertical_cost: float = Field(
+        0.75,
+        gt=0.0,
+        le=100.0,
+        description="boxes: weight of a vertical change of velocity against a horizontal one "
+        "(< 1 favours passing over)",
+    )
+    climb_over: bool = _switch(Rule.CLIMB_OVER)
+    floor_rule: bool = _switch(Rule.FLOOR_RULE)
+    floor_height: float = Field(0.5, ge=0.0, le=100.0, description="m, below this avoidance never pushes an agent down")
+    column_rule: bool = _switch(Rule.COLUMN_RULE)
+    column_radius: float = Field(
+        0.03,
+        ge=0.0,
+        le=10.0,
+        description="m, below floor_height an agent this close to its target (horizontally) "
+        "is never moved sideways (0: off)",
+    )
+    minimal_intervention: bool = _switch(Rule.MINIMAL_INTERVENTION)
+    passthrough: bool = _switch(Rule.PASSTHROUGH)
+    capture_radius: float = Field(
+        0.05,
+        ge=0.0,
+        le=10.0,
+        description="m, within this of a POSITION/HOLD target the command passes through when the clearance test holds",
+    )
+    clearance_margin: float = Field(0.02, ge=0.0, le=1.0, description="m, box clearance the passthrough requires")
+    clearance_lookahead: float = Field(
+        0.3, ge=0.0, le=10.0, description="s, a neighbour's box is swept along its velocity for this long"
+    )
+    sidestep: bool = _switch(Rule.SIDESTEP)
+    right_bias: float = Field(
+        0.5, ge=0.0, le=10.0, description="fraction of the preferred speed added sideways to a stalled agent (0: off)"
+    )
+    stuck_fraction: float = Field(
+        0.25,
+        ge=0.0,
+        lt=1.0,
+        description="progress below this fraction of the preferred speed counts as stalled (sidestep, make_way)",
+    )
+    climb_past: bool = _switch(Rule.CLIMB_PAST)
+    make_way: bool = _switch(Rule.MAKE_WAY)
+
+    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
+
+    @property
+    def margin(self) -> float:
+        """m, the safety margin in use."""
+        if self.safety_margin is not None:
+            return float(self.safety_margin)
+        return DEFAULT_MARGIN[self.shape]
+
+    def on(self, rule: Rule) -> bool:
+        """True when ``rule`` is switched on."""
+        return bool(getattr(self, rule.value))
+
+    @property
+    def rules(self) -> tuple[Rule, ...]:
+        """The rules switched on, in ``Rule`` order."""
+        return tuple(r for r in Rule if self.on(r))

@@ -1,0 +1,340 @@
+"""The extension rules on top of the paper's ORCA, each named, documented in one line and switched alone.
+
+The paper's ORCA (``core.py``) knows points or shapes that move at the velocity they are given.
+Our agents are quadrotors that follow a velocity late and overshoot it, fly close to the ground
+and to boxes the paper's agents do not know about, must grasp and place with millimetre
+precision, and meet in narrow depots where symmetric crowds stall. Each rule below answers one of
+these; each is a ``Rule`` whose value is its switch in ``OrcaParams`` (all on by default;
+``preset: paper`` switches every one off, leaving the paper's ORCA). ``RULE_DOCS`` gives each its
+line, which is also the switch's description; the functions below that carry out a rule name it
+first in their docstring (``MINIMAL_INTERVENTION`` is a test in the kernel: ``core.violates``).
+
+The compiled kernel reads the switches and the rules' parameters from one ``RULES`` record.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pybullet_swarm.planning.orca.cache import njit
+from pybullet_swarm.planning.orca.core import right_of
+from pybullet_swarm.planning.orca.vec import Vec, add, dot, row, scale
+
+
+class Rule(str, enum.Enum):
+    """An extension of the paper's ORCA; the value is its switch in ``OrcaParams``."""
+
+    LAG_MARGIN = "lag_margin"
+    UNCERTAINTY_MARGIN = "uncertainty_margin"
+    CLIPPED_REFERENCE = "clipped_reference"
+    WEIGHTED_WAY_OUT = "weighted_way_out"
+    CLIMB_OVER = "climb_over"
+    FLOOR_RULE = "floor_rule"
+    COLUMN_RULE = "column_rule"
+    MINIMAL_INTERVENTION = "minimal_intervention"
+    PASSTHROUGH = "passthrough"
+    SIDESTEP = "sidestep"
+    CLIMB_PAST = "climb_past"
+    MAKE_WAY = "make_way"
+
+    @property
+    def doc(self) -> str:
+        """What the rule does, in one line."""
+        return RULE_DOCS[self]
+
+
+RULE_DOCS: dict[Rule, str] = {
+    Rule.LAG_MARGIN: "a pair's shapes grow by lag_margin_s times its closing speed: airframes follow a new "
+    "velocity late and overshoot it",
+    Rule.UNCERTAINTY_MARGIN: "flying on estimates, shapes grow by uncertainty_sigmas standard deviations of a "
+    "pair's relative position error",
+    Rule.CLIPPED_REFERENCE: "ORCA linearises about the sensed velocity clipped to the velocity limits: overshoots "
+    "are not motion to answer",
+    Rule.WEIGHTED_WAY_OUT: "a box VO's way out counts vertical changes vertical_cost times horizontal ones "
+    "(off: the nearest way out)",
+    Rule.CLIMB_OVER: "on a collision course with a vertical way out, the upper agent takes the whole of it when "
+    "the lower one flies level",
+    Rule.FLOOR_RULE: "below floor_height avoidance never pushes an agent down, above it by at most its height over "
+    "it per horizon",
+    Rule.COLUMN_RULE: "below floor_height an agent within column_radius of its target (horizontally) is only "
+    "slowed or lifted, never moved sideways",
+    Rule.MINIMAL_INTERVENTION: "an agent whose own command violates none of its half-spaces keeps the command "
+    "(off: every agent flies the LP's velocity)",
+    Rule.PASSTHROUGH: "a POSITION/HOLD command within capture_radius passes unchanged when the agent's swept box "
+    "stays clear of every neighbour's",
+    Rule.SIDESTEP: "an agent stalled by a neighbour in its way adds right_bias of its preferred speed sideways, "
+    "to the right or the side left free",
+    Rule.CLIMB_PAST: "a stalled agent higher than the neighbour in its way climbs past it instead of stepping "
+    "sideways (acts with sidestep)",
+    Rule.MAKE_WAY: "a stalled agent descending onto a neighbour that sits on its goal rises straight up, the only "
+    "way that one can leave",
+}
+
+#: the rules' switches and parameters as the kernels read them (one record)
+RULES = np.dtype(
+    [(r.value, np.bool_) for r in Rule]
+    + [
+        ("lag_margin_s", np.float64),  # s, shapes grow by this times the closing speed
+        ("vertical_cost", np.float64),  # weight of vertical changes when choosing a box VO's way out
+        ("time_horizon", np.float64),  # s, how far ahead a neighbour counts as in the way
+        ("right_bias", np.float64),  # fraction of the preferred speed added sideways to a stalled agent
+        ("stuck_fraction", np.float64),  # progress below this fraction of the preferred speed is a stall
+    ],
+    align=True,
+)
+
+VERTICAL_COS2 = 0.5  # cos^2(45 deg): a direction (a way out, a descent) within 45 deg of vertical is vertical
+LEVEL_SPEED = 0.02  # m/s, an agent climbing or sinking slower than this is in level flight
+AHEAD_SIN = 0.5  # sin(30 deg): a neighbour within 30 deg of the direction of travel is nearly straight ahead
+SIDE_OFFSET = 0.01  # m, a neighbour ahead further than this to one side has already chosen its side
+HORIZONTAL_MIN2 = 1e-6  # squared horizontal part of a unit direction below which it counts as vertical
+BESIDE_MIN2 = 1e-4  # m^2, a neighbour horizontally closer than 1 cm is right above or below
+MIN_PREFERRED_SPEED = 1e-3  # m/s, an agent that prefers to move slower than this is at rest: never stalled
+
+
+# ----------------------------------------------------------------------------- margins and the way out
+@njit
+def lag_growth(on: bool, lag_margin_s: float, closing_speed: float) -> float:
+    """LAG_MARGIN: m a pair's shapes grow by at ``closing_speed`` m/s (per axis for boxes, radially for spheres)."""
+    return lag_margin_s * closing_speed if on else 0.0
+
+
+def uncertainty_growth(sigmas: float, position_std: float) -> float:
+    """UNCERTAINTY_MARGIN: m each shape grows by when sensed positions err by ``position_std`` m per axis.
+
+    A pair's relative position errs by sqrt(2) times that; each of the two shapes takes half of it.
+    """
+    return sigmas * math.sqrt(2.0) * position_std / 2.0
+
+
+def reference_velocities(
+    velocities: NDArray[np.float64], v_max: NDArray[np.float64] | None, on: bool
+) -> NDArray[np.float64]:
+    """CLIPPED_REFERENCE: the velocities (n, 3) m/s ORCA linearises about, from the sensed ones."""
+    if not on or v_max is None:
+        return velocities
+    return np.clip(velocities, -v_max, v_max)
+
+
+@njit
+def way_out_weight(on: bool, vertical_cost: float) -> float:
+    """WEIGHTED_WAY_OUT: weight of vertical changes when choosing a box VO's way out (1: the paper's nearest)."""
+    return vertical_cost if on else 1.0
+
+
+@njit
+def climb_share(on: bool, nrm: Vec, u: Vec, vz_self: float, vz_other: float, resp: float) -> tuple[float, bool]:
+    """CLIMB_OVER: (share of the pair's u this agent takes, True when it climbs over the other).
+
+    Nearby nobody is pushed down (``FLOOR_RULE``), so the lower agent could not take its half of a
+    vertical way out: its plane would contradict its bound and the pair would not separate. So on
+    a collision course (``nrm . u > 0``) with a way out within 45 deg of vertical, when the lower
+    agent flies level, the upper agent takes the whole share and the lower one none: an empty
+    agent hops over a carrier and its hanging box. Both agents see the same numbers, so the shares
+    still add up. A lower agent that climbs or descends keeps the reciprocal half.
+    """
+    if on and dot(nrm, u) > 0.0 and nrm[2] * nrm[2] > VERTICAL_COS2 * dot(nrm, nrm):
+        if abs(vz_other if nrm[2] > 0.0 else vz_self) <= LEVEL_SPEED:
+            return (2.0 * resp if nrm[2] > 0.0 else 0.0), nrm[2] > 0.0
+    return resp, False
+
+
+# ----------------------------------------------------------------------------- hard bounds
+def velocity_bounds(
+    positions: NDArray[np.float64],
+    intended: NDArray[np.float64],
+    v_max: NDArray[np.float64] | None,
+    *,
+    floor_height: float,
+    time_horizon: float,
+    goals: NDArray[np.float64] | None = None,
+    has_goal: NDArray[np.bool_] | None = None,
+    column: float = 0.0,
+    floor: bool = True,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """FLOOR_RULE and COLUMN_RULE: hard per-axis bounds (lower (n, 3), upper (n, 3)) m/s of each agent's velocity.
+
+    ORCA knows neither the ground nor what stands on it. So (``floor``) it may push an agent down
+    only above ``floor_height``, by at most its height above it per horizon; below, never faster
+    down than the agent intends to go itself. And (``column`` > 0) an agent low down on a vertical
+    leg to or from its target (horizontally within ``column`` of it: descending to grasp or place,
+    climbing away) is over a box or the structure, where a sideways dodge tilts the airframe into
+    it: avoidance may only slow it down or lift it, not move it sideways. The velocity limits
+    bound everything.
+
+    Args:
+        positions: (n, 3) m, sensed.
+        intended: (n, 3) m/s, the velocity each agent's command asks for (``commanded_velocities``).
+        v_max: (3,) m/s per-axis limit, or None.
+        floor_height: m.
+        time_horizon: s.
+        goals: (n, 3) m, position targets; ``has_goal`` (n,) says which hold one.
+        column: m, horizontal radius of a vertical leg (0: no column rule).
+        floor: the floor rule on.
+    """
+    n = len(positions)
+    vm = np.full(3, np.inf) if v_max is None else np.broadcast_to(np.asarray(v_max, dtype=float), (3,)).copy()
+    lo, hi = np.tile(-vm, (n, 1)), np.tile(vm, (n, 1))
+    if floor:
+        sink = np.maximum(positions[:, 2] - floor_height, 0.0) / time_horizon
+        lo[:, 2] = np.maximum(lo[:, 2], np.minimum(intended[:, 2], -sink))
+    if goals is not None and has_goal is not None and column > 0.0:
+        e = goals - positions
+        leg = has_goal & (np.hypot(e[:, 0], e[:, 1]) <= column) & (positions[:, 2] < floor_height)
+        lo[leg, :2] = np.minimum(intended[leg, :2], 0.0)
+        hi[leg, :2] = np.maximum(intended[leg, :2], 0.0)
+    return lo, hi
+
+
+# ----------------------------------------------------------------------------- stalls
+@njit
+def overlap(
+    pa: Vec, pb: Vec, ra: float, rb: float, ca: Vec, cb: Vec, ha: Vec, hb: Vec, boxes: bool, grow: float
+) -> bool:
+    """True when shape a at pa and shape b at pb come closer than ``grow`` m."""
+    if boxes:
+        for k in range(3):
+            if abs((pb[k] + cb[k]) - (pa[k] + ca[k])) >= ha[k] + hb[k] + grow:
+                return False
+        return True
+    d = add(pb, pa, -1.0)
+    return dot(d, d) < (ra + rb + grow) ** 2
+
+
+@njit
+def stalled_by(
+    i: int,
+    pos: NDArray[np.float64],
+    pref: Vec,
+    sp: float,
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    nbr: NDArray[np.int64],
+    goal: NDArray[np.float64],
+    has_goal: bool,
+    margin2: float,
+    tau: float,
+    make_way: bool,
+) -> tuple[int, bool]:
+    """SIDESTEP and MAKE_WAY: who holds up stalled agent i.
+
+    Returns the nearest neighbour ahead (reachable at speed ``sp`` m/s over ``tau`` s, shapes grown
+    by ``margin2`` m) that is in the way and does not sit on i's goal, or -1; and, with
+    ``make_way``, True instead when, descending straight down, i first meets a neighbour below
+    that sits on its goal: that one can only leave upwards, through i. A neighbour on the goal is
+    otherwise waited for: circling it would not help.
+    """
+    n = pos.shape[0]
+    pi = row(pos, i)
+    dh = scale(pref, 1.0 / sp)
+    for c in range(nbr.shape[1]):  # nearest first
+        j = nbr[i, c]
+        if j < 0 or j >= n or j == i:
+            continue
+        rel = add(row(pos, j), pi, -1.0)
+        if dot(rel, dh) <= 0.0:
+            continue
+        pj = row(pos, j)
+        if not overlap(
+            pi,
+            pj,
+            radius[i],
+            radius[j],
+            row(centre, i),
+            row(centre, j),
+            row(half, i),
+            row(half, j),
+            boxes,
+            margin2 + sp * tau,
+        ):
+            continue
+        if has_goal and overlap(
+            row(goal, i),
+            pj,
+            radius[i],
+            radius[j],
+            row(centre, i),
+            row(centre, j),
+            row(half, i),
+            row(half, j),
+            boxes,
+            margin2,
+        ):
+            if make_way and dh[2] < 0.0 and dh[2] * dh[2] > VERTICAL_COS2 and rel[2] < 0.0:
+                return -1, True  # over the goal's occupant: make way upwards
+            continue  # the neighbour occupies the goal: wait, do not circle it
+        return j, False
+    return -1, False
+
+
+@njit
+def sidestep(d: Vec, rel: Vec) -> Vec:
+    """SIDESTEP: horizontal unit direction across unit direction ``d``, to pass a neighbour at ``rel`` m.
+
+    To the right (``right_of``): when everyone keeps right, a crowd turns into a roundabout. The
+    exception is a neighbour nearly straight ahead (within 30 deg) but already a little to one
+    side (more than 1 cm): then the side it leaves free, rather than crossing in front of it.
+    Both agents of a pair see mirrored numbers and so pick opposite sides.
+    """
+    h2 = d[0] * d[0] + d[1] * d[1]
+    if h2 > HORIZONTAL_MIN2:  # across the horizontal direction of travel
+        hl = math.sqrt(h2)
+        across = (-d[1] / hl, d[0] / hl, 0.0)  # left of d
+        side = dot(rel, across)
+        rh = math.sqrt(rel[0] * rel[0] + rel[1] * rel[1])
+        if SIDE_OFFSET < abs(side) < AHEAD_SIN * rh:
+            return scale(across, -1.0 if side > 0.0 else 1.0)
+        return right_of(d)
+    r2 = rel[0] * rel[0] + rel[1] * rel[1]  # vertical travel: horizontally away
+    if r2 > BESIDE_MIN2:
+        rl = math.sqrt(r2)
+        return (-rel[0] / rl, -rel[1] / rl, 0.0)
+    return right_of(d)
+
+
+# ----------------------------------------------------------------------------- passthrough
+@njit
+def clear_paths(
+    pos: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    vel: NDArray[np.float64],
+    nbr: NDArray[np.int64],
+    candidate: NDArray[np.bool_],
+    margin: float,
+    lookahead: float,
+    out: NDArray[np.bool_],
+) -> None:
+    """PASSTHROUGH: for each candidate, True when the box it sweeps to its goal stays ``margin`` m clear of
+    every neighbour's box swept along the neighbour's velocity over ``lookahead`` s."""
+    n = pos.shape[0]
+    for i in range(n):
+        out[i] = False
+        if not candidate[i]:
+            continue
+        ok = True
+        for c in range(nbr.shape[1]):
+            j = nbr[i, c]
+            if j < 0 or j >= n or j == i:
+                continue
+            apart = False
+            for a in range(3):
+                lo_i = min(pos[i, a], goal[i, a]) + centre[i, a] - half[i, a]
+                hi_i = max(pos[i, a], goal[i, a]) + centre[i, a] + half[i, a]
+                ahead = vel[j, a] * lookahead
+                lo_j = pos[j, a] + centre[j, a] - half[j, a] - margin + min(ahead, 0.0)
+                hi_j = pos[j, a] + centre[j, a] + half[j, a] + margin + max(ahead, 0.0)
+                if hi_i <= lo_j or hi_j <= lo_i:
+                    apart = True
+                    break
+            if not apart:
+                ok = False
+                break
+        out[i] = ok

@@ -1,0 +1,258 @@
+"""ORCA's extension rules (``planning/orca/rules.py``): one switch each, what each changes, runs with each off."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+import pybullet_swarm
+from pybullet_swarm.experiment.simulation import Simulation
+from pybullet_swarm.planning.base import Action, Command, CommandKind
+from pybullet_swarm.planning.orca import (
+    FLAG_BIASED,
+    FLAG_CLIMB,
+    FLAG_FREE,
+    RULE_DOCS,
+    OrcaLayer,
+    OrcaParams,
+    Rule,
+    bounding_boxes,
+    commanded_velocities,
+    orca_velocities,
+    preferred_velocities,
+    velocity_bounds,
+)
+from pybullet_swarm.planning.orca import layer as orca_layer
+from pybullet_swarm.planning.orca.rules import reference_velocities, uncertainty_growth
+from pybullet_swarm.types import ExitStatus
+
+HALF = np.array([0.075, 0.075, 0.01])  # m, quad150 half extents (level)
+VM = np.full(3, 0.15)  # m/s, construction.yaml's per-axis limits
+
+
+def test_every_rule_has_a_switch_on_by_default_described_by_its_one_line():
+    fields = OrcaParams.model_fields
+    assert set(RULE_DOCS) == set(Rule)
+    for rule in Rule:
+        f = fields[rule.value]
+        assert f.annotation is bool and f.default is True
+        assert f.description == rule.doc and "\n" not in rule.doc and 20 < len(rule.doc) <= 130
+    off = {rule.value: False for rule in Rule}
+    assert OrcaParams.model_validate(off) == OrcaParams.model_validate({"preset": "paper"}).model_copy(
+        update={"preset": None}
+    )
+
+
+def test_a_rule_is_switched_off_by_name_in_a_scenario():
+    sc = pybullet_swarm.load_scenario("construction", {"avoidance_params.sidestep": False}, avoidance="orca")
+    assert isinstance(sc.avoidance_params, OrcaParams)
+    assert sc.avoidance_params.sidestep is False and Rule.SIDESTEP not in sc.avoidance_params.rules
+    assert sc.data["avoidance_params"]["sidestep"] is False
+
+
+# ----------------------------------------------------------------------------- rules in the kernel
+def _pair(params: OrcaParams, gap: float = 0.6, half: np.ndarray = HALF) -> tuple[np.ndarray, np.ndarray]:
+    """Two box agents (half extents ``half`` m) head-on along x at 1 m, ``gap`` m apart, each at 0.15 m/s."""
+    pos = np.array([[0.0, 0.0, 1.0], [gap, 0.0, 1.0]])
+    vel = np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0]])
+    return orca_velocities(
+        pos,
+        vel,
+        vel,
+        params=params,
+        sensing_radius=2.0,
+        v_max=VM,
+        boxes=(np.zeros((2, 3)), np.tile(half, (2, 1))),
+        goals=pos + 10.0 * vel,
+        has_goal=np.ones(2, dtype=bool),
+    )
+
+
+def test_lag_margin_grows_the_shapes_with_the_closing_speed():
+    # 0.3 m/s closing over 1.5 s covers 0.45 m: 0.6 m apart (0.42 m between the boxes) they would
+    # not touch without lag margin; with 1 s of it each box grows by 0.3 m and they would
+    base = {"preset": "paper", "minimal_intervention": True, "safety_margin": 0.0}
+    _, flags = _pair(OrcaParams.model_validate({**base, "lag_margin_s": 1.0}), gap=0.8)
+    assert np.all(flags & FLAG_FREE)
+    _, flags = _pair(OrcaParams.model_validate({**base, "lag_margin": True, "lag_margin_s": 1.0}), gap=0.8)
+    assert not np.any(flags & FLAG_FREE)
+
+
+TALL = np.array([0.075, 0.075, 0.1])  # m, half extents of a tall shape (airframe and hanging load)
+PAPER = {"preset": "paper", "safety_margin": 0.0, "vertical_cost": 0.3}
+
+
+def test_weighted_way_out_passes_over_instead_of_braking():
+    v, _ = _pair(OrcaParams.model_validate(PAPER), gap=0.5, half=TALL)
+    assert np.all(v[:, 2] == 0.0) and v[0, 0] < 0.12  # the nearest way out: brake
+    v, _ = _pair(OrcaParams.model_validate({**PAPER, "weighted_way_out": True}), gap=0.5, half=TALL)
+    assert v[0, 2] < -0.05 and v[1, 2] > 0.05  # one under, one over, halves of the vertical way out
+
+
+def test_climb_over_gives_the_whole_share_to_the_upper_agent():
+    both = {**PAPER, "weighted_way_out": True}
+    v, flags = _pair(OrcaParams.model_validate({**both, "climb_over": True}), gap=0.5, half=TALL)
+    assert list(flags & FLAG_CLIMB) == [0, FLAG_CLIMB]
+    assert np.array_equal(v[0], [0.15, 0.0, 0.0])  # the lower one flies on level and undisturbed
+    assert v[1, 2] > 0.1  # the upper one takes the whole way out
+
+
+def _line_of_stalled_agents(params: OrcaParams) -> tuple[np.ndarray, np.ndarray]:
+    """Three agents at rest in a line, two heading one way and one the other (see test_orca)."""
+    pos = np.array([[1.735, 0.401, 0.215], [1.554, 0.319, 0.215], [1.374, 0.163, 0.215]])
+    pref = np.array([[-0.15, -0.075, 0.0], [-0.15, -0.075, 0.0], [0.15, 0.075, 0.0]])
+    return orca_velocities(
+        pos,
+        np.zeros((3, 3)),
+        pref,
+        params=params,
+        sensing_radius=1.0,
+        v_max=VM,
+        boxes=(np.zeros((3, 3)), np.tile(HALF, (3, 1))),
+        goals=pos + 10.0 * pref,
+        has_goal=np.ones(3, dtype=bool),
+    )
+
+
+def test_sidestep_biases_stalled_agents_and_only_when_on():
+    v, flags = _line_of_stalled_agents(OrcaParams())
+    assert np.all(flags & FLAG_BIASED) and abs(v[1, 1]) > 0.1
+    for off in ({"sidestep": False}, {"right_bias": 0.0}):
+        v, flags = _line_of_stalled_agents(OrcaParams.model_validate(off))
+        assert not np.any(flags & FLAG_BIASED)
+
+
+def test_without_make_way_an_agent_over_its_goals_occupant_waits():
+    # test_orca's case: carrier 0 descends onto its slot, where agent 1 has just placed a box
+    pos = np.array([[2.7, 0.6, 0.31], [2.7, 0.6, 0.125]])
+    goals = np.array([[2.7, 0.6, 0.215], [2.7, 0.6, 0.45]])
+    kinds = np.full(2, int(CommandKind.POSITION))
+    has_goal = np.ones(2, dtype=bool)
+    boxes = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([True, False]), 0.1, 0.065)
+    for make_way in (True, False):
+        params = OrcaParams(make_way=make_way)
+        pref = preferred_velocities(kinds, goals, pos, arrive_time=params.arrive_time, v_max=VM)
+        vcmd = commanded_velocities(kinds, goals, pos, v_max=VM, a_max=np.full(3, 1.0), dt=1.0 / 48.0)
+        bounds = velocity_bounds(
+            pos,
+            vcmd,
+            VM,
+            floor_height=params.floor_height,
+            time_horizon=params.time_horizon,
+            goals=goals,
+            has_goal=has_goal,
+            column=params.column_radius,
+        )
+        v, flags = orca_velocities(
+            pos,
+            np.zeros((2, 3)),
+            pref,
+            params=params,
+            sensing_radius=1.0,
+            v_max=VM,
+            boxes=boxes,
+            goals=goals,
+            has_goal=has_goal,
+            bounds=bounds,
+            commanded=vcmd,
+        )
+        assert bool(v[0, 2] > 0.05) is make_way and bool(flags[0] & FLAG_BIASED) is make_way
+
+
+# ----------------------------------------------------------------------------- rules in the layer
+def test_floor_and_column_rules_narrow_the_bounds_only_when_on():
+    pos = np.array([[0.0, 0.0, 0.3], [1.0, 0.0, 0.9]])  # 0 low, on a vertical leg; 1 high
+    intended = np.array([[0.0, 0.0, -0.1], [0.1, 0.0, 0.0]])
+    goals = pos + [[0.0, 0.0, -0.1], [0.1, 0.0, 0.0]]
+    has_goal = np.ones(2, dtype=bool)
+    common = dict(floor_height=0.5, time_horizon=2.0, goals=goals, has_goal=has_goal)
+    lo, hi = velocity_bounds(pos, intended, VM, column=0.03, **common)
+    assert lo[0, 2] == pytest.approx(-0.1) and lo[1, 2] == pytest.approx(-0.15)  # 0.4 m over the floor / 2 s
+    assert np.all(lo[0, :2] == 0.0) and np.all(hi[0, :2] == 0.0)  # 0 may not move sideways
+    lo, hi = velocity_bounds(pos, intended, VM, column=0.0, floor=False, **common)
+    assert np.array_equal(lo, np.tile(-VM, (2, 1))) and np.array_equal(hi, np.tile(VM, (2, 1)))
+
+
+def test_clipped_reference_and_uncertainty_margin():
+    vel = np.array([[0.3, -0.2, 0.0]])
+    assert np.array_equal(reference_velocities(vel, VM, True), [[0.15, -0.15, 0.0]])
+    assert reference_velocities(vel, VM, False) is vel
+    assert uncertainty_growth(2.0, 0.01) == pytest.approx(0.01 * 2.0**0.5)
+
+
+def _layer_scenario(**params: Any):
+    starts = [[1.0, 1.5, 1.0], [1.25, 1.5, 1.0]]
+    return pybullet_swarm.load_scenario(
+        "hover",
+        {
+            "agents.count": 2,
+            "agents.start": starts,
+            "task.time_limit_s": 30.0,
+            "avoidance": "orca",
+            **{k if "." in k else f"avoidance_params.{k}": v for k, v in params.items()},
+        },
+    )
+
+
+def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
+    seen: dict[str, Any] = {}
+
+    def spy(name: str, fn: Any) -> Any:
+        def wrapped(*args: Any, **kwargs: Any) -> Any:
+            seen[name] = (args, kwargs)
+            return fn(*args, **kwargs)
+
+        return wrapped
+
+    for name in ("velocity_bounds", "clear_paths"):
+        monkeypatch.setattr(orca_layer, name, spy(name, getattr(orca_layer, name)))
+    monkeypatch.setattr(orca_layer.rules, "reference_velocities", spy("reference", reference_velocities))
+    sim = Simulation(_layer_scenario())
+    try:
+        layer = sim.avoidance_layer
+        assert isinstance(layer, OrcaLayer)
+        pos = sim.perceive().positions
+        cmds = [Command.goto(pos[0] + [0.01, 0.0, 0.0], Action.GRASP), Command.goto(pos[1] + [0.3, 0.0, 0.0])]
+        for off in (None, *Rule):
+            seen.clear()
+            layer.params = OrcaParams() if off is None else OrcaParams.model_validate({off.value: False})
+            out = layer.filter(cmds, sim.perceive(), sim.task.view(sim.time))
+            kw = seen["velocity_bounds"][1]
+            assert kw["floor"] is (off is not Rule.FLOOR_RULE)
+            assert (kw["column"] > 0.0) is (off is not Rule.COLUMN_RULE)
+            assert seen["reference"][0][2] is (off is not Rule.CLIPPED_REFERENCE)
+            assert ("clear_paths" in seen) is (off is not Rule.PASSTHROUGH)  # agent 0 is 1 cm from its target
+            assert out[0].action is Action.GRASP
+            # agent 1 flies away from agent 0: nothing to avoid, its command stands unless the rule is off
+            assert out[1].kind is (CommandKind.VELOCITY if off is Rule.MINIMAL_INTERVENTION else CommandKind.POSITION)
+    finally:
+        sim.close()
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_uncertainty_margin_grows_the_shapes_on_estimates(on: bool):
+    sim = Simulation(_layer_scenario(uncertainty_margin=on, **{"sensing.state": "estimated"}))
+    try:
+        layer = sim.avoidance_layer
+        assert isinstance(layer, OrcaLayer)
+        assert (layer.params.margin > OrcaParams().margin) is on
+    finally:
+        sim.close()
+
+
+# ----------------------------------------------------------------------------- runs with a rule off
+@pytest.mark.parametrize("off", [*(r.value for r in Rule), "paper"])
+def test_construction_runs_with_a_rule_switched_off(off: str):
+    """Each rule switched off alone (and all of them: the paper's ORCA) gives a run that goes to its end."""
+    params = {"avoidance_params.preset": "paper"} if off == "paper" else {f"avoidance_params.{off}": False}
+    sc = pybullet_swarm.load_scenario(
+        "construction", {"task.time_limit_s": 15.0, **params}, planner="stigmergy", avoidance="orca"
+    )
+    r = pybullet_swarm.run(sc, seed=1, plots=False)
+    assert r.exit_status in (ExitStatus.COMPLETED, ExitStatus.TIMEOUT)
+    assert r.metrics["orca_ticks"] >= 150
+    assert r.metrics["orca_changed_fraction"] > 0.0
+    expected = () if off == "paper" else tuple(rule for rule in Rule if rule.value != off)
+    assert isinstance(sc.avoidance_params, OrcaParams) and sc.avoidance_params.rules == expected
