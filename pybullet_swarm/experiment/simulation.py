@@ -10,7 +10,7 @@ import dataclasses
 import math
 import time
 from pathlib import Path
-from typing import Any
+from typing import AbstractSet, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -113,7 +113,7 @@ class Simulation:
         self.gui = gui
         self.record_enabled = record
         self._build()
-        self.video = None
+        self.video: Any = None  # a VideoWriter while recording
         if video is not None:
             self._open_video(Path(video), video_quiet)
 
@@ -126,9 +126,9 @@ class Simulation:
             self.world.add_walls(sc.arena.size, sc.arena.wall_height)
         for k, ob in enumerate(sc.arena.obstacles):  # static pillars and boxes: contacts are agent_obstacle
             if ob.shape == "cylinder":
-                self.world.add_cylinder(ob.center(), ob.size[0], ob.size[1], name=f"obstacle{k}")
+                self.world.add_cylinder(ob.center().tolist(), ob.size[0], ob.size[1], name=f"obstacle{k}")
             else:
-                self.world.add_box(ob.center(), ob.size, yaw=math.radians(ob.yaw_deg), name=f"obstacle{k}")
+                self.world.add_box(ob.center().tolist(), ob.size, yaw=math.radians(ob.yaw_deg), name=f"obstacle{k}")
         self.rest_height = 0.5 * p.collision_size[2] + 1e-3
         self.starts = sc.start_positions(self.rest_height)
         jitter = sc.agents.start_jitter
@@ -550,7 +550,7 @@ class Simulation:
                     Event(self.time, status.value, f"agent{agent}" if agent is not None else "", "", detail)
                 )
 
-    def _on_contacts(self, pairs: set[tuple[int, int]]) -> None:
+    def _on_contacts(self, pairs: AbstractSet[tuple[int, int]]) -> None:
         t = self.time
         for cls, a, b in self.contacts.update(pairs, t):
             wa, wb = self.world.body_name(a), self.world.body_name(b)

@@ -33,7 +33,7 @@ import itertools
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence, cast
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.results import (
@@ -98,7 +98,7 @@ class Sweep:
             raise ConfigError("must not repeat a seed", source="--seeds")
         set_("seeds", seeds)
         items = self.grid.items() if isinstance(self.grid, Mapping) else self.grid
-        grid = []
+        grid: list[tuple[str, tuple[Any, ...]]] = []
         for key, values in items:
             _check_key(key, "--grid")
             values = tuple(values)
@@ -122,14 +122,29 @@ class Sweep:
         set_("overrides", tuple(overrides))
 
     @property
+    def grid_items(self) -> tuple[tuple[str, tuple[Any, ...]], ...]:
+        """The grid as ``__post_init__`` normalised it: ``((key, values), ...)``."""
+        return cast("tuple[tuple[str, tuple[Any, ...]], ...]", self.grid)
+
+    @property
+    def seed_list(self) -> tuple[int, ...]:
+        """The seeds as ``__post_init__`` normalised them."""
+        return cast("tuple[int, ...]", self.seeds)
+
+    @property
+    def override_items(self) -> tuple[tuple[str, Any], ...]:
+        """The overrides as ``__post_init__`` normalised them: ``((key, value), ...)``."""
+        return cast("tuple[tuple[str, Any], ...]", self.overrides)
+
+    @property
     def grid_keys(self) -> tuple[str, ...]:
         """The grid's key paths, in order."""
-        return tuple(k for k, _ in self.grid)  # type: ignore[misc]
+        return tuple(k for k, _ in self.grid_items)
 
     def grid_points(self) -> list[tuple[tuple[str, Any], ...]]:
         """Every combination of grid values: ``((key, value), ...)`` (one empty point without a grid)."""
         keys = self.grid_keys
-        values = [v for _, v in self.grid]  # type: ignore[misc]
+        values = [v for _, v in self.grid_items]
         return [tuple(zip(keys, combo)) for combo in itertools.product(*values)]
 
     def to_json(self) -> dict[str, Any]:
@@ -138,10 +153,10 @@ class Sweep:
             "scenario": str(self.scenario),
             "planners": list(self.planners),
             "avoidance": list(self.avoidance),
-            "grid": {k: list(v) for k, v in self.grid},
-            "seeds": list(self.seeds),  # type: ignore[misc]
-            "overrides": dict(self.overrides),
-        }  # type: ignore[arg-type]
+            "grid": {k: list(v) for k, v in self.grid_items},
+            "seeds": list(self.seed_list),
+            "overrides": dict(self.override_items),
+        }
 
 
 def _axis(values: Sequence[str | None] | str | None, name: str) -> tuple[str | None, ...]:
@@ -215,7 +230,7 @@ def _configuration(
     from pybullet_swarm.experiment.scenario import apply_choices, apply_overrides, build_scenario
 
     data = apply_choices(copy.deepcopy(dict(raw)), planner=planner, avoidance=avoidance, source=source)
-    data = apply_overrides(data, dict(sweep.overrides), source=source)  # type: ignore[arg-type]
+    data = apply_overrides(data, dict(sweep.override_items), source=source)
     if point:
         data = apply_overrides(data, dict(point), source=source)
     return build_scenario(data, source=source)
@@ -236,7 +251,7 @@ def _base_hash(data: Mapping[str, Any], sweep: Sweep) -> str:
     """Hash of what every run of a sweep shares: the resolved scenario without its seed and without
     what the planner and avoidance choices decide, plus the ``--set`` overrides of those."""
     shared = {k: v for k, v in data.items() if k != "seed" and k not in _CHOSEN}
-    chosen = {k: v for k, v in sweep.overrides if k.split(".")[0] in _CHOSEN}  # type: ignore[misc, str-unpack]
+    chosen = {k: v for k, v in sweep.override_items if k.split(".")[0] in _CHOSEN}
     if chosen:
         shared["overrides"] = chosen
     return config_hash(shared)
@@ -301,7 +316,7 @@ def plan_sweep(sweep: Sweep, out: str | Path, *, plots: bool = False) -> Plan:
     if base is None:
         base, _ = base_scenario(sweep)
     seen: set[str] = set()
-    for seed in sweep.seeds:  # type: ignore[union-attr]
+    for seed in sweep.seed_list:
         for point, planner, avoidance, data in configs:
             run_data = {**data, "seed": seed}  # what the run's scenario.yaml holds
             run_id = config_hash(

@@ -19,7 +19,8 @@ def warm_up() -> None:
     """Import every plug-in and call each compiled kernel once (loaded from numba's cache when it has them)."""
     from pybullet_swarm.control.cascade import CascadeController
     from pybullet_swarm.control.reference import ReferenceShaper
-    from pybullet_swarm.planning import orca, stigmergy
+    from pybullet_swarm.planning import stigmergy
+    from pybullet_swarm.planning.orca import layer as orca_layer
     from pybullet_swarm.planning.registry import avoidance_layers, planners
     from pybullet_swarm.tasks import task_runtimes
     from pybullet_swarm.vehicle import load_vehicle
@@ -33,7 +34,7 @@ def warm_up() -> None:
         shaper.reset(state[:, :3])
         ctrl.position_update(state, shaper.step())
         ctrl.physics_update(state)
-    orca._warm_up()
+    orca_layer._warm_up()
     lo, hi = np.zeros((1, 2)), np.ones((1, 2))
     stigmergy._zone_entry(lo, hi, -1.0, 0.5, 2.0, 0.5)
     stigmergy._zone_contains(lo, hi, 0.5, 0.5)

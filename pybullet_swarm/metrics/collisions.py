@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import enum
-from typing import Callable
+from typing import AbstractSet, Callable
 
 import numpy as np
 
@@ -47,9 +47,9 @@ class ContactTracker:
         self.time_s = {c: 0.0 for c in COLLISION_CLASSES}
         self._active: dict[tuple[int, int], CollisionClass | None] = {}
         self._last_seen: dict[tuple[int, int], float] = {}
-        self._prev: frozenset[tuple[int, int]] | set[tuple[int, int]] = frozenset()
+        self._prev: AbstractSet[tuple[int, int]] = frozenset()
 
-    def update(self, pairs: set[tuple[int, int]], t: float) -> list[tuple[CollisionClass, int, int]]:
+    def update(self, pairs: AbstractSet[tuple[int, int]], t: float) -> list[tuple[CollisionClass, int, int]]:
         """Account for the pairs touching at time ``t`` s; returns new events (class, a, b)."""
         events: list[tuple[CollisionClass, int, int]] = []
         if pairs != self._prev:

@@ -323,8 +323,10 @@ class Braitenberg:
         closing = np.where(mate, np.sum((vel[:, None, :2] - mate_vel) * dirs, axis=2), closing)
         scale = np.where(mate, self.params.neighbour_range_m, scale)
         # candidates (n, P): the rays, then remembered obstacle echoes and the sensed neighbours
-        a_all = [self._activation(ranges, closing, scale, hit)]
-        b_all, c_all, s_all = [world], [closing], [np.broadcast_to(np.arange(r), (n, r))]
+        a_all: list[NDArray[Any]] = [self._activation(ranges, closing, scale, hit)]
+        b_all: list[NDArray[Any]] = [world]
+        c_all: list[NDArray[Any]] = [closing]
+        s_all: list[NDArray[Any]] = [np.broadcast_to(np.arange(r), (n, r))]
         if self.memory_ticks > 0:
             self._forget_crossed(pos, dirs, ranges)
             for lst, x in zip((a_all, b_all, c_all, s_all), self._remembered(pos, yaws, vel)):

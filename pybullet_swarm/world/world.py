@@ -256,7 +256,7 @@ class World:
         linear velocity m/s and angular velocity rad/s, both in the world frame."""
         cid = self._cid
         gp, gv = self._get_pose, self._get_vel
-        poses = []
+        poses: list[Any] = []
         keep = poses.append
         flat: list[float] = []
         for b in self._agents:

@@ -306,13 +306,13 @@ def warm_state_worker(spec: RunSpec) -> dict[str, Any]:
 
     from pybullet_swarm.control import kernels
     from pybullet_swarm.control.design import known_designs
-    from pybullet_swarm.planning import orca
+    from pybullet_swarm.planning.orca import kernel as orca_kernel
 
     return {
         **make_row(spec, {"exit_status": "completed"}),
         "designs": ";".join(sorted(_design_label(k) for k in known_designs())),
         "physics_kernel_loaded": bool(kernels.physics_tick.signatures),
-        "orca_kernel_loaded": bool(orca._orca_batch.signatures),
+        "orca_kernel_loaded": bool(orca_kernel.orca_batch.signatures),
         "warm": "pybullet_swarm.experiment.warm" in sys.modules,
     }
 
