@@ -3,9 +3,14 @@
 Boxes are real rigid bodies. An agent that asks to GRASP within ``attach_threshold`` of a free
 box's grasp point (straight above the box, at ``grasp_height``) holds it with a fixed
 constraint; RELEASE removes the constraint and the box settles under gravity. A slot is open
-when it is empty and every slot under it is filled; a box counts as placed when it rests within
-``place_tolerance_m`` and ``place_tolerance_deg`` of a slot. The task is completed when every
-slot is filled and the structure has stood still for ``settle_s``.
+when it is empty and every slot before it in the build order is filled: the slots under it, and
+the lower slots whose column a box placed here would block for an agent of the run's airframe
+(``tasks.build_order``); a box counts as placed when it rests within ``place_tolerance_m`` and
+``place_tolerance_deg`` of a slot. The task is completed when every slot is filled and the
+structure has stood still for ``settle_s``.
+
+``structure`` and ``boxes`` are lists of box centres, or voxel layers and named shapes expanded
+into such lists when the scenario is loaded (``tasks.layouts``).
 """
 
 from __future__ import annotations
@@ -24,6 +29,8 @@ from pybullet_swarm.metrics.construction import task_lower_bound
 from pybullet_swarm.planning.base import Action, LocalView, TaskView, view_distance
 from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
 from pybullet_swarm.tasks.base import NOT_MINE, ScenarioLike, TaskBase, TaskContext
+from pybullet_swarm.tasks.build_order import REACH_MARGIN, Reach, build_order, prerequisites
+from pybullet_swarm.tasks.layouts import expand_boxes
 from pybullet_swarm.types import Event, TimeSeries
 from pybullet_swarm.world import BodyKind, World
 
@@ -63,6 +70,21 @@ class ConstructionTask(pydantic.BaseModel):
     # "euclidean" (a ball)
     view_norm: Literal["chebyshev", "euclidean"] = "chebyshev"
 
+    @pydantic.model_validator(mode="before")
+    @classmethod
+    def _expand_layouts(cls, data: Any) -> Any:
+        """Expand a structure or depot written as voxels or named shapes into box centres."""
+        if not isinstance(data, dict) or not any(isinstance(data.get(k), (dict, list)) for k in ("structure", "boxes")):
+            return data
+        size = data.get("box_size", cls.model_fields["box_size"].default)
+        if isinstance(size, bool) or not isinstance(size, (int, float)) or not 0.0 < size <= 2.0:
+            size = cls.model_fields["box_size"].default  # refused by its own field; expand with the default
+        out = dict(data)
+        for key in ("boxes", "structure"):
+            if key in out:
+                out[key] = expand_boxes(out[key], float(size), key)
+        return out
+
     def check(self, scenario: ScenarioLike, source: str) -> None:
         """Refuse boxes outside the arena, overlapping boxes or slots, and unsupported slots."""
         h = 0.5 * self.box_size
@@ -99,7 +121,7 @@ class ConstructionTask(pydantic.BaseModel):
         for i, p in enumerate(slots):
             if p[2] > h + 1e-6 and not _supported(p, slots, self.box_size):
                 raise ConfigError(
-                    "slot has nothing under it (no slot or ground supports its centre)",
+                    f"slot {i} at ({p[0]:g}, {p[1]:g}, {p[2]:g}) has nothing under it (no slot or ground supports its centre)",
                     source=source,
                     field=f"task.structure[{i}]",
                 )
@@ -107,6 +129,63 @@ class ConstructionTask(pydantic.BaseModel):
             d = np.max(np.abs(slots - p), axis=1)
             if np.any(d < self.box_size - 1e-9):
                 raise ConfigError("box starts inside a goal slot", source=source, field=f"task.boxes[{i}]")
+        from pybullet_swarm.vehicle import load_vehicle
+
+        vehicle = load_vehicle(scenario.agents.vehicle)
+        self._check_reach(scenario, Reach.of(self.box_size, vehicle.collision_size, self.grasp_gap), source)
+
+    def _check_reach(self, scenario: ScenarioLike, reach: Reach, source: str) -> None:
+        """Refuse boxes and slots an agent of this airframe cannot reach from above (the arena's edge, an
+        obstacle over them, the ceiling over the finished structure), and a structure no order builds."""
+        lx, ly = scenario.arena.size
+        ax, ay = reach.airframe_half - REACH_MARGIN  # the airframe's centre stays this far inside the arena
+        for name, pts in (("boxes", np.asarray(self.boxes, dtype=float)), ("structure", np.asarray(self.structure))):
+            what = "box" if name == "boxes" else "slot"
+            for i, p in enumerate(pts):
+                if not (ax - 1e-9 <= p[0] <= lx - ax + 1e-9 and ay - 1e-9 <= p[1] <= ly - ay + 1e-9):
+                    raise ConfigError(
+                        f"{what} {i} at ({p[0]:g}, {p[1]:g}) is too near the arena's edge for an airframe "
+                        f"{2 * ax:g} x {2 * ay:g} m to hover over it (its centre must lie in "
+                        f"[{ax:g}, {lx - ax:g}] x [{ay:g}, {ly - ay:g}] m)",
+                        source=source,
+                        field=f"task.{name}[{i}]",
+                    )
+                self._check_obstacles(scenario, p, reach, f"task.{name}[{i}]", what, i, source)
+        slots = np.asarray(self.structure, dtype=float)
+        top = scenario.arena.height
+        need = (
+            float(np.max(slots[:, 2])) + 0.5 * self.box_size + self.box_size + reach.grasp_gap + reach.airframe_height
+        )
+        if top is not None and need > top + 1e-9:
+            raise ConfigError(
+                f"an agent carrying a box over the finished structure (top {float(np.max(slots[:, 2])) + 0.5 * self.box_size:g} m) "
+                f"needs {need:.3g} m of height, above the ceiling {top:g} m",
+                source=source,
+                field="arena.height",
+            )
+        if build_order(prerequisites(slots, reach)) is None:  # cannot happen while every constraint points up
+            raise ConfigError("no order of placements builds this structure", source=source, field="task.structure")
+
+    @staticmethod
+    def _check_obstacles(
+        scenario: ScenarioLike, p: NDArray[np.float64], reach: Reach, field: str, what: str, i: int, source: str
+    ) -> None:
+        """Refuse an arena obstacle in the column an agent sweeps over the box or slot at ``p`` (3,) m."""
+        for k, ob in enumerate(getattr(scenario.arena, "obstacles", ())):
+            c = ob.center()
+            hx, hy = ob.half_extents_xy()
+            h = ob.size[1] if ob.shape == "cylinder" else ob.size[2]
+            ob_top = c[2] + 0.5 * h
+            d = np.abs(c[:2] - p[:2])
+            in_box = bool(np.all(d < np.array([hx, hy]) + reach.box_half - 1e-9)) and ob_top > p[2] - reach.box_half
+            in_air = bool(np.all(d < np.array([hx, hy]) + reach.half - 1e-9)) and ob_top > p[2] + reach.box_half
+            if in_box or in_air:
+                raise ConfigError(
+                    f"{what} {i} at ({p[0]:g}, {p[1]:g}, {p[2]:g}) cannot be reached from above: arena.obstacles[{k}] "
+                    "stands in the column an agent carrying a box sweeps over it",
+                    source=source,
+                    field=field,
+                )
 
 
 def _first_overlap(pts: NDArray[np.float64], size: float) -> tuple[int, int]:
@@ -182,6 +261,8 @@ class ConstructionRuntime(TaskBase):
         starts: (n, 3) m, the agents' start positions (for the task's lower bound).
         v_max: (3,) m/s per-axis velocity limit (None: unlimited), for the lower bound.
         position_std: m, per-axis standard deviation of an agent's own position estimate (0 on true state).
+        collision_size: (3,) m, the airframe's collision box (default: a square of the agent's enclosing
+            circle, ``2 * agent_half_height`` tall), for the build order.
     """
 
     def __init__(
@@ -195,6 +276,7 @@ class ConstructionRuntime(TaskBase):
         starts: NDArray[np.float64] | None = None,
         v_max: NDArray[np.float64] | None = None,
         position_std: float = 0.0,
+        collision_size: NDArray[np.float64] | None = None,
     ) -> None:
         self.spec = spec
         self.agent_starts = np.zeros((0, 3)) if starts is None else np.asarray(starts, dtype=float)
@@ -223,6 +305,10 @@ class ConstructionRuntime(TaskBase):
         ]
         self.body_to_box = {b: i for i, b in enumerate(self.bodies)}
         self.support = supporters(self.slots, spec.box_size)
+        if collision_size is None:
+            collision_size = np.array([2.0 * agent_radius, 2.0 * agent_radius, 2.0 * agent_half_height])
+        self.reach = Reach.of(spec.box_size, collision_size, spec.grasp_gap)
+        self.prereq = prerequisites(self.slots, self.reach)  # slots to fill before each slot (the build order)
         self.positions = self.start.copy()  # (B, 3) m
         self.quaternions = np.tile([0.0, 0.0, 0.0, 1.0], (self.B, 1))
         self.speeds = np.zeros(self.B)  # m/s
@@ -248,6 +334,7 @@ class ConstructionRuntime(TaskBase):
             starts=ctx.starts,
             v_max=ctx.v_max,
             position_std=ctx.position_std,
+            collision_size=ctx.collision_size,
         )
 
     # ------------------------------------------------------------ bookkeeping
@@ -292,9 +379,10 @@ class ConstructionRuntime(TaskBase):
 
     @property
     def slot_open(self) -> NDArray[np.bool_]:
-        """(S,) True for empty slots whose supporting slots are all filled."""
+        """(S,) True for empty slots whose prerequisites in the build order are all filled: the slots under
+        them, and every lower slot whose column a box placed here would block (``build_order``)."""
         filled = self.slot_box >= 0
-        return np.array([not filled[s] and bool(np.all(filled[self.support[s]])) for s in range(self.S)])
+        return np.array([not filled[s] and bool(np.all(filled[self.prereq[s]])) for s in range(self.S)])
 
     @property
     def boxes_placed(self) -> int:
