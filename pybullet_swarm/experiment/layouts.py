@@ -6,8 +6,8 @@ at the near end (x = 0), a structure at the far end (a named shape of ``tasks.la
 three of them side by side) and a depot between them: a grid of as many boxes as the structure
 has slots, 20 cm apart. Any of these can be fixed instead of drawn. The scenario is the bundled
 ``construction`` with these parts replaced, written in the compact forms (the structure and the
-depot as shapes), and validated as any scenario is: a draw that a check refuses (a structure too
-wide for the arena, say) is drawn again from the next stream (``layout/1``, ``layout/2`` ...), so
+depot as shapes), and validated as any scenario is, with each construction planner: a draw that a
+check refuses (a structure too wide for the arena, slots a stigmergy agent would not see) is drawn again from the next stream (``layout/1``, ``layout/2`` ...), so
 a seed always gives the same scenario.
 """
 
@@ -20,7 +20,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from pybullet_swarm.errors import ConfigError
-from pybullet_swarm.experiment.scenario import build_scenario, resolve_scenario_path
+from pybullet_swarm.experiment.scenario import apply_choices, build_scenario, resolve_scenario_path
 from pybullet_swarm.rng import named_rng
 from pybullet_swarm.tasks.layouts import expand_boxes
 from pybullet_swarm.validation import read_yaml
@@ -34,6 +34,8 @@ EDGE = 0.2  # m, least distance from a structure's boxes to the arena's edge
 GAP = 0.5  # m, between the depot and the structure
 APART = 0.4  # m, between the structures of a ``several``
 MAX_ATTEMPTS = 50
+#: the construction planners a layout must load with
+PLANNERS = ("shortest_path", "stigmergy", "layered_stigmergy")
 MAX_SLOTS = 60
 
 
@@ -185,6 +187,7 @@ def random_layout(
     shape: str | None = None,
     collisions: str | None = None,
     base: str = "construction",
+    planners: Sequence[str] = PLANNERS,
 ) -> dict[str, Any]:
     """A valid construction scenario (plain data, as a file holds it) drawn from ``seed``.
 
@@ -195,6 +198,7 @@ def random_layout(
         shape: one of ``SHAPES`` (default: drawn).
         collisions: ``ghost`` or ``physical`` (default: the base scenario's).
         base: the scenario the layout replaces the arena, swarm and task layout of.
+        planners: the layout must load with each of these planners (their layout checks pass).
 
     Raises:
         ConfigError: a fixed part that no draw fits (e.g. 20 agents in a 2 x 1 m arena).
@@ -224,7 +228,9 @@ def random_layout(
         task.update(boxes=part["boxes"], structure=part["structure"], time_limit_s=part["time_limit_s"])
         data["task"] = task
         try:
-            build_scenario(copy.deepcopy(data), source=f"layout seed {seed}")
+            for name in planners:
+                choice = apply_choices(copy.deepcopy(data), planner=name, source=f"layout seed {seed}")
+                build_scenario(choice, source=f"layout seed {seed}")
         except ConfigError as exc:
             last = exc
             continue

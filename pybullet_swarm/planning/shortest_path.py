@@ -4,7 +4,8 @@ Boxes are assigned in structure order (bottom layer first); each agent climbs to
 altitude, flies in a straight line to its box, descends, grasps, climbs, flies to its slot,
 waits until the slot is open, descends, releases and climbs. Other agents are ignored at run
 time (this baseline collides, as in the thesis). Agent i cruises at
-``search_height + i * altitude_step``: with the default step of 0.2 m the loaded airframes
+``search_height + i * altitude_step`` (``search_height`` raised where a carried box would not clear
+the finished structure, ``cruise_base``): with the default step of 0.2 m the loaded airframes
 (about 13 cm tall with a box) do not share a cruise altitude, so the physical simulation
 survives the crossings; ``altitude_step: 0`` gives the thesis's single search height (run it
 with ``collisions: ghost``, as the thesis detected collisions without simulating them).
@@ -57,6 +58,18 @@ SERVO_GAIN = 0.3
 """Fraction of a held box's remaining error added to its carrier's target per planner tick."""
 SERVO_LIMIT = 0.03
 """m: largest correction of a carrier's target by the servo, per axis."""
+
+
+VERTICAL_CLEARANCE = 0.03
+"""m: a carried box stays this far above the finished structure and the depot's boxes."""
+
+
+def cruise_base(info: TaskInfo) -> float:
+    """m, the lowest cruise altitude: the task's ``search_height``, raised where a carried box would not
+    clear the finished structure or the depot's boxes (a tall structure)."""
+    tops = [float(np.max(pts[:, 2])) + 0.5 * info.box_size for pts in (info.slots, info.depot) if len(pts)]
+    clear = max(tops, default=0.0) + info.grasp_height + 0.5 * info.box_size + VERTICAL_CLEARANCE
+    return max(float(info.extra.get("search_height", 0.45)), clear)
 
 
 class Phase(enum.IntEnum):
@@ -120,8 +133,7 @@ class ShortestPath:
         """Order the slots bottom layer first and clear the assignments."""
         self.info = info
         self.n = n
-        base = float(info.extra.get("search_height", 0.45))
-        self.hs = base + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
+        self.hs = cruise_base(info) + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
         self.gh = info.grasp_height
         slots = info.slots
         self.order = list(np.lexsort((slots[:, 1], slots[:, 0], np.round(slots[:, 2], 6))))

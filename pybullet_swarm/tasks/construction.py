@@ -85,6 +85,12 @@ class ConstructionTask(pydantic.BaseModel):
                 out[key] = expand_boxes(out[key], float(size), key)
         return out
 
+    def plan_info(self, vehicle: Any) -> dict[str, Any]:
+        """The layout the planners are told (``layout_info``) for agents of ``vehicle`` (VehicleParams)."""
+        return layout_info(
+            self, agent_half_height=0.5 * float(vehicle.collision_size[2]), agent_radius=float(vehicle.radius)
+        )
+
     def check(self, scenario: ScenarioLike, source: str) -> None:
         """Refuse boxes outside the arena, overlapping boxes or slots, and unsupported slots."""
         h = 0.5 * self.box_size
@@ -188,6 +194,30 @@ class ConstructionTask(pydantic.BaseModel):
                 )
 
 
+def grasp_height(spec: ConstructionTask, agent_half_height: float) -> float:
+    """m, height of an agent's centre above the centre of the box it holds."""
+    return agent_half_height + spec.grasp_gap + 0.5 * spec.box_size
+
+
+def layout_info(spec: ConstructionTask, *, agent_half_height: float, agent_radius: float) -> dict[str, Any]:
+    """The static layout every agent is told (keyword arguments of ``TaskInfo``): depot, slots, box size,
+    grasp height, and view and search settings as extras; the same when the scenario is loaded (for the
+    planners' layout checks) and when the run starts."""
+    extra: dict[str, Any] = {
+        "search_height": spec.search_height,
+        "attach_threshold": spec.attach_threshold,
+        "view_radius": spec.view_radius if spec.view_radius is not None else 2.0 * agent_radius,
+        "view_norm": spec.view_norm,
+    }
+    return {
+        "depot": np.asarray(spec.boxes, dtype=float).reshape(-1, 3),
+        "slots": np.asarray(spec.structure, dtype=float).reshape(-1, 3),
+        "box_size": spec.box_size,
+        "grasp_height": grasp_height(spec, agent_half_height),
+        "extra": extra,
+    }
+
+
 def _first_overlap(pts: NDArray[np.float64], size: float) -> tuple[int, int]:
     for k in range(1, len(pts)):
         d = np.max(np.abs(pts[:k] - pts[k]), axis=1)
@@ -289,7 +319,9 @@ class ConstructionRuntime(TaskBase):
         self.start = np.asarray(spec.boxes, dtype=float)  # (B, 3)
         self.slots = np.asarray(spec.structure, dtype=float)  # (S, 3)
         self.B, self.S = len(self.start), len(self.slots)
-        self.grasp_height = agent_half_height + spec.grasp_gap + 0.5 * spec.box_size
+        self.agent_half_height = float(agent_half_height)  # m
+        self.agent_radius = float(agent_radius)  # m
+        self.grasp_height = grasp_height(spec, agent_half_height)
         self.view_radius = spec.view_radius if spec.view_radius is not None else 2.0 * agent_radius
         self.bodies = [
             world.add_box(
@@ -478,19 +510,7 @@ class ConstructionRuntime(TaskBase):
     # ---------------------------------------------------------------- protocol
     def task_info(self) -> dict[str, Any]:
         """Depot, slots, box size and grasp height; view and search settings as extras."""
-        extra: dict[str, Any] = {
-            "search_height": self.spec.search_height,
-            "attach_threshold": self.spec.attach_threshold,
-            "view_radius": self.view_radius,
-            "view_norm": self.spec.view_norm,
-        }
-        return {
-            "depot": self.start.copy(),
-            "slots": self.slots.copy(),
-            "box_size": self.size,
-            "grasp_height": self.grasp_height,
-            "extra": extra,
-        }
+        return layout_info(self.spec, agent_half_height=self.agent_half_height, agent_radius=self.agent_radius)
 
     def view(self, t: float) -> TaskView:
         """Boxes, their states, slots and who carries what."""

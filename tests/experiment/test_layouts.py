@@ -49,6 +49,7 @@ def test_cli_writes_a_layout_that_check_accepts(tmp_path, capsys, seed):
     assert yaml.safe_load(out.read_text())["seed"] == seed
     capsys.readouterr()
     assert main(["check", str(out), "--quiet"]) == 0
+    assert main(["check", str(out), "--quiet", "--set", "planner.name=stigmergy"]) == 0
 
 
 def test_cli_refuses_bad_layout_arguments(capsys):
