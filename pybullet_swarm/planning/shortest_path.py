@@ -304,6 +304,19 @@ class ShortestPath:
             self.last_box[i] = np.nan
         return target + self.correction[i], ready
 
+    def activities(self) -> list[str]:
+        """What each agent is doing, in words: its phase and the box and slot it is assigned."""
+        out = []
+        for i in range(self.n):
+            words = [f"phase {Phase(self.phase[i]).name.lower()}"]
+            if self.box[i] >= 0:
+                words.append(f"box {self.box[i]}")
+            if self.slot[i] >= 0:
+                q = self.info.slots[self.slot[i]]
+                words.append(f"slot {self.slot[i]} at ({q[0]:.2f}, {q[1]:.2f}, {q[2]:.2f})")
+            out.append(", ".join(words))
+        return out
+
     def plan_all(self, view: WorldView) -> list[Command]:
         """One command per agent."""
         if self.home is None:

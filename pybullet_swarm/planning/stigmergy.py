@@ -887,6 +887,20 @@ class Stigmergy:
         self.let_go: LetGo | None = None  # the box let go last, watched while SETTLING
         self.retake: LetGo | None = None  # a box let go beside its slot, taken back to serve that slot again
 
+    def activity(self) -> str:
+        """What the agent is doing, in words: its phase, search point, and the box or slot it works on."""
+        words = [f"phase {self.phase.name.lower()}"]
+        if self.phase in (Phase.SEEK_BOX, Phase.SEEK_GOAL):
+            words.append(f"{self.strategy.name.lower()} search point ({self.target[0]:.2f}, {self.target[1]:.2f})")
+        if self.box.id >= 0:
+            words.append(f"box {self.box.id} at ({self.box.pos[0]:.2f}, {self.box.pos[1]:.2f}, {self.box.pos[2]:.2f})")
+        if self.slot.id >= 0:
+            q = self.slot.pos
+            words.append(f"slot {self.slot.id} at ({q[0]:.2f}, {q[1]:.2f}, {q[2]:.2f})")
+        if self.carry is not None:
+            words.append(f"holding box {self.carry.box}")
+        return ", ".join(words)
+
     @property
     def holding(self) -> bool:
         """True while the agent holds a box (from the grasp the task applied to the release)."""

@@ -58,6 +58,9 @@ class ConstructionTask(pydantic.BaseModel):
     # a placed box counts as displaced only beyond (1 + place_hysteresis) x the place tolerances
     place_hysteresis: float = Field(0.5, ge=0.0, le=2.0)
     settle_s: float = Field(1.0, ge=0.0, le=100.0)
+    # s, a run in which no box is grasped for the first time and the structure grows no higher than it
+    # has been for this long ends as stalled (null: never)
+    stall_time_s: float | None = Field(150.0, gt=0.0, le=1e5)
     settle_speed: float = Field(0.01, gt=0.0, le=10.0)  # m/s, "still" below this
     search_height: float = Field(0.45, gt=0.0, le=100.0)  # m, cruise altitude of the planners
     grip_force: float = Field(2.0, gt=0.0, le=1000.0)  # N, a harder pull on a held box makes it slip
@@ -352,6 +355,9 @@ class ConstructionRuntime(TaskBase):
         self.completed_at: float | None = None
         self.events: list[Event] = []
         self.grasps = 0
+        self.stall_time_s = spec.stall_time_s
+        self.ever_grasped = np.zeros(self.B, dtype=bool)  # boxes taken from where they lay at least once
+        self.most_placed = 0  # the most slots filled at once so far
         self.releases = 0
 
     @classmethod
@@ -405,6 +411,7 @@ class ConstructionRuntime(TaskBase):
                 else:
                     self.events.append(Event(t, "unplaced", f"box{self.slot_box[s]}", f"slot{s}"))
         self.slot_box = new_slot_box
+        self.most_placed = max(self.most_placed, self.boxes_placed)
         placed = np.zeros(self.B, dtype=bool)
         placed[new_slot_box[new_slot_box >= 0]] = True
         self.state = np.where(self.state == CARRIED, CARRIED, np.where(placed, PLACED, FREE))
@@ -444,6 +451,7 @@ class ConstructionRuntime(TaskBase):
         self.state[i] = CARRIED
         self.carried_by[i] = agent
         self.grasps += 1
+        self.ever_grasped[i] = True
         self.events.append(Event(t, "grasp", f"agent{agent}", f"box{i}", f"{d[i] * 100:.1f} cm from grasp point"))
         return i
 
@@ -494,6 +502,11 @@ class ConstructionRuntime(TaskBase):
         else:
             self.still_since = None
         return False
+
+    def progress(self) -> int:
+        """Boxes grasped for the first time plus the most slots filled at once so far: a swarm that keeps
+        taking the same boxes, or placing boxes only to knock others out, makes no progress."""
+        return int(np.count_nonzero(self.ever_grasped)) + self.most_placed
 
     def visible(self, p: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """Free boxes and open slots within the view radius of position ``p`` (3,) m."""
