@@ -134,21 +134,10 @@ def _draw(
         parts = [_shape(rng, str(rng.choice(SHAPES[:-1]))) for _ in range(int(rng.integers(2, 4)))]
     else:
         parts = [_shape(rng, name)]
-    # agents in columns at the near end, 20 cm apart
-    rows = max(1, int(math.floor((ly - 0.2) / START_PITCH + 1e-9)) + 1)
-    cols = math.ceil(n / rows)
-    y0 = 0.5 * ly - 0.5 * START_PITCH * (min(n, rows) - 1)
-    starts = [
-        [round(0.12 + START_PITCH * (k // rows), 3), round(y0 + START_PITCH * (k % rows), 3), 0.011] for k in range(n)
-    ]
-    start_end = 0.12 + START_PITCH * (cols - 1) + 0.1
     slots = sum(len(expand_boxes({**p, "origin": [0.0, 0.0]}, BOX, "structure")) for p in parts)
     if slots > MAX_SLOTS:
         return None
-    depot_rows = max(1, int(math.floor((ly - 0.4) / DEPOT_PITCH + 1e-9)) + 1)
-    depot_cols = math.ceil(slots / depot_rows)
-    depot_x = start_end + 0.25
-    depot_end = depot_x + DEPOT_PITCH * (depot_cols - 1) + 0.5 * BOX
+    _, _, depot_end = swarm_and_depot(n, (lx, ly), slots)
     lo = np.array([depot_end + GAP, EDGE])
     hi = np.array([lx - EDGE, ly - EDGE])
     if np.any(hi <= lo):
@@ -156,27 +145,69 @@ def _draw(
     placed = _place(rng, parts, lo, hi)
     if placed is None:
         return None
-    used_rows = min(depot_rows, slots)
+    return {"arena": [lx, ly], "agents": n, "structure": placed[0] if len(placed) == 1 else placed, "shape": name}
+
+
+def swarm_and_depot(n: int, arena: Sequence[float], slots: int) -> tuple[list[list[float]], dict[str, Any], float]:
+    """Start positions of ``n`` agents in columns at the near end (x = 0) of an ``arena`` (Lx, Ly) m, 20 cm
+    apart, and beyond them a depot grid of ``slots`` boxes 20 cm apart; and x m of the depot's far side."""
+    ly = float(arena[1])
+    rows = max(1, int(math.floor((ly - 0.2) / START_PITCH + 1e-9)) + 1)
+    cols = math.ceil(n / rows)
+    y0 = 0.5 * ly - 0.5 * START_PITCH * (min(n, rows) - 1)
+    starts = [
+        [round(0.12 + START_PITCH * (k // rows), 3), round(y0 + START_PITCH * (k % rows), 3), 0.011] for k in range(n)
+    ]
+    depot_rows = min(max(1, int(math.floor((ly - 0.4) / DEPOT_PITCH + 1e-9)) + 1), slots)
+    depot_cols = math.ceil(slots / depot_rows)
+    depot_x = 0.12 + START_PITCH * (cols - 1) + 0.35
     depot = {
         "shape": "grid",
-        "origin": [round(depot_x, 3), round(0.5 * ly - 0.5 * DEPOT_PITCH * (used_rows - 1), 3)],
-        "size": [depot_cols, used_rows],
+        "origin": [round(depot_x, 3), round(0.5 * ly - 0.5 * DEPOT_PITCH * (depot_rows - 1), 3)],
+        "size": [depot_cols, depot_rows],
         "pitch": DEPOT_PITCH,
         "count": slots,
     }
-    # each box is carried about from the depot's middle to the structure's: a generous time limit
-    far = float(np.mean([p["origin"][0] for p in placed])) - depot_x
+    return starts, depot, depot_x + DEPOT_PITCH * (depot_cols - 1) + 0.5 * BOX
+
+
+def compose_layout(
+    structure: Any,
+    *,
+    agents: int,
+    arena: Sequence[float],
+    seed: int = 0,
+    name: str = "layout",
+    description: str = "",
+    collisions: str | None = None,
+    base: str = "construction",
+) -> dict[str, Any]:
+    """Scenario data (as a file holds it) of ``structure`` (a structure of ``tasks.layouts``, placed) built
+    by ``agents`` agents starting at the near end of an ``arena`` (Lx, Ly) m, with a depot grid of as many
+    boxes as it has slots between them (``swarm_and_depot``), and a time limit generous for the distances.
+    Not validated: ``build_scenario`` judges it."""
+    lx, ly = float(arena[0]), float(arena[1])
+    slots = np.asarray(expand_boxes(structure, BOX, "structure"))
+    starts, depot, _ = swarm_and_depot(agents, (lx, ly), len(slots))
+    # each box is carried from the depot to the structure and the carrier comes back: a generous time limit
+    far = float(np.mean(slots[:, 0])) - depot["origin"][0]
     per_box = 2.0 * far / 0.15 + 30.0  # s, at the thesis's 0.15 m/s
-    limit = 300.0 + 2.0 * slots * per_box / min(n, slots)
-    return {
-        "arena": {"size": [lx, ly]},
-        "agents": {"count": n, "start": starts},
-        "structure": placed[0] if len(placed) == 1 else placed,
-        "structure_name": name,
+    limit = 300.0 + 2.0 * len(slots) * per_box / min(agents, len(slots))
+    data = copy.deepcopy(read_yaml(resolve_scenario_path(base)))
+    data["name"] = name
+    data["description"] = description
+    data["seed"] = int(seed)
+    data["arena"] = {**data.get("arena", {}), "size": [lx, ly]}
+    data["agents"] = {**data.get("agents", {}), "count": int(agents), "start": starts}
+    if collisions is not None:
+        data["collisions"] = collisions
+    data["task"] = {
+        **data["task"],
         "boxes": depot,
+        "structure": structure,
         "time_limit_s": float(min(1e5, math.ceil(limit / 50.0) * 50.0)),
-        "slots": slots,
     }
+    return data
 
 
 def random_layout(
@@ -205,28 +236,22 @@ def random_layout(
     """
     if shape is not None and shape not in SHAPES:
         raise ConfigError(f"must be one of {', '.join(SHAPES)}, got {shape!r}", source="--shape")
-    path = resolve_scenario_path(base)
-    template = read_yaml(path)
     last: ConfigError | None = None
     for attempt in range(MAX_ATTEMPTS):
         rng = named_rng(seed, "layout" if attempt == 0 else f"layout/{attempt}")
         part = _draw(rng, agents=agents, arena=arena, shape=shape)
         if part is None:
             continue
-        data = copy.deepcopy(template)
-        data["name"] = f"layout-{seed}"
+        lx, ly = part["arena"]
+        data = compose_layout(
+            part["structure"], agents=part["agents"], arena=part["arena"], seed=seed, name=f"layout-{seed}",
+            collisions=collisions, base=base,
+        )  # fmt: skip
+        slots = len(expand_boxes(data["task"]["structure"], BOX, "structure"))
         data["description"] = (
-            f"random construction layout (seed {seed}): {part['structure_name']} of {part['slots']} boxes, "
-            f"{part['agents']['count']} agents, arena {part['arena']['size'][0]:g} x {part['arena']['size'][1]:g} m"
+            f"random construction layout (seed {seed}): {part['shape']} of {slots} boxes, "
+            f"{part['agents']} agents, arena {lx:g} x {ly:g} m"
         )
-        data["seed"] = int(seed)
-        data["arena"] = {**data.get("arena", {}), **part["arena"]}
-        data["agents"] = {**data.get("agents", {}), **part["agents"]}
-        if collisions is not None:
-            data["collisions"] = collisions
-        task = dict(data["task"])
-        task.update(boxes=part["boxes"], structure=part["structure"], time_limit_s=part["time_limit_s"])
-        data["task"] = task
         try:
             for name in planners:
                 choice = apply_choices(copy.deepcopy(data), planner=name, source=f"layout seed {seed}")
