@@ -495,19 +495,21 @@ class Simulation:
         )
         doing = self.activities()
         carrying = self.task.view(t).carrying
-        target = self.shaper.target
+        target, velocity = self.shaper.target, self.shaper.velocity_mode
         for i in range(self.n):
             p = self.state_array[i, :3]
             moved = float(np.linalg.norm(p - self._progress_positions[i]))
             what = f"{doing[i]}; " if doing[i] else ""
+            ref = "velocity command" if velocity[i] else "target"  # an avoidance layer commands velocities
             self.events.append(
                 Event(
                     t,
                     "stalled_agent",
                     f"agent{i}",
                     f"box{carrying[i]}" if i < len(carrying) and carrying[i] >= 0 else "",
-                    f"{what}at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m, target ({target[i, 0]:.2f}, "
-                    f"{target[i, 1]:.2f}, {target[i, 2]:.2f}), {moved:.2f} m from where it was at {self._progress_at:g} s",
+                    f"{what}at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m, {ref} ({target[i, 0]:.2f}, "
+                    f"{target[i, 1]:.2f}, {target[i, 2]:.2f}) {'m/s' if velocity[i] else 'm'}, {moved:.2f} m from "
+                    f"where it was at {self._progress_at:g} s",
                 )
             )
         self._finish(ExitStatus.STALLED)
