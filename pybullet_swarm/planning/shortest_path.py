@@ -30,6 +30,10 @@ switch              default  thesis  what it does
                                      so that loaded airframes do not meet at one cruise altitude
 ``retry_slots``     true     false   a slot whose box came to rest off it is served again (with
                                      the box lying in it first, if there is one)
+``wait_beside``     true     false   an agent whose slot is not open yet waits beside its column,
+                                     not over it, while an agent cruising higher still has to come
+                                     down to a slot near that column (with an avoidance layer the
+                                     waiting agent would block that descent for ever)
 ==================  =======  ======  ===========================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
@@ -107,8 +111,15 @@ class ShortestPathParams(Params):
         0.005, gt=0.0, le=0.5, description="m, per-axis error of a held box within which it is let go on estimates"
     )
     retry_slots: bool = Field(True, description="serve again a slot whose box came to rest off it [false]")
+    wait_beside: bool = Field(
+        True,
+        description="wait for a slot beside its column, not over it, while an agent cruising higher "
+        "has yet to come down near that column [false]",
+    )
 
-    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.THESIS: {"altitude_step": 0.0, "retry_slots": False}}
+    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
+        Preset.THESIS: {"altitude_step": 0.0, "retry_slots": False, "wait_beside": False}
+    }
 
 
 class ShortestPath:
@@ -191,6 +202,17 @@ class ShortestPath:
         d = np.abs(box - self.info.slots[s])
         return bool(np.all(d < self.info.box_size))
 
+    def _overflown(self, i: int, s: int) -> bool:
+        """True when another agent cruising higher than agent ``i`` still has to come down to a slot whose
+        column lies within two agent radii of slot ``s``'s (its way down passes agent ``i`` waiting over ``s``)."""
+        busy = (self.phase >= Phase.TO_BOX) & (self.phase <= Phase.DESCEND_SLOT) & (self.slot >= 0)
+        busy[i] = False
+        others = np.flatnonzero(busy & (self.hs > self.hs[i]))
+        if others.size == 0:
+            return False
+        d = np.linalg.norm(self.info.slots[self.slot[others], :2] - self.info.slots[s, :2], axis=1)
+        return bool(np.any(d < 2.0 * self.info.agent_radius))
+
     def _beside(self, above: np.ndarray) -> np.ndarray:
         """A waiting point (3,) m three agent radii from ``above`` (3,) m towards the arena's centre."""
         away = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
@@ -250,9 +272,10 @@ class ShortestPath:
         slot_top = drop - self.offset[i]
         if ph == Phase.TO_SLOT:
             above = np.array([slot_top[0], slot_top[1], self.h])
-            if self.estimated and not view.slot_open[s]:
+            if not view.slot_open[s] and (self.estimated or (self.params.wait_beside and self._overflown(i, s))):
                 # wait beside the column, not over it: an agent serving a slot under this one descends
-                # there, and the avoidance layer on jittering estimates would hold it up for ever
+                # there, and the avoidance layer (on jittering estimates, or a higher agent's way down
+                # through this one's altitude) would hold it up for ever
                 return self._cruise(i, p, self._beside(above))
             if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_SLOT
