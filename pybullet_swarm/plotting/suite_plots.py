@@ -62,7 +62,7 @@ def suite_figure(table: Sequence[Mapping[str, Any]], path: Path) -> Path:
             c.bar(range(len(configs)), total, bottom=bottom, label=cls.replace("_", "-"))
             bottom += total
     c.set_xticks(range(len(configs)), configs, rotation=40, ha="right", fontsize=8)
-    c.set_title("contacts per run (mean over layouts)", fontsize=10)
+    c.set_title("contacts per run (mean)", fontsize=10)
     if bottom.any():
         c.legend(fontsize=7)
     return save_figure(fig, path)
