@@ -12,7 +12,8 @@ agents and arenas up to 6 x 3 m: each a structure placed by hand, composed into 
 many boxes as slots), and two drawn by ``random_layout``. Each is written to
 ``OUT/layouts/<name>.yaml`` and run as one sweep (``pybullet_swarm.experiment.sweep``: planners x
 avoidance x seeds) in ``OUT/<name>/``: resumable, run it again to add seeds or finish an
-interrupted batch.
+interrupted batch (the table holds the runs this invocation plans, not older runs of a directory
+whose planners have changed since).
 
 Per layout and configuration (planner + avoidance) the script tables: runs, completed (and the
 rate), crashed, stalled, timed out, the median completion time of completed runs, the median
@@ -36,7 +37,7 @@ import yaml
 
 from pybullet_swarm.experiment.layouts import compose_layout, random_layout
 from pybullet_swarm.experiment.scenario import resolve_scenario_path
-from pybullet_swarm.experiment.sweep import Sweep, run_sweep
+from pybullet_swarm.experiment.sweep import Sweep, plan_sweep, run_sweep
 from pybullet_swarm.validation import read_yaml
 
 PLANNERS = ("shortest_path", "stigmergy", "layered_stigmergy")
@@ -222,7 +223,8 @@ def main(argv: list[str] | None = None) -> int:
         path.write_text(yaml.safe_dump(layout_data(name), sort_keys=False, default_flow_style=None), encoding="utf-8")
         sweep = Sweep(path, planners=planners, avoidance=avoidance, seeds=args.seeds, overrides=args.overrides)
         result = run_sweep(sweep, args.out / name, workers=args.workers, quiet=args.quiet, figures=False)
-        table.extend(table_rows(name, [dict(r) for r in result.rows]))
+        planned = {spec.run_id for spec in plan_sweep(sweep, args.out / name).runs}  # not older runs of the directory
+        table.extend(table_rows(name, [dict(r) for r in result.rows if r.get("run_id") in planned]))
         if not args.quiet:
             print(f"{name}: {result.n_run} run, {result.n_skipped} recorded before", flush=True)
     fields = list(table[0])
