@@ -19,6 +19,7 @@ class ExitStatus(str, enum.Enum):
     TIMEOUT = "timeout"  # the time limit was reached first
     CRASHED = "crashed"  # an agent flipped over or hit the ground hard
     DIVERGED = "diverged"  # a state became non-finite or left the world
+    STALLED = "stalled"  # the task made no progress for its stall time
 
 
 @dataclasses.dataclass(frozen=True)

@@ -321,6 +321,67 @@ def _cmd_check(args: argparse.Namespace) -> int:
     return 0
 
 
+# ------------------------------------------------------------------- layout
+def _add_layout(sub: Any) -> None:
+    from pybullet_swarm.experiment.layouts import SHAPES
+
+    p = sub.add_parser(
+        "layout", help="write a random construction scenario (structure, depot, swarm, arena) drawn from a seed"
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the layout (and of the scenario)")
+    p.add_argument("--agents", type=_agents, default=None, metavar="N", help="swarm size, 1..20 (default: drawn)")
+    p.add_argument(
+        "--arena",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("LX", "LY"),
+        help="arena size in m (default: drawn in 2..6 x 1..3 m)",
+    )
+    p.add_argument("--shape", choices=SHAPES, default=None, help="structure shape (default: drawn)")
+    p.add_argument(
+        "--collisions", choices=("ghost", "physical"), default=None, help="default: the construction scenario's"
+    )
+    p.add_argument("--out", type=Path, default=None, metavar="FILE", help="scenario file to write (default: print it)")
+    p.set_defaults(func=_cmd_layout)
+
+
+def _agents(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if not 1 <= n <= 20:
+        raise argparse.ArgumentTypeError(f"must be an integer in 1..20, got {text!r}")
+    return n
+
+
+def _cmd_layout(args: argparse.Namespace) -> int:
+    import yaml
+
+    from pybullet_swarm.experiment.layouts import random_layout
+    from pybullet_swarm.experiment.scenario import _seed
+
+    if args.arena is not None and not all(0.5 <= v <= 100.0 for v in args.arena):
+        raise ConfigError(f"each side must be in 0.5..100 m, got {args.arena}", source="--arena")
+    data = random_layout(
+        _seed(args.seed, "--seed"), agents=args.agents, arena=args.arena, shape=args.shape, collisions=args.collisions
+    )
+    text = f"# pybullet-swarm layout --seed {args.seed}: {data['description']}\n" + yaml.safe_dump(
+        data, sort_keys=False, default_flow_style=None
+    )
+    if args.out is None:
+        print(text, end="")
+        return 0
+    from pybullet_swarm.experiment.rundir import atomic_write
+
+    if args.out.is_dir():
+        raise ConfigError("is a directory; give a file name", source=str(args.out))
+    atomic_write(args.out, lambda fh: fh.write(text))
+    print(args.out)
+    return 0
+
+
 # ------------------------------------------------------------------- design
 def _add_design(sub: Any) -> None:
     p = sub.add_parser(
@@ -774,6 +835,7 @@ def build_parser() -> argparse.ArgumentParser:
     for add in (
         _add_run,
         _add_check,
+        _add_layout,
         _add_design,
         _add_plot,
         _add_sweep,

@@ -198,7 +198,7 @@ class SwarmEpisode:
         self.targets = self._targets()
         outcome = self.rewards.end(sim, sim.time - t0, status is ExitStatus.COMPLETED, self.targets)
         terminated = status in TERMINAL
-        truncated = status is ExitStatus.TIMEOUT
+        truncated = status in (ExitStatus.TIMEOUT, ExitStatus.STALLED)
         self.done = terminated or truncated
         self.steps += 1
         self.returns += outcome.rewards

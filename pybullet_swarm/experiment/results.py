@@ -39,6 +39,7 @@ class RunStatus(str, enum.Enum):
     TIMEOUT = "timeout"
     CRASHED = "crashed"
     DIVERGED = "diverged"
+    STALLED = "stalled"
     ERROR = "error"
 
 

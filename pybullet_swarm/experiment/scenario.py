@@ -687,6 +687,30 @@ def _check_waypoints(s: Scenario, task: WaypointsTask, vehicle: VehicleParams, s
             )
 
 
+def _check_layout(s: Scenario, vehicle: VehicleParams, source: str) -> None:
+    """The planner's and the avoidance layer's ``check_layout`` on the layout the agents will be told (a task
+    model with ``plan_info(vehicle)``): what the planners would refuse when the run starts is refused here."""
+    plan_info = getattr(s.task, "plan_info", None)
+    if not callable(plan_info):
+        return
+    from pybullet_swarm.planning.base import TaskInfo
+
+    v = s.velocity_limits()
+    info = TaskInfo(
+        arena_size=np.asarray(s.arena.size, dtype=float),
+        n_agents=s.agents.count,
+        agent_radius=float(vehicle.radius),
+        v_max=np.full(3, np.inf) if v is None else v,
+        a_max=s.acceleration_limits(),
+        **plan_info(vehicle),
+    )
+    for model in (s.planner_params, s.avoidance_params):
+        try:
+            model.check_layout(info)
+        except ConfigError as exc:
+            raise (exc.with_source(source) if exc.source is None else exc) from None
+
+
 MIN_GRAVITY = 0.1  # m/s^2: the hover controller carries m g and limits its tilt relative to g
 
 
@@ -837,6 +861,7 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
         check = getattr(task, "check", None)
         if callable(check):
             check(s, source)
+        _check_layout(s, vehicle, source)
     _check_flight(s, vehicle, source)
     _check_budgets(s)
     return s

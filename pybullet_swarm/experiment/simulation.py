@@ -194,6 +194,11 @@ class Simulation:
             ),
         )
         self.info = self._task_info()
+        # stall detection: the task's progress count and when (and where the agents were) it last changed
+        self.stall_time: float | None = getattr(self.task, "stall_time_s", None)
+        self._progress: int | None = None
+        self._progress_at = 0.0
+        self._progress_positions = self.starts.copy()
         self.estimation: Any = None  # OnboardEstimation when sensing.state is estimated (or run_estimator)
         self.flying_on_estimate = sc.sensing.state.value == "estimated"
         self._make_planner()
@@ -448,6 +453,8 @@ class Simulation:
         if self.task.update(t, self.state_array[:, :3]):
             self._finish(ExitStatus.COMPLETED)
             return
+        if self.stall_time is not None and self._stalled(t):
+            return
         if self.range_sensor is not None:
             self._cast_ranges()
         self.task_view = self.task.view(t)
@@ -466,6 +473,57 @@ class Simulation:
             self.medium.step(1.0 / self.scenario.sim.planner_hz)
         if t >= self.time_limit - 1e-9:
             self._finish(ExitStatus.TIMEOUT)
+
+    def _stalled(self, t: float) -> bool:
+        """True (and the run ends as stalled, its agents' doings in the events) when the task's progress
+        count has not changed for ``stall_time`` s."""
+        count = self.task.progress()
+        if count != self._progress:
+            self._progress, self._progress_at = count, t
+            self._progress_positions = self.state_array[:, :3].copy()
+            return False
+        assert self.stall_time is not None
+        if t - self._progress_at < self.stall_time - 1e-9:
+            return False
+        self.events.append(
+            Event(
+                t,
+                ExitStatus.STALLED.value,
+                "",
+                "",
+                f"no task progress for {t - self._progress_at:g} s (since {self._progress_at:g} s)",
+            )
+        )
+        doing = self.activities()
+        carrying = self.task.view(t).carrying
+        target, velocity = self.shaper.target, self.shaper.velocity_mode
+        for i in range(self.n):
+            p = self.state_array[i, :3]
+            moved = float(np.linalg.norm(p - self._progress_positions[i]))
+            what = f"{doing[i]}; " if doing[i] else ""
+            ref = "velocity command" if velocity[i] else "target"  # an avoidance layer commands velocities
+            self.events.append(
+                Event(
+                    t,
+                    "stalled_agent",
+                    f"agent{i}",
+                    f"box{carrying[i]}" if i < len(carrying) and carrying[i] >= 0 else "",
+                    f"{what}at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m, {ref} ({target[i, 0]:.2f}, "
+                    f"{target[i, 1]:.2f}, {target[i, 2]:.2f}) {'m/s' if velocity[i] else 'm'}, {moved:.2f} m from "
+                    f"where it was at {self._progress_at:g} s",
+                )
+            )
+        self._finish(ExitStatus.STALLED)
+        return True
+
+    def activities(self) -> list[str]:
+        """What each agent's planner says it is doing (its phase and target), '' where it says nothing."""
+        if self.planner is not None:
+            report = getattr(self.planner, "activities", None)
+            out = list(report()) if callable(report) else []
+        else:
+            out = [pl.activity() if callable(getattr(pl, "activity", None)) else "" for pl in self.agent_planners or []]
+        return (out + [""] * self.n)[: self.n]
 
     def _apply(self, commands: list[Command]) -> None:
         """Turn commands into shaper targets and task actions."""

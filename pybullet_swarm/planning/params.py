@@ -8,7 +8,9 @@ a default, a one-line ``description`` and a range (``Field(ge=..., le=...)``) th
 The scenario validates ``planner.params`` and ``avoidance_params`` against these models when it
 is loaded; the tuner reads the ranges from them (``describe``); ``pybullet-swarm list`` prints
 them. Checks that need the scenario (the arena's size for a grid, the number of agents for an
-adjacency matrix) go in ``check_for``, called at load with a ``PlanContext``.
+adjacency matrix) go in ``check_for``, called at load with a ``PlanContext``; checks that need the
+task's layout (altitudes derived from a structure's height) go in ``check_layout``, called at load
+with the ``TaskInfo`` the agents will be told.
 
 A model may offer **presets**: named sets of values (``PRESETS``), chosen with its ``preset``
 field (``planner.params.preset: thesis``). The preset's values are defaults: a parameter given
@@ -30,6 +32,9 @@ import annotated_types
 import pydantic
 
 from pybullet_swarm.memory import DEFAULT_BUDGET, ENV_VAR, format_bytes
+
+if typing.TYPE_CHECKING:  # pragma: no cover
+    from pybullet_swarm.planning.base import TaskInfo
 
 MEMORY_BUDGET_BYTES = DEFAULT_BUDGET
 """bytes: largest memory a plug-in's arrays (a pheromone grid, a memory of echoes) may need by
@@ -76,6 +81,12 @@ class Params(pydantic.BaseModel):
 
     def check_for(self, context: PlanContext) -> None:
         """Refuse values that do not fit the scenario (raise ``ParamRuleError``); none by default."""
+
+    def check_layout(self, info: TaskInfo) -> None:
+        """Refuse values that cannot work with the task's static layout (``TaskInfo``, as the agents are told
+        it when the run starts), raising ``ConfigError`` naming the field; none by default. Called when the
+        scenario is loaded, so that what a run would refuse when it starts is refused by ``check`` and
+        before a sweep starts."""
 
 
 def _quoted(value: Any) -> str:

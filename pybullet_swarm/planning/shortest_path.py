@@ -4,7 +4,8 @@ Boxes are assigned in structure order (bottom layer first); each agent climbs to
 altitude, flies in a straight line to its box, descends, grasps, climbs, flies to its slot,
 waits until the slot is open, descends, releases and climbs. Other agents are ignored at run
 time (this baseline collides, as in the thesis). Agent i cruises at
-``search_height + i * altitude_step``: with the default step of 0.2 m the loaded airframes
+``search_height + i * altitude_step`` (``search_height`` raised where a carried box would not clear
+the finished structure, ``cruise_base``): with the default step of 0.2 m the loaded airframes
 (about 13 cm tall with a box) do not share a cruise altitude, so the physical simulation
 survives the crossings; ``altitude_step: 0`` gives the thesis's single search height (run it
 with ``collisions: ghost``, as the thesis detected collisions without simulating them).
@@ -29,6 +30,10 @@ switch              default  thesis  what it does
                                      so that loaded airframes do not meet at one cruise altitude
 ``retry_slots``     true     false   a slot whose box came to rest off it is served again (with
                                      the box lying in it first, if there is one)
+``wait_beside``     true     false   an agent whose slot is not open yet waits beside its column,
+                                     not over it, while an agent cruising higher still has to come
+                                     down to a slot near that column (with an avoidance layer the
+                                     waiting agent would block that descent for ever)
 ==================  =======  ======  ===========================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
@@ -57,6 +62,18 @@ SERVO_GAIN = 0.3
 """Fraction of a held box's remaining error added to its carrier's target per planner tick."""
 SERVO_LIMIT = 0.03
 """m: largest correction of a carrier's target by the servo, per axis."""
+
+
+VERTICAL_CLEARANCE = 0.03
+"""m: a carried box stays this far above the finished structure and the depot's boxes."""
+
+
+def cruise_base(info: TaskInfo) -> float:
+    """m, the lowest cruise altitude: the task's ``search_height``, raised where a carried box would not
+    clear the finished structure or the depot's boxes (a tall structure)."""
+    tops = [float(np.max(pts[:, 2])) + 0.5 * info.box_size for pts in (info.slots, info.depot) if len(pts)]
+    clear = max(tops, default=0.0) + info.grasp_height + 0.5 * info.box_size + VERTICAL_CLEARANCE
+    return max(float(info.extra.get("search_height", 0.45)), clear)
 
 
 class Phase(enum.IntEnum):
@@ -94,8 +111,15 @@ class ShortestPathParams(Params):
         0.005, gt=0.0, le=0.5, description="m, per-axis error of a held box within which it is let go on estimates"
     )
     retry_slots: bool = Field(True, description="serve again a slot whose box came to rest off it [false]")
+    wait_beside: bool = Field(
+        True,
+        description="wait for a slot beside its column, not over it, while an agent cruising higher "
+        "has yet to come down near that column [false]",
+    )
 
-    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.THESIS: {"altitude_step": 0.0, "retry_slots": False}}
+    PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
+        Preset.THESIS: {"altitude_step": 0.0, "retry_slots": False, "wait_beside": False}
+    }
 
 
 class ShortestPath:
@@ -120,8 +144,7 @@ class ShortestPath:
         """Order the slots bottom layer first and clear the assignments."""
         self.info = info
         self.n = n
-        base = float(info.extra.get("search_height", 0.45))
-        self.hs = base + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
+        self.hs = cruise_base(info) + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
         self.gh = info.grasp_height
         slots = info.slots
         self.order = list(np.lexsort((slots[:, 1], slots[:, 0], np.round(slots[:, 2], 6))))
@@ -178,6 +201,17 @@ class ShortestPath:
         """True when a box centred at ``box`` (3,) m lies (partly) in the space of slot ``s``."""
         d = np.abs(box - self.info.slots[s])
         return bool(np.all(d < self.info.box_size))
+
+    def _overflown(self, i: int, s: int) -> bool:
+        """True when another agent cruising higher than agent ``i`` still has to come down to a slot whose
+        column lies within two agent radii of slot ``s``'s (its way down passes agent ``i`` waiting over ``s``)."""
+        busy = (self.phase >= Phase.TO_BOX) & (self.phase <= Phase.DESCEND_SLOT) & (self.slot >= 0)
+        busy[i] = False
+        others = np.flatnonzero(busy & (self.hs > self.hs[i]))
+        if others.size == 0:
+            return False
+        d = np.linalg.norm(self.info.slots[self.slot[others], :2] - self.info.slots[s, :2], axis=1)
+        return bool(np.any(d < 2.0 * self.info.agent_radius))
 
     def _beside(self, above: np.ndarray) -> np.ndarray:
         """A waiting point (3,) m three agent radii from ``above`` (3,) m towards the arena's centre."""
@@ -239,9 +273,10 @@ class ShortestPath:
         slot_top = drop - self.offset[i]
         if ph == Phase.TO_SLOT:
             above = np.array([slot_top[0], slot_top[1], self.h])
-            if self.estimated and not view.slot_open[s]:
+            if not view.slot_open[s] and (self.estimated or (self.params.wait_beside and self._overflown(i, s))):
                 # wait beside the column, not over it: an agent serving a slot under this one descends
-                # there, and the avoidance layer on jittering estimates would hold it up for ever
+                # there, and the avoidance layer (on jittering estimates, or a higher agent's way down
+                # through this one's altitude) would hold it up for ever
                 return self._cruise(i, p, self._beside(above))
             if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_SLOT
@@ -292,6 +327,19 @@ class ShortestPath:
             self.within_since[i] = np.nan
             self.last_box[i] = np.nan
         return target + self.correction[i], ready
+
+    def activities(self) -> list[str]:
+        """What each agent is doing, in words: its phase and the box and slot it is assigned."""
+        out = []
+        for i in range(self.n):
+            words = [f"phase {Phase(self.phase[i]).name.lower()}"]
+            if self.box[i] >= 0:
+                words.append(f"box {self.box[i]}")
+            if self.slot[i] >= 0:
+                q = self.info.slots[self.slot[i]]
+                words.append(f"slot {self.slot[i]} at ({q[0]:.2f}, {q[1]:.2f}, {q[2]:.2f})")
+            out.append(", ".join(words))
+        return out
 
     def plan_all(self, view: WorldView) -> list[Command]:
         """One command per agent."""

@@ -41,7 +41,13 @@ extension with its own switch (bold; the table below).
   edge of its zone (on the agent's side), where the agent sees its slots; a local search point of an
   agent beside the structure spread along that edge (the thesis's local square, turned to the
   wall). The layout is used for nothing else: boxes and slots are still found by seeing them,
-  guided by the pheromones.
+  guided by the pheromones. For any structure height, depot and arena the altitudes rise from
+  floor to depot to structure by construction (a tall structure raises the floor, and the depot's
+  altitude with it, no higher than where the depot's boxes stay in view); a column whose slots an
+  agent beside the structure cannot see (the middle of a wide slab) is searched for from above, at
+  a cruise altitude lowered (never below the finished structure's clearance) until its lowest slot
+  is in view. Explicit altitudes that do not rise, and slots no agent sees from beside or from
+  above, are refused when the scenario is loaded (``StigmergyParams.check_layout``), never mid-run.
 * Grasping and placing (needs). An agent goes above the object, descends straight down, grasps
   within 60 % of the attach threshold, and places its box from ``release_clearance`` above the
   slot, where the box hangs at the offset it had when grasped (measured from the box it saw then).
@@ -249,6 +255,9 @@ RELEASE_SPEED = 0.02
 """m/s: an agent lets go of its box only below this speed."""
 VERTICAL_CLEARANCE = 0.03
 """m: a carried box or an airframe stays this far above what it flies over."""
+VIEW_MARGIN = ALTITUDE_TOL
+"""m: an object counts as in view from an altitude when it is this much inside the vertical view range
+(horizontally the margin is ``arrive_tol``: an agent arrives that near its search point)."""
 GRASP_FRACTION = 0.6
 """An agent asks to grasp within this fraction of the attach threshold (margin for tracking error)."""
 AHEAD_DEG = 70.0
@@ -407,6 +416,12 @@ class StigmergyParams(Params):
         }
     }
 
+    def check_layout(self, info: TaskInfo) -> None:
+        """Refuse altitudes that cannot work with the task's layout, and slots no agent would see
+        (``FlightGeometry.from_task``, as each agent derives them when the run starts)."""
+        if len(info.slots) and info.box_size > 0:
+            FlightGeometry.from_task(info, self)
+
     def check_for(self, context: PlanContext) -> None:
         """Refuse a pheromone grid (with its snapshots) larger than the memory budget."""
         nx, ny = (max(1, math.ceil(x / self.cell_size - 1e-9)) for x in context.arena_size)
@@ -531,6 +546,26 @@ def _zone_entry(lo: NDArray[np.float64], hi: NDArray[np.float64], ax: float, ay:
     return max(0.0, best)
 
 
+def _floor_altitude(p: StigmergyParams, info: TaskInfo, view: float, depot_grasp: float) -> float:
+    """m, flying altitude over the open floor derived from the layout.
+
+    A carried box clears a box lying on the floor (one knocked out of the structure or let go beside
+    it lies where carriers stop to climb: a box caught on its edge pushes on the carried box gh + bs/2
+    below the airframe's centre, a torque the attitude loop of a small airframe cannot hold). With
+    ``layout_altitudes`` the floor is also level with the middle of the structure's grasp points (slots
+    of every layer in view from its edge), but no higher than where the depot's boxes are still in view
+    (the depot's altitude is not below the floor's); without it, only the clearance, counted from where
+    a climb ends (``ALTITUDE_TOL`` below the altitude).
+    """
+    gh, bs = info.grasp_height, info.box_size
+    clear = bs + gh + 0.5 * bs + VERTICAL_CLEARANCE
+    if not p.layout_altitudes:
+        return clear + ALTITUDE_TOL
+    slot_grasp = info.slots[:, 2] + gh
+    middle = 0.5 * (float(slot_grasp.min()) + float(slot_grasp.max()))
+    return max(clear, min(middle, depot_grasp + view - VIEW_MARGIN))
+
+
 def _around(xy: NDArray[np.float64], half: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     cols = np.unique(np.round(np.asarray(xy, dtype=float).reshape(-1, 2), 9), axis=0)
     return cols - half, cols + half
@@ -555,6 +590,8 @@ class FlightGeometry:
         columns: (c, 2) m, centres of the structure's columns of slots.
         clearance: m, least horizontal (per-axis) distance from a column at which an agent's descent
             does not touch it.
+        hidden: (h, 2) m, centres of the columns with a slot an agent beside the structure does not see
+            (searched for from above them).
     """
 
     floor_altitude: float
@@ -566,6 +603,7 @@ class FlightGeometry:
     standoff: float
     columns: NDArray[np.float64]
     clearance: float
+    hidden: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
     def look_altitude(self) -> float:
@@ -579,39 +617,35 @@ class FlightGeometry:
 
     @staticmethod
     def from_task(info: TaskInfo, p: StigmergyParams) -> FlightGeometry:
-        """Derive the altitudes and zones of a construction task."""
+        """Derive the altitudes and zones of a construction task.
+
+        Raises:
+            ConfigError: altitudes given explicitly that do not rise from floor to depot to structure,
+                or (``layout_altitudes``) a slot no agent sees, from beside the structure at the floor
+                altitude or from above it at the cruise altitude (naming ``task.view_radius``).
+        """
         gh, bs, r = info.grasp_height, info.box_size, info.agent_radius
         view = float(info.extra.get("view_radius", 2.0 * r)) + gh
         carried_bottom = gh + 0.5 * bs  # m, agent centre above the bottom of its box
         slot_grasp = info.slots[:, 2] + gh
-        # level with the middle of the structure's grasp points: slots of every layer in view from its edge;
-        # and a carried box clears a box lying on the floor (one knocked out of the structure or let go
-        # beside it lies where carriers stop to climb): a box caught on its edge pushes on the carried box
-        # gh + bs/2 below the airframe's centre, a torque the attitude loop of a small airframe cannot hold
-        # (without ``layout_altitudes`` only the clearance, one altitude over the floor and a flat depot,
-        # counted from where a climb ends: ALTITUDE_TOL below the altitude)
         seeing = p.layout_altitudes
-        floor = (
-            p.floor_altitude
-            if p.floor_altitude is not None
-            else max(0.5 * (slot_grasp.min() + slot_grasp.max()), bs + carried_bottom + VERTICAL_CLEARANCE)
-            if seeing
-            else bs + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL
-        )
         ground_grasp = 0.5 * bs + gh
         depot_top = float(np.max(info.depot[:, 2])) + 0.5 * bs if len(info.depot) else bs
+        depot_grasp = float(np.min(info.depot[:, 2])) + gh if len(info.depot) else ground_grasp
+        floor = p.floor_altitude if p.floor_altitude is not None else _floor_altitude(p, info, view, depot_grasp)
         look = (
             p.look_altitude
             if p.look_altitude is not None
-            else max(ground_grasp + 0.5 * view, depot_top + carried_bottom + VERTICAL_CLEARANCE)
+            else max(ground_grasp + 0.5 * view, depot_top + carried_bottom + VERTICAL_CLEARANCE, floor)
             if seeing
             else max(floor, depot_top + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL)
         )
         top = float(np.max(info.slots[:, 2])) + 0.5 * bs
+        clear = top + carried_bottom + VERTICAL_CLEARANCE  # m, a carried box clears the finished structure
         cruise = (
             p.cruise_altitude
             if p.cruise_altitude is not None
-            else max(float(info.extra.get("search_height", 0.0)), top + carried_bottom + VERTICAL_CLEARANCE)
+            else max(float(info.extra.get("search_height", 0.0)), clear, look)
         )
         if not floor <= look <= cruise:
             raise _field_error(
@@ -622,7 +656,7 @@ class FlightGeometry:
         lo = np.full(2, r)
         hi = np.maximum(np.asarray(info.arena_size, dtype=float)[:2] - r, lo)
         cols = np.unique(np.round(info.slots[:, :2], 9), axis=0)
-        return FlightGeometry(
+        geo = FlightGeometry(
             float(floor),
             Zone(*_around(info.depot[:, :2], half), float(look)),
             Zone(*_around(cols, half), float(cruise)),
@@ -633,6 +667,38 @@ class FlightGeometry:
             columns=cols,
             clearance=0.5 * bs + r,
         )
+        if not seeing:
+            return geo
+        # slots an agent beside the structure does not see are searched for from above: over their columns
+        # at the cruise altitude, lowered (not below the clearance of the finished structure) to see them
+        norm = str(info.extra.get("view_norm", "chebyshev"))
+        hidden_cols = np.zeros(len(cols), dtype=bool)
+        for k, c in enumerate(cols):
+            edge = geo.outside(c, c)
+            reach = float(view_distance(np.array([*(edge - c), 0.0]), norm)) if geo.inside(c) else 0.0
+            in_col = np.all(np.isclose(info.slots[:, :2], c, atol=1e-9), axis=1)
+            beside = reach <= view - p.arrive_tol and np.all(np.abs(slot_grasp[in_col] - floor) <= view - VIEW_MARGIN)
+            hidden_cols[k] = not beside
+        if not hidden_cols.any():
+            return geo
+        in_hidden = np.any(
+            np.all(np.isclose(info.slots[:, None, :2], cols[hidden_cols][None, :, :], atol=1e-9), axis=2), axis=1
+        )
+        lowest = float(np.min(slot_grasp[in_hidden]))
+        if p.cruise_altitude is None:
+            cruise = max(clear, look, min(cruise, lowest + view - VIEW_MARGIN))
+        if cruise - lowest > view - VIEW_MARGIN:
+            s = int(np.flatnonzero(in_hidden & np.isclose(slot_grasp, lowest))[0])
+            q = info.slots[s]
+            raise ConfigError(
+                f"slot {s} at ({q[0]:g}, {q[1]:g}, {q[2]:g}) is out of view both from beside the structure (at the "
+                f"floor altitude {floor:.3f} m) and from above it (at the cruise altitude {cruise:.3f} m, which "
+                f"clears the finished structure); an agent sees {view:.3f} m around it: a larger view_radius "
+                f"(at least {cruise - lowest + VIEW_MARGIN - gh:.3f} m) lets agents see it from above",
+                field="task.view_radius",
+            )
+        structure = Zone(geo.structure.lo, geo.structure.hi, float(cruise))
+        return dataclasses.replace(geo, structure=structure, hidden=cols[hidden_cols])
 
     @property
     def zones(self) -> tuple[Zone, Zone]:
@@ -652,12 +718,19 @@ class FlightGeometry:
         (0 when a is inside), or None when it stays out."""
         return self.structure.entry(a, b)
 
-    def outside(self, xy: NDArray[np.float64], start: NDArray[np.float64]) -> NDArray[np.float64]:
+    def outside(
+        self, xy: NDArray[np.float64], start: NDArray[np.float64], *, keep_hidden: bool = False
+    ) -> NDArray[np.float64]:
         """The point (2,) m itself when it lies outside the keep-out zone, else the point just outside
         it (``standoff`` beyond an edge, within the arena) on the shortest way from ``start`` (2,) m
-        via the edge to ``xy``."""
+        via the edge to ``xy``; with ``keep_hidden``, a point whose nearest column is ``hidden`` is moved
+        over that column instead (its slots are seen from above)."""
         if not self.inside(xy):
             return xy
+        if keep_hidden and len(self.hidden):
+            c = self.columns[int(np.argmin(np.max(np.abs(self.columns - xy), axis=1)))]
+            if np.any(np.all(np.isclose(self.hidden, c, atol=1e-9), axis=1)):
+                return c.copy()
         k = self.structure
         cand = [np.array([x, xy[1]]) for x in (*(k.lo[:, 0] - self.standoff), *(k.hi[:, 0] + self.standoff))]
         cand += [np.array([xy[0], y]) for y in (*(k.lo[:, 1] - self.standoff), *(k.hi[:, 1] + self.standoff))]
@@ -840,6 +913,20 @@ class Stigmergy:
         self.let_go: LetGo | None = None  # the box let go last, watched while SETTLING
         self.retake: LetGo | None = None  # a box let go beside its slot, taken back to serve that slot again
 
+    def activity(self) -> str:
+        """What the agent is doing, in words: its phase, search point, and the box or slot it works on."""
+        words = [f"phase {self.phase.name.lower()}"]
+        if self.phase in (Phase.SEEK_BOX, Phase.SEEK_GOAL):
+            words.append(f"{self.strategy.name.lower()} search point ({self.target[0]:.2f}, {self.target[1]:.2f})")
+        if self.box.id >= 0:
+            words.append(f"box {self.box.id} at ({self.box.pos[0]:.2f}, {self.box.pos[1]:.2f}, {self.box.pos[2]:.2f})")
+        if self.slot.id >= 0:
+            q = self.slot.pos
+            words.append(f"slot {self.slot.id} at ({q[0]:.2f}, {q[1]:.2f}, {q[2]:.2f})")
+        if self.carry is not None:
+            words.append(f"holding box {self.carry.box}")
+        return ", ".join(words)
+
     @property
     def holding(self) -> bool:
         """True while the agent holds a box (from the grasp the task applied to the release)."""
@@ -958,7 +1045,7 @@ class Stigmergy:
         # a point over the structure is searched from the edge of the keep-out zone, low, where the
         # agent sees slots of every layer (over the structure it flies too high to see the bottom one)
         xy = np.clip(xy, g.arena_lo, g.arena_hi)
-        self.target = g.outside(xy, p[:2]) if layout else xy
+        self.target = g.outside(xy, p[:2], keep_hidden=sign < 0) if layout else xy
         if medium is not None:
             medium.tally(f"target_{self.strategy.name.lower()}")
 

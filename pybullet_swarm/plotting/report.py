@@ -32,7 +32,7 @@ body{font-family:-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;margin:0;ba
 main{max-width:1240px;margin:0 auto;padding:24px 28px 60px}
 h1{font-size:26px;margin:4px 0 2px}h2{font-size:19px;margin:34px 0 10px;border-bottom:1px solid #ccc;padding-bottom:4px}
 .sub{color:#666;margin:0 0 14px}.badge{display:inline-block;padding:2px 10px;border-radius:12px;font-weight:600;
-color:#fff;background:#777;margin-right:8px}.completed{background:#2e8b57}.timeout{background:#c88a12}
+color:#fff;background:#777;margin-right:8px}.completed{background:#2e8b57}.timeout,.stalled{background:#c88a12}
 .crashed,.diverged,.error{background:#c0392b}
 table{border-collapse:collapse;background:#fff;font-size:13.5px;margin:6px 0}
 th,td{border:1px solid #ddd;padding:4px 9px;text-align:left;vertical-align:top}

@@ -3,7 +3,8 @@
 The simulation is a clock that names no task. At the start of a run it builds the task's runtime
 with ``TASK_RUNTIMES[kind](spec, context)``; then, every planner tick, it asks the runtime to
 ``update`` (progress and completion), publishes its ``view`` and the agents' ``local_views`` to the
-perception of the planners, and hands the agents' task actions to ``apply``. At the end it merges
+perception of the planners, and hands the agents' task actions to ``apply``. A run whose task
+``progress`` count has not changed for the task's ``stall_time_s`` ends as stalled. At the end it merges
 the runtime's ``metrics`` into ``metrics.json`` and writes its ``artefacts`` (plain data) into the
 run directory. The learning environments call the same methods.
 """
@@ -80,10 +81,12 @@ class TaskRuntime(Protocol):
     Attributes:
         completed_at: s, when the task was completed, or None.
         events: task events (grasps, placements, waypoints passed ...), in time order.
+        stall_time_s: s, a run whose ``progress`` has not changed for this long ends as stalled (None: never).
     """
 
     completed_at: float | None
     events: list[Event]
+    stall_time_s: float | None
 
     def task_info(self) -> dict[str, Any]:
         """Keyword arguments of ``TaskInfo``: the task's static layout (``depot``, ``slots``, ``box_size``,
@@ -95,6 +98,10 @@ class TaskRuntime(Protocol):
 
     def view(self, t: float) -> TaskView:
         """What the task shows at time ``t``."""
+
+    def progress(self) -> int:
+        """A count that changes whenever the task advances (as judged by the last ``update``); the clock
+        ends a run whose count has not changed for ``stall_time_s``."""
 
     def refresh(self) -> None:
         """Read the task's bodies now without judging progress (between planner ticks, e.g. for a
@@ -134,6 +141,7 @@ class TaskBase:
     """Defaults for the optional parts of the protocol (a task without objects, actions or files)."""
 
     completed_at: float | None = None
+    stall_time_s: float | None = None
 
     def task_info(self) -> dict[str, Any]:
         """No static layout beyond the arena."""
@@ -147,6 +155,10 @@ class TaskBase:
 
     def refresh(self) -> None:
         """No bodies to read."""
+
+    def progress(self) -> int:
+        """No progress counted (a task without ``stall_time_s`` is never judged stalled)."""
+        return 0
 
     def apply(self, agent: int, action: Action, t: float, position: NDArray[np.float64]) -> float | None:
         """No task actions."""

@@ -3,9 +3,14 @@
 Boxes are real rigid bodies. An agent that asks to GRASP within ``attach_threshold`` of a free
 box's grasp point (straight above the box, at ``grasp_height``) holds it with a fixed
 constraint; RELEASE removes the constraint and the box settles under gravity. A slot is open
-when it is empty and every slot under it is filled; a box counts as placed when it rests within
-``place_tolerance_m`` and ``place_tolerance_deg`` of a slot. The task is completed when every
-slot is filled and the structure has stood still for ``settle_s``.
+when it is empty and every slot before it in the build order is filled: the slots under it, and
+the lower slots whose column a box placed here would block for an agent of the run's airframe
+(``tasks.build_order``); a box counts as placed when it rests within ``place_tolerance_m`` and
+``place_tolerance_deg`` of a slot. The task is completed when every slot is filled and the
+structure has stood still for ``settle_s``.
+
+``structure`` and ``boxes`` are lists of box centres, or voxel layers and named shapes expanded
+into such lists when the scenario is loaded (``tasks.layouts``).
 """
 
 from __future__ import annotations
@@ -24,6 +29,8 @@ from pybullet_swarm.metrics.construction import task_lower_bound
 from pybullet_swarm.planning.base import Action, LocalView, TaskView, view_distance
 from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
 from pybullet_swarm.tasks.base import NOT_MINE, ScenarioLike, TaskBase, TaskContext
+from pybullet_swarm.tasks.build_order import REACH_MARGIN, Reach, build_order, prerequisites
+from pybullet_swarm.tasks.layouts import expand_boxes
 from pybullet_swarm.types import Event, TimeSeries
 from pybullet_swarm.world import BodyKind, World
 
@@ -51,6 +58,9 @@ class ConstructionTask(pydantic.BaseModel):
     # a placed box counts as displaced only beyond (1 + place_hysteresis) x the place tolerances
     place_hysteresis: float = Field(0.5, ge=0.0, le=2.0)
     settle_s: float = Field(1.0, ge=0.0, le=100.0)
+    # s, a run in which no box is grasped for the first time and the structure grows no higher than it
+    # has been for this long ends as stalled (null: never)
+    stall_time_s: float | None = Field(150.0, gt=0.0, le=1e5)
     settle_speed: float = Field(0.01, gt=0.0, le=10.0)  # m/s, "still" below this
     search_height: float = Field(0.45, gt=0.0, le=100.0)  # m, cruise altitude of the planners
     grip_force: float = Field(2.0, gt=0.0, le=1000.0)  # N, a harder pull on a held box makes it slip
@@ -70,6 +80,27 @@ class ConstructionTask(pydantic.BaseModel):
     guide_height: float = Field(0.5, ge=0.0, le=5.0)  # x box_size, height above its slot a box is captured from
     guide_force: float = Field(0.5, gt=0.0, le=1000.0)  # N, the guide's pull on a captured box
     bond_force: float = Field(50.0, gt=0.0, le=1e5)  # N, the interlock's hold on a placed box
+
+    @pydantic.model_validator(mode="before")
+    @classmethod
+    def _expand_layouts(cls, data: Any) -> Any:
+        """Expand a structure or depot written as voxels or named shapes into box centres."""
+        if not isinstance(data, dict) or not any(isinstance(data.get(k), (dict, list)) for k in ("structure", "boxes")):
+            return data
+        size = data.get("box_size", cls.model_fields["box_size"].default)
+        if isinstance(size, bool) or not isinstance(size, (int, float)) or not 0.0 < size <= 2.0:
+            size = cls.model_fields["box_size"].default  # refused by its own field; expand with the default
+        out = dict(data)
+        for key in ("boxes", "structure"):
+            if key in out:
+                out[key] = expand_boxes(out[key], float(size), key)
+        return out
+
+    def plan_info(self, vehicle: Any) -> dict[str, Any]:
+        """The layout the planners are told (``layout_info``) for agents of ``vehicle`` (VehicleParams)."""
+        return layout_info(
+            self, agent_half_height=0.5 * float(vehicle.collision_size[2]), agent_radius=float(vehicle.radius)
+        )
 
     def check(self, scenario: ScenarioLike, source: str) -> None:
         """Refuse boxes outside the arena, overlapping boxes or slots, and unsupported slots."""
@@ -107,7 +138,7 @@ class ConstructionTask(pydantic.BaseModel):
         for i, p in enumerate(slots):
             if p[2] > h + 1e-6 and not _supported(p, slots, self.box_size):
                 raise ConfigError(
-                    "slot has nothing under it (no slot or ground supports its centre)",
+                    f"slot {i} at ({p[0]:g}, {p[1]:g}, {p[2]:g}) has nothing under it (no slot or ground supports its centre)",
                     source=source,
                     field=f"task.structure[{i}]",
                 )
@@ -115,6 +146,87 @@ class ConstructionTask(pydantic.BaseModel):
             d = np.max(np.abs(slots - p), axis=1)
             if np.any(d < self.box_size - 1e-9):
                 raise ConfigError("box starts inside a goal slot", source=source, field=f"task.boxes[{i}]")
+        from pybullet_swarm.vehicle import load_vehicle
+
+        vehicle = load_vehicle(scenario.agents.vehicle)
+        self._check_reach(scenario, Reach.of(self.box_size, vehicle.collision_size, self.grasp_gap), source)
+
+    def _check_reach(self, scenario: ScenarioLike, reach: Reach, source: str) -> None:
+        """Refuse boxes and slots an agent of this airframe cannot reach from above (the arena's edge, an
+        obstacle over them, the ceiling over the finished structure), and a structure no order builds."""
+        lx, ly = scenario.arena.size
+        ax, ay = reach.airframe_half - REACH_MARGIN  # the airframe's centre stays this far inside the arena
+        for name, pts in (("boxes", np.asarray(self.boxes, dtype=float)), ("structure", np.asarray(self.structure))):
+            what = "box" if name == "boxes" else "slot"
+            for i, p in enumerate(pts):
+                if not (ax - 1e-9 <= p[0] <= lx - ax + 1e-9 and ay - 1e-9 <= p[1] <= ly - ay + 1e-9):
+                    raise ConfigError(
+                        f"{what} {i} at ({p[0]:g}, {p[1]:g}) is too near the arena's edge for an airframe "
+                        f"{2 * ax:g} x {2 * ay:g} m to hover over it (its centre must lie in "
+                        f"[{ax:g}, {lx - ax:g}] x [{ay:g}, {ly - ay:g}] m)",
+                        source=source,
+                        field=f"task.{name}[{i}]",
+                    )
+                self._check_obstacles(scenario, p, reach, f"task.{name}[{i}]", what, i, source)
+        slots = np.asarray(self.structure, dtype=float)
+        top = scenario.arena.height
+        need = (
+            float(np.max(slots[:, 2])) + 0.5 * self.box_size + self.box_size + reach.grasp_gap + reach.airframe_height
+        )
+        if top is not None and need > top + 1e-9:
+            raise ConfigError(
+                f"an agent carrying a box over the finished structure (top {float(np.max(slots[:, 2])) + 0.5 * self.box_size:g} m) "
+                f"needs {need:.3g} m of height, above the ceiling {top:g} m",
+                source=source,
+                field="arena.height",
+            )
+        if build_order(prerequisites(slots, reach)) is None:  # cannot happen while every constraint points up
+            raise ConfigError("no order of placements builds this structure", source=source, field="task.structure")
+
+    @staticmethod
+    def _check_obstacles(
+        scenario: ScenarioLike, p: NDArray[np.float64], reach: Reach, field: str, what: str, i: int, source: str
+    ) -> None:
+        """Refuse an arena obstacle in the column an agent sweeps over the box or slot at ``p`` (3,) m."""
+        for k, ob in enumerate(getattr(scenario.arena, "obstacles", ())):
+            c = ob.center()
+            hx, hy = ob.half_extents_xy()
+            h = ob.size[1] if ob.shape == "cylinder" else ob.size[2]
+            ob_top = c[2] + 0.5 * h
+            d = np.abs(c[:2] - p[:2])
+            in_box = bool(np.all(d < np.array([hx, hy]) + reach.box_half - 1e-9)) and ob_top > p[2] - reach.box_half
+            in_air = bool(np.all(d < np.array([hx, hy]) + reach.half - 1e-9)) and ob_top > p[2] + reach.box_half
+            if in_box or in_air:
+                raise ConfigError(
+                    f"{what} {i} at ({p[0]:g}, {p[1]:g}, {p[2]:g}) cannot be reached from above: arena.obstacles[{k}] "
+                    "stands in the column an agent carrying a box sweeps over it",
+                    source=source,
+                    field=field,
+                )
+
+
+def grasp_height(spec: ConstructionTask, agent_half_height: float) -> float:
+    """m, height of an agent's centre above the centre of the box it holds."""
+    return agent_half_height + spec.grasp_gap + 0.5 * spec.box_size
+
+
+def layout_info(spec: ConstructionTask, *, agent_half_height: float, agent_radius: float) -> dict[str, Any]:
+    """The static layout every agent is told (keyword arguments of ``TaskInfo``): depot, slots, box size,
+    grasp height, and view and search settings as extras; the same when the scenario is loaded (for the
+    planners' layout checks) and when the run starts."""
+    extra: dict[str, Any] = {
+        "search_height": spec.search_height,
+        "attach_threshold": spec.attach_threshold,
+        "view_radius": spec.view_radius if spec.view_radius is not None else 2.0 * agent_radius,
+        "view_norm": spec.view_norm,
+    }
+    return {
+        "depot": np.asarray(spec.boxes, dtype=float).reshape(-1, 3),
+        "slots": np.asarray(spec.structure, dtype=float).reshape(-1, 3),
+        "box_size": spec.box_size,
+        "grasp_height": grasp_height(spec, agent_half_height),
+        "extra": extra,
+    }
 
 
 def _first_overlap(pts: NDArray[np.float64], size: float) -> tuple[int, int]:
@@ -191,6 +303,8 @@ class ConstructionRuntime(TaskBase):
         starts: (n, 3) m, the agents' start positions (for the task's lower bound).
         v_max: (3,) m/s per-axis velocity limit (None: unlimited), for the lower bound.
         position_std: m, per-axis standard deviation of an agent's own position estimate (0 on true state).
+        collision_size: (3,) m, the airframe's collision box (default: a square of the agent's enclosing
+            circle, ``2 * agent_half_height`` tall), for the build order.
     """
 
     def __init__(
@@ -204,6 +318,7 @@ class ConstructionRuntime(TaskBase):
         starts: NDArray[np.float64] | None = None,
         v_max: NDArray[np.float64] | None = None,
         position_std: float = 0.0,
+        collision_size: NDArray[np.float64] | None = None,
     ) -> None:
         self.spec = spec
         self.agent_starts = np.zeros((0, 3)) if starts is None else np.asarray(starts, dtype=float)
@@ -216,7 +331,9 @@ class ConstructionRuntime(TaskBase):
         self.start = np.asarray(spec.boxes, dtype=float)  # (B, 3)
         self.slots = np.asarray(spec.structure, dtype=float)  # (S, 3)
         self.B, self.S = len(self.start), len(self.slots)
-        self.grasp_height = agent_half_height + spec.grasp_gap + 0.5 * spec.box_size
+        self.agent_half_height = float(agent_half_height)  # m
+        self.agent_radius = float(agent_radius)  # m
+        self.grasp_height = grasp_height(spec, agent_half_height)
         self.view_radius = spec.view_radius if spec.view_radius is not None else 2.0 * agent_radius
         self.bodies = [
             world.add_box(
@@ -232,6 +349,10 @@ class ConstructionRuntime(TaskBase):
         ]
         self.body_to_box = {b: i for i, b in enumerate(self.bodies)}
         self.support = supporters(self.slots, spec.box_size)
+        if collision_size is None:
+            collision_size = np.array([2.0 * agent_radius, 2.0 * agent_radius, 2.0 * agent_half_height])
+        self.reach = Reach.of(spec.box_size, collision_size, spec.grasp_gap)
+        self.prereq = prerequisites(self.slots, self.reach)  # slots to fill before each slot (the build order)
         self.positions = self.start.copy()  # (B, 3) m
         self.quaternions = np.tile([0.0, 0.0, 0.0, 1.0], (self.B, 1))
         self.speeds = np.zeros(self.B)  # m/s
@@ -249,6 +370,9 @@ class ConstructionRuntime(TaskBase):
         self.completed_at: float | None = None
         self.events: list[Event] = []
         self.grasps = 0
+        self.stall_time_s = spec.stall_time_s
+        self.ever_grasped = np.zeros(self.B, dtype=bool)  # boxes taken from where they lay at least once
+        self.most_placed = 0  # the most slots filled at once so far
         self.releases = 0
 
     @classmethod
@@ -263,6 +387,7 @@ class ConstructionRuntime(TaskBase):
             starts=ctx.starts,
             v_max=ctx.v_max,
             position_std=ctx.position_std,
+            collision_size=ctx.collision_size,
         )
 
     # ------------------------------------------------------------ bookkeeping
@@ -327,19 +452,22 @@ class ConstructionRuntime(TaskBase):
             else:
                 self.events.append(Event(t, "unplaced", f"box{old[s]}", f"slot{s}"))
         self.slot_box = new_slot_box
+        self.most_placed = max(self.most_placed, self.boxes_placed)
         placed = np.zeros(self.B, dtype=bool)
         placed[new_slot_box[new_slot_box >= 0]] = True
         self.state = np.where(self.state == CARRIED, CARRIED, np.where(placed, PLACED, FREE))
 
     @property
     def slot_open(self) -> NDArray[np.bool_]:
-        """(S,) True for empty slots whose supporting slots are all filled."""
+        """(S,) True for empty slots whose prerequisites in the build order are all filled (the slots under
+        them, and every lower slot whose column a box placed here would block: ``build_order``), and that no
+        box is being guided into."""
         into = self._guided_into()
         key = self.slot_box.tobytes() + into.tobytes()
         if self._open is None or self._open[0] != key:
             filled = self.slot_box >= 0
             taken = filled | (into >= 0)  # a slot a box is being guided into is no longer open
-            is_open = np.array([not taken[s] and bool(np.all(filled[self.support[s]])) for s in range(self.S)])
+            is_open = np.array([not taken[s] and bool(np.all(filled[self.prereq[s]])) for s in range(self.S)])
             self._open = (key, is_open)
         return self._open[1].copy()
 
@@ -372,6 +500,7 @@ class ConstructionRuntime(TaskBase):
         self.state[i] = CARRIED
         self.carried_by[i] = agent
         self.grasps += 1
+        self.ever_grasped[i] = True
         self.events.append(Event(t, "grasp", f"agent{agent}", f"box{i}", f"{d[i] * 100:.1f} cm from grasp point"))
         return i
 
@@ -477,6 +606,11 @@ class ConstructionRuntime(TaskBase):
             self.still_since = None
         return False
 
+    def progress(self) -> int:
+        """Boxes grasped for the first time plus the most slots filled at once so far: a swarm that keeps
+        taking the same boxes, or placing boxes only to knock others out, makes no progress."""
+        return int(np.count_nonzero(self.ever_grasped)) + self.most_placed
+
     def visible(self, p: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """Free boxes and open slots within the view radius of position ``p`` (3,) m."""
         free = np.nonzero(self._free() & self.in_view(self.grasp_points() - p))[0]
@@ -492,19 +626,7 @@ class ConstructionRuntime(TaskBase):
     # ---------------------------------------------------------------- protocol
     def task_info(self) -> dict[str, Any]:
         """Depot, slots, box size and grasp height; view and search settings as extras."""
-        extra: dict[str, Any] = {
-            "search_height": self.spec.search_height,
-            "attach_threshold": self.spec.attach_threshold,
-            "view_radius": self.view_radius,
-            "view_norm": self.spec.view_norm,
-        }
-        return {
-            "depot": self.start.copy(),
-            "slots": self.slots.copy(),
-            "box_size": self.size,
-            "grasp_height": self.grasp_height,
-            "extra": extra,
-        }
+        return layout_info(self.spec, agent_half_height=self.agent_half_height, agent_radius=self.agent_radius)
 
     def view(self, t: float) -> TaskView:
         """Boxes, their states, slots and who carries what."""

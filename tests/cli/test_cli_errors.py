@@ -687,6 +687,7 @@ def test_check_prints_every_parameter_resolved(capsys: pytest.CaptureFixture[str
             "altitude_step": 0.2,
             "release_tol": 0.005,
             "retry_slots": True,
+            "wait_beside": True,
         },
     }
 

@@ -128,8 +128,8 @@ def test_a_rule_only_the_task_layout_shows_is_refused_before_anything_runs(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "sw"
-    # flying altitudes that do not rise from floor to depot: only the task's layout shows it, when a run is
-    # built; every configuration's run is built once (not stepped) before the sweep starts
+    # flying altitudes that do not rise from floor to depot to structure: only the task's layout shows it;
+    # the planner's parameters are checked against the layout at load, before the sweep starts
     code, stdout, stderr = run_cli(
         capsys,
         [
@@ -140,7 +140,7 @@ def test_a_rule_only_the_task_layout_shows_is_refused_before_anything_runs(
             "--seeds",
             "2",
             "--set",
-            "planner.params.floor_altitude=0.9",
+            "planner.params.cruise_altitude=0.2",
             "--set",
             "task.time_limit_s=1",
             "--out",
