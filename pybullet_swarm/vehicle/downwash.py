@@ -33,8 +33,9 @@ vehicle whose rotors are still makes no wake. Not modelled: the wake's tilt with
 vehicle, a torque on a partly immersed vehicle, horizontal forces, the wake of a carried box or
 on a box, ground reflections, unsteadiness.
 
-The force is below ``eps T`` at every horizontal distance beyond ``2 r sqrt(k / (e eps))``
-(the bound, maximised over beta); pairs farther apart are skipped (``eps`` = ``NEGLIGIBLE``).
+Pairs whose force is certainly below ``eps T`` (``eps`` = ``NEGLIGIBLE``) are skipped: those
+farther apart horizontally than ``2 r sqrt(k / (e eps))`` (the bound maximised over beta, whatever
+dz) and those with ``d > beta sqrt(2 ln(k / eps))`` (out of the wake at their dz).
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ from numpy.typing import NDArray
 G0 = 9.81
 #: fraction of the upper vehicle's thrust below which a pair's force is skipped
 NEGLIGIBLE = 1e-3
-#: agents up to which every pair is checked; beyond, a grid of cells one reach wide
+#: agents up to which every pair is checked; beyond, sweep and prune along one axis
 ALL_PAIRS_MAX = 64
 
 # The reference: gym-pybullet-drones' Crazyflie (cf2x.urdf), mass 0.027 kg.
@@ -69,7 +70,8 @@ D_ETA = 4  # m
 D_MINW = 5  # m, smallest wake width
 D_KAPPA = 6  # -, momentum fraction
 D_REACH = 7  # m, horizontal distance beyond which pairs are skipped
-D_LEN = 8
+D_CUT = 8  # -, 2 ln(k / eps): pairs with d^2 > D_CUT beta^2 are skipped (F < eps T whatever the peak)
+D_LEN = 9
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,6 +130,7 @@ class DownwashParams:
         c[D_MINW] = self.min_width
         c[D_KAPPA] = self.momentum_fraction
         c[D_REACH] = self.reach(negligible)
+        c[D_CUT] = max(2.0 * math.log(self.momentum_fraction / negligible), 0.0)
         return c
 
 
@@ -140,6 +143,8 @@ def _pair_force(d2: float, dz: float, thrust: float, c: NDArray[np.float64]) -> 
     if beta < c[D_MINW]:
         beta = c[D_MINW]
     b2 = beta * beta
+    if d2 > c[D_CUT] * b2:  # out of the wake: below eps T even at the largest peak (k T)
+        return 0.0
     q = r / (4.0 * dz)
     peak = c[D_CALPHA] * q * q
     bound = c[D_KAPPA] * (1.0 - math.exp(-2.0 * r * r / b2))
@@ -179,51 +184,44 @@ def downwash_all_pairs(
 
 
 @numba.njit(cache=True)
-def downwash_grid(
+def downwash_sweep(
     state: NDArray[np.float64],  # (n, >=3) positions m in the first three columns
     w: NDArray[np.float64],  # (n, 4) rotor speeds rad/s
     c: NDArray[np.float64],  # (D_LEN,) constants, see D_*
     force: NDArray[np.float64],  # (n, 3) world force N (in/out): the downwash is added to column 2
 ) -> None:
-    """As ``downwash_all_pairs``, finding the pairs in square cells one reach wide (O(n log n))."""
+    """As ``downwash_all_pairs``, finding the pairs by sweep and prune: agents sorted along the
+    horizontal axis of the larger spread, each one's neighbours are those within the reach along it
+    (O(n log n) plus the pairs in those strips)."""
     n = state.shape[0]
     reach = c[D_REACH]
     reach2 = reach * reach
-    x0 = state[0, 0]
-    y0 = state[0, 1]
-    y1 = state[0, 1]
+    lo0, hi0, lo1, hi1 = state[0, 0], state[0, 0], state[0, 1], state[0, 1]
     for i in range(1, n):
-        x0 = min(x0, state[i, 0])
-        y0 = min(y0, state[i, 1])
-        y1 = max(y1, state[i, 1])
-    rows = np.int64((y1 - y0) / reach) + 3  # cells along y, with one spare on each side
-    cx = np.empty(n, dtype=np.int64)
-    cy = np.empty(n, dtype=np.int64)
-    key = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        cx[i] = np.int64((state[i, 0] - x0) / reach) + 1
-        cy[i] = np.int64((state[i, 1] - y0) / reach) + 1
-        key[i] = cx[i] * rows + cy[i]
-    order = np.argsort(key, kind="mergesort")
-    sorted_keys = key[order]
-    for i in range(n):
+        lo0, hi0 = min(lo0, state[i, 0]), max(hi0, state[i, 0])
+        lo1, hi1 = min(lo1, state[i, 1]), max(hi1, state[i, 1])
+    axis = 0 if hi0 - lo0 >= hi1 - lo1 else 1
+    order = np.argsort(state[:, axis])  # deterministic for equal inputs
+    for a in range(n):
+        i = order[a]
         acc = 0.0
-        for ox in range(-1, 2):
-            for oy in range(-1, 2):
-                k = (cx[i] + ox) * rows + cy[i] + oy
-                lo = np.searchsorted(sorted_keys, k, side="left")
-                hi = np.searchsorted(sorted_keys, k, side="right")
-                for s in range(lo, hi):
-                    j = order[s]
-                    dz = state[j, 2] - state[i, 2]
-                    if not dz > 0.0:
-                        continue
-                    dx = state[j, 0] - state[i, 0]
-                    dy = state[j, 1] - state[i, 1]
-                    d2 = dx * dx + dy * dy
-                    if not d2 <= reach2:
-                        continue
-                    acc += _pair_force(d2, dz, _thrust(w, j, c[D_KF]), c)
+        for step in (-1, 1):
+            b = a + step
+            while 0 <= b < n:
+                j = order[b]
+                b += step
+                gap = state[j, axis] - state[i, axis]
+                if gap * gap > reach2:
+                    break
+                dz = state[j, 2] - state[i, 2]
+                if not dz > 0.0:
+                    continue
+                dx = state[j, 0] - state[i, 0]
+                dy = state[j, 1] - state[i, 1]
+                d2 = dx * dx + dy * dy
+                if not d2 <= reach2:
+                    continue
+                acc += _pair_force(d2, dz, _thrust(w, j, c[D_KF]), c)
         force[i, 2] -= acc
 
 
@@ -244,5 +242,5 @@ class Downwash:
         """Add the downwash to ``force`` (n, 3) N, world frame, from ``state`` (n, 13) and rotor speeds (n, 4) rad/s."""
         if state.shape[0] < 2:
             return
-        kernel = downwash_all_pairs if state.shape[0] <= ALL_PAIRS_MAX else downwash_grid
+        kernel = downwash_all_pairs if state.shape[0] <= ALL_PAIRS_MAX else downwash_sweep
         kernel(state, rotor_speeds, self.const, force)

@@ -14,7 +14,7 @@ from pybullet_swarm.experiment.scenario import load_scenario
 from pybullet_swarm.experiment.simulation import Simulation
 from pybullet_swarm.resources import urdf_dir
 from pybullet_swarm.vehicle import load_vehicle
-from pybullet_swarm.vehicle.downwash import Downwash, DownwashParams, downwash_all_pairs, downwash_grid
+from pybullet_swarm.vehicle.downwash import Downwash, DownwashParams, downwash_all_pairs, downwash_sweep
 
 # quad150's constants as its vehicle file gives them
 R, ALPHA, ZETA, ETA, MIN_W = 0.03175, 12595.4, 0.16, -0.151, 0.053
@@ -91,10 +91,19 @@ def test_level_below_and_far_vehicles_feel_nothing():
     assert -hair[0] < 1e-3 and hair[1] == 0.0
     reach = load_vehicle("quad150").downwash_params.reach()
     assert reach == pytest.approx(2 * R * math.sqrt(1.0 / (math.e * 1e-3)))
-    inside = kernel_force([[1.0, 1.0, 1.0], [1.0 + 0.99 * reach, 1.0, 1.5]])
-    assert 0.0 < -inside[0] < 1e-3  # below 1e-3 of the upper thrust before the cut-off
-    far = kernel_force([[1.0, 1.0, 1.0], [1.0 + 1.01 * reach, 1.0, 1.5]])
+    # the worst height for a pair at the reach: a wake of width d / sqrt(2)
+    dz = (reach / math.sqrt(2.0) - ETA) / ZETA
+    inside = kernel_force([[1.0, 1.0, 1.0], [1.0 + 0.99 * reach, 1.0, 1.0 + dz]])
+    assert -inside[0] == pytest.approx(closed_form(0.99 * reach, dz, 1.0), rel=1e-12)
+    assert 0.99e-3 < -inside[0] < 1e-3 / 0.99**2  # about 1e-3 of the upper thrust at the cut-off
+    far = kernel_force([[1.0, 1.0, 1.0], [1.0 + 1.01 * reach, 1.0, 1.0 + dz]])
     assert np.all(far == 0.0)
+    # out of the wake at its height (d > beta sqrt(2 ln 1000)): skipped, the force would be below 1e-3
+    edge = MIN_W * math.sqrt(2.0 * math.log(1e3))
+    assert closed_form(1.01 * edge, 0.3, 1.0) < 1e-3
+    assert np.all(kernel_force([[1.0, 1.0, 1.0], [1.0 + 1.01 * edge, 1.0, 1.3]]) == 0.0)
+    near = kernel_force([[1.0, 1.0, 1.0], [1.0 + 0.99 * edge, 1.0, 1.3]])
+    assert -near[0] == pytest.approx(closed_form(0.99 * edge, 0.3, 1.0), rel=1e-12)
     # the bound holds at every distance and height: F <= T 4 r^2 / (e d^2)
     d = np.linspace(0.06, 1.2, 40)
     for dz in (0.01, 0.3, 1.0, 1.3, 3.0):
@@ -102,18 +111,18 @@ def test_level_below_and_far_vehicles_feel_nothing():
         assert np.all(f <= 4 * R**2 / (math.e * d**2) * (1 + 1e-12))
 
 
-def test_grid_and_all_pairs_kernels_agree():
+def test_sweep_and_all_pairs_kernels_agree():
     rng = np.random.default_rng(5)
     p = load_vehicle("cf2x")
     n = 200
     state = np.zeros((n, 13))
-    state[:, :2] = rng.uniform(0.0, 4.0, size=(n, 2))
+    state[:, :2] = rng.uniform(0.0, 1.5, size=(n, 2))
     state[:, 2] = rng.uniform(0.5, 2.0, size=n)
     w = rng.uniform(0.5, 0.9, size=(n, 4)) * p.max_rotor_speed
     c = p.downwash_params.const(kf=p.kf, mass=p.mass)
     a, b = np.zeros((n, 3)), np.zeros((n, 3))
     downwash_all_pairs(state, w, c, a)
-    downwash_grid(state, w, c, b)
+    downwash_sweep(state, w, c, b)
     assert np.count_nonzero(a[:, 2]) > n // 2  # most agents have someone above within reach
     np.testing.assert_allclose(b, a, rtol=1e-12, atol=0.0)
 
