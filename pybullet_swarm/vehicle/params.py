@@ -154,7 +154,7 @@ class VehicleParams:
     @property
     def downwash_params(self) -> DownwashParams:
         """Constants of the downwash model: the file's, else ``DownwashParams.scaled`` for this airframe
-        (alpha by mass, eta by rotor radius, the narrowest wake the arm length, momentum fraction 1)."""
+        (alpha by mass, eta by rotor radius, the narrowest wake the arm length, momentum fraction 0.5)."""
         if self.downwash is not None:
             return self.downwash
         return DownwashParams.scaled(mass=self.mass, rotor_radius=self.rotor_radius_m, arm_length=self.arm_length)
