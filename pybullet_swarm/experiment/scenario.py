@@ -52,6 +52,7 @@ class SimSection(_Strict):
     gravity: float = Field(9.81, ge=0.0, le=100.0)  # m/s^2
     drag_coefficient: float = Field(0.0, ge=0.0, le=10.0)  # N/(m/s), linear air drag
     ground_effect: bool = False  # thrust gain near the ground
+    downwash: bool = True  # a vehicle's rotor wake pushes vehicles below it down (pybullet_swarm.vehicle.downwash)
     max_tilt_deg: float = Field(35.0, gt=0.0, lt=80.0)  # deg, largest commanded tilt
     crash_speed: float = Field(2.0, gt=0.0, le=100.0)  # m/s, ground impact counted as a crash
 

@@ -42,6 +42,7 @@ from pybullet_swarm.tasks import task_runtimes
 from pybullet_swarm.tasks.base import NOT_MINE, TaskContext, TaskRuntime
 from pybullet_swarm.types import Event, ExitStatus, Perception, SwarmState
 from pybullet_swarm.vehicle import VehicleParams, load_vehicle
+from pybullet_swarm.vehicle.downwash import Downwash
 from pybullet_swarm.world import BodyKind, World
 
 
@@ -151,6 +152,8 @@ class Simulation:
             reference_step=ReferenceStep.from_limits(sc.velocity_limits(), sc.acceleration_limits()),
         )
         self.shaper = ReferenceShaper(n, sc.velocity_limits(), sc.acceleration_limits(), 1.0 / s.control_hz)
+        # interaction forces between vehicles, added to the controller's wrench every physics step
+        self.downwash = Downwash(p.downwash_params, kf=p.kf, mass=p.mass) if s.downwash and n > 1 else None
         self.state_array = np.zeros((n, 13))  # position, quaternion, velocity, angular velocity (world)
         self.world.read_agent_states(self.state_array)
         self.shaper.reset(self.state_array[:, :3])
@@ -638,6 +641,8 @@ class Simulation:
         tick = physics_tick
         args = ctrl.physics_args(state)
         forces, torques = ctrl.forces, ctrl.torques
+        interact = self.downwash.add_to if self.downwash is not None else None
+        rotor_speeds = ctrl.rotor_speeds
         apply, advance, read, contact_pairs = (
             world.apply_agent_wrenches,
             world.step,
@@ -662,6 +667,8 @@ class Simulation:
             if closed and k % ce == 0:
                 ctrl.position_update(sensed, shaper.step())
             worst = tick(*args)
+            if interact is not None:
+                interact(state, rotor_speeds, forces)
             apply(forces, torques)
             advance()
             k += 1

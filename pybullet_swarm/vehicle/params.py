@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -14,6 +15,7 @@ from numpy.typing import NDArray
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.resources import bundled_vehicles, urdf_dir
 from pybullet_swarm.validation import read_yaml, validate
+from pybullet_swarm.vehicle.downwash import DownwashParams
 
 
 # finite numbers in (0, bound]
@@ -40,6 +42,24 @@ class _VehicleFile(pydantic.BaseModel):
     motor_time_constant: _UpTo10  # s
     max_rotor_speed: _UpTo1e5  # rad/s
     collision_size: tuple[_UpTo100, _UpTo100, _UpTo100]  # m
+    # Rotor size and the downwash model (``pybullet_swarm.vehicle.downwash``); absent fields take
+    # the defaults of ``VehicleParams``: the Crazyflie's constants scaled to this airframe.
+    rotor_radius: _UpTo10 | None = None  # m (default 0.6 arm_length)
+    downwash_alpha: Annotated[float, pydantic.Field(ge=0, le=1e9)] | None = None  # N
+    downwash_zeta: Annotated[float, pydantic.Field(ge=0, le=10.0)] | None = None  # -
+    downwash_eta: Annotated[float, pydantic.Field(ge=-10.0, le=10.0)] | None = None  # m
+    downwash_min_width: _UpTo10 | None = None  # m
+    downwash_momentum_fraction: Annotated[float, pydantic.Field(gt=0, le=2.0)] | None = None  # -
+
+    @pydantic.model_validator(mode="after")
+    def _rotors_fit(self) -> _VehicleFile:
+        # neighbouring rotors of an X or + frame are arm_length * sqrt(2) apart
+        if self.rotor_radius is not None and self.rotor_radius > self.arm_length / math.sqrt(2.0):
+            raise ValueError(
+                f"rotor_radius {self.rotor_radius} m: neighbouring rotors would overlap "
+                f"(at most arm_length / sqrt(2) = {self.arm_length / math.sqrt(2.0):.4g} m)"
+            )
+        return self
 
     @pydantic.field_validator("inertia")
     @classmethod
@@ -123,6 +143,21 @@ class VehicleParams:
     max_rotor_speed: float  # rad/s
     collision_size: tuple[float, float, float]  # m, box extents (x, y, z)
     param_file: Path | None = None  # the YAML these parameters were read from (for error messages)
+    rotor_radius: float | None = None  # m (None: 0.6 arm_length, see ``rotor_radius_m``)
+    downwash: DownwashParams | None = None  # None: the Crazyflie's constants scaled (``downwash_params``)
+
+    @property
+    def rotor_radius_m(self) -> float:
+        """Rotor radius, m: the file's ``rotor_radius``, else 0.6 arm_length."""
+        return float(self.rotor_radius) if self.rotor_radius is not None else 0.6 * self.arm_length
+
+    @property
+    def downwash_params(self) -> DownwashParams:
+        """Constants of the downwash model: the file's, else ``DownwashParams.scaled`` for this airframe
+        (alpha by mass, eta by rotor radius, the narrowest wake the arm length, momentum fraction 0.5)."""
+        if self.downwash is not None:
+            return self.downwash
+        return DownwashParams.scaled(mass=self.mass, rotor_radius=self.rotor_radius_m, arm_length=self.arm_length)
 
     @property
     def rotor_xy(self) -> NDArray[np.float64]:
@@ -211,7 +246,12 @@ def _load(path: Path, stamp: tuple[int, int] = (0, 0)) -> VehicleParams:
     check_urdf(urdf, source=path.name)
     fields = data.model_dump()
     fields.pop("urdf")
-    return VehicleParams(urdf_path=urdf, param_file=path, **fields)
+    dw = {k.removeprefix("downwash_"): fields.pop(k) for k in list(fields) if k.startswith("downwash_")}
+    params = VehicleParams(urdf_path=urdf, param_file=path, **fields)
+    if any(v is not None for v in dw.values()):  # the file's constants over the scaled defaults
+        given = {k: v for k, v in dw.items() if v is not None}
+        params = dataclasses.replace(params, downwash=dataclasses.replace(params.downwash_params, **given))
+    return params
 
 
 def load_vehicle(name_or_path: str | Path) -> VehicleParams:
