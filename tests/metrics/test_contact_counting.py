@@ -16,6 +16,7 @@ def _two_agents(mode: str):
             "agents.count": 2,
             "agents.start": [[1.0, 1.5, 0.011], [2.0, 1.5, 0.011]],
             "collisions": mode,
+            "sim.downwash": False,  # agents crossing level on one line: a wake would part them vertically
             "limits.velocity": 0.3,
             "task.time_limit_s": 100.0,
             "task.waypoints": [{"t_s": 0.0, "position": [0.0, 0.0, 50.0]}],
