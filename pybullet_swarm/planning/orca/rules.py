@@ -40,6 +40,7 @@ class Rule(str, enum.Enum):
     SIDESTEP = "sidestep"
     CLIMB_PAST = "climb_past"
     MAKE_WAY = "make_way"
+    STATIC_OBSTACLES = "static_obstacles"
 
     @property
     def doc(self) -> str:
@@ -72,6 +73,8 @@ RULE_DOCS: dict[Rule, str] = {
     "sideways (acts with sidestep)",
     Rule.MAKE_WAY: "a stalled agent descending onto a neighbour that sits on its goal rises straight up, the only "
     "way that one can leave",
+    Rule.STATIC_OBSTACLES: "boxes, structure and arena obstacles are velocity obstacles avoided alone, but those "
+    "the agent's target touches",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -83,6 +86,8 @@ RULES = np.dtype(
         ("time_horizon", np.float64),  # s, how far ahead a neighbour counts as in the way
         ("right_bias", np.float64),  # fraction of the preferred speed added sideways to a stalled agent
         ("stuck_fraction", np.float64),  # progress below this fraction of the preferred speed is a stall
+        ("inv_tau_obstacle", np.float64),  # 1/s, inverse time horizon of static obstacles
+        ("goal_reach", np.float64),  # m, an obstacle this close to the agent's shape at its target is the target's
     ],
     align=True,
 )
@@ -311,13 +316,20 @@ def clear_paths(
     margin: float,
     lookahead: float,
     out: NDArray[np.bool_],
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    reach: float,
 ) -> None:
     """PASSTHROUGH: for each candidate, True when the box it sweeps to its goal stays ``margin`` m clear of
-    every neighbour's box swept along the neighbour's velocity over ``lookahead`` s."""
+    every neighbour's box swept along the neighbour's velocity over ``lookahead`` s, and of every static
+    obstacle (``oc``, ``oh``: centres and half extents (K, 3) m) but those its goal touches (within
+    ``reach`` m, ``targets_obstacle``)."""
     n = pos.shape[0]
     for i in range(n):
         out[i] = False
         if not candidate[i]:
+            continue
+        if not clear_of_obstacles(i, pos, goal, centre, half, oc, oh, margin, reach):
             continue
         ok = True
         for c in range(nbr.shape[1]):
@@ -338,3 +350,154 @@ def clear_paths(
                 ok = False
                 break
         out[i] = ok
+
+
+# ----------------------------------------------------------------------------- static obstacles
+@njit
+def clear_of_obstacles(
+    i: int,
+    pos: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    margin: float,
+    reach: float,
+) -> bool:
+    """STATIC_OBSTACLES with PASSTHROUGH: True when agent i's box swept to its goal stays ``margin`` m clear of
+    every obstacle its goal does not touch (``targets_obstacle`` within ``reach`` m)."""
+    goal_rel = add(row(goal, i), row(pos, i), -1.0)
+    for o in range(oc.shape[0]):
+        c = (
+            oc[o, 0] - pos[i, 0] - centre[i, 0],
+            oc[o, 1] - pos[i, 1] - centre[i, 1],
+            oc[o, 2] - pos[i, 2] - centre[i, 2],
+        )
+        H = (oh[o, 0] + half[i, 0], oh[o, 1] + half[i, 1], oh[o, 2] + half[i, 2])
+        if targets_obstacle(goal_rel, c, H, reach):
+            continue
+        apart = False
+        for a in range(3):
+            # the swept box runs from the shape now (0) to the shape at the goal (goal_rel)
+            lo = min(0.0, goal_rel[a]) - H[a] - margin
+            hi = max(0.0, goal_rel[a]) + H[a] + margin
+            if c[a] <= lo or c[a] >= hi:
+                apart = True
+                break
+        if not apart:
+            return False
+    return True
+
+
+@njit
+def obstacle_shape(
+    i: int,
+    pos: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    o: int,
+) -> tuple[Vec, Vec]:
+    """STATIC_OBSTACLES: (centre m of obstacle o relative to agent i's shape, half extents m of their Minkowski box).
+
+    An agent modelled as a sphere counts as the cube around it. No margin is added.
+    """
+    if boxes:
+        c = (
+            oc[o, 0] - pos[i, 0] - centre[i, 0],
+            oc[o, 1] - pos[i, 1] - centre[i, 1],
+            oc[o, 2] - pos[i, 2] - centre[i, 2],
+        )
+        return c, (oh[o, 0] + half[i, 0], oh[o, 1] + half[i, 1], oh[o, 2] + half[i, 2])
+    c = (oc[o, 0] - pos[i, 0], oc[o, 1] - pos[i, 1], oc[o, 2] - pos[i, 2])
+    return c, (oh[o, 0] + radius[i], oh[o, 1] + radius[i], oh[o, 2] + radius[i])
+
+
+@njit
+def targets_obstacle(goal_rel: Vec, c: Vec, H: Vec, reach: float) -> bool:
+    """STATIC_OBSTACLES: True when the obstacle (at ``c`` m, Minkowski half extents ``H`` m) comes within
+    ``reach`` m of the agent's shape moved by ``goal_rel`` m (its target minus its position).
+
+    Such an obstacle is the target's own: the box under a grasp point, the slot's support and
+    neighbours under a drop point, the box just let go. The agent must come within its grasp or
+    placement distance of it, which the obstacle's velocity obstacle (grown by the safety margin)
+    would forbid, so it is not avoided.
+    """
+    for k in range(3):
+        if abs(c[k] - goal_rel[k]) >= H[k] + reach:
+            return False
+    return True
+
+
+@njit
+def ray_entry(c: Vec, H: Vec, d: Vec, length: float) -> float:
+    """STATIC_OBSTACLES: distance m along unit ``d`` from the origin at which the ray enters the box
+    [c - H, c + H] within ``length`` m (0 when it starts inside), or -1 when it misses."""
+    lo, hi = 0.0, length
+    for k in range(3):
+        if abs(d[k]) < 1e-12:
+            if abs(c[k]) >= H[k]:
+                return -1.0
+            continue
+        a = (c[k] - H[k]) / d[k]
+        b = (c[k] + H[k]) / d[k]
+        lo = max(lo, min(a, b))
+        hi = min(hi, max(a, b))
+        if lo > hi:
+            return -1.0
+    return lo
+
+
+@njit
+def obstacle_in_way(
+    i: int,
+    pos: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    has_goal: bool,
+    d: Vec,
+    length: float,
+    margin: float,
+    reach: float,
+    wz: float,
+    climb: bool,
+) -> tuple[bool, Vec]:
+    """STATIC_OBSTACLES with SIDESTEP: the way past the nearest obstacle that holds up stalled agent i.
+
+    The obstacle is the nearest one (shapes grown by ``margin`` m, the target's own left out, see
+    ``targets_obstacle``) that the agent's shape would enter within ``length`` m along its unit
+    preferred direction ``d``. Returns (found, unit direction of the bias): up (with ``climb``) when
+    climbing over the obstacle, weighted by ``wz``, is shorter than stepping across ``d`` past its
+    nearer side, else the sideways step of ``sidestep`` (the side the obstacle leaves free, or right).
+    """
+    best = -1
+    best_t = 1e300
+    for o in range(oc.shape[0]):
+        c, H = obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, o)
+        if has_goal and targets_obstacle(
+            (goal[i, 0] - pos[i, 0], goal[i, 1] - pos[i, 1], goal[i, 2] - pos[i, 2]), c, H, reach
+        ):
+            continue
+        t = ray_entry(c, (H[0] + margin, H[1] + margin, H[2] + margin), d, length)
+        if 0.0 <= t < best_t:
+            best, best_t = o, t
+    if best < 0:
+        return False, (0.0, 0.0, 0.0)
+    c, H = obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, best)
+    h2 = d[0] * d[0] + d[1] * d[1]
+    if climb and h2 > HORIZONTAL_MIN2:
+        hl = math.sqrt(h2)
+        ax, ay = -d[1] / hl, d[0] / hl  # across d, horizontal
+        lateral = abs(ax) * (H[0] + margin) + abs(ay) * (H[1] + margin) - abs(ax * c[0] + ay * c[1])
+        if wz * (c[2] + H[2] + margin) < lateral:
+            return True, (0.0, 0.0, 1.0)
+    return True, sidestep(d, c)
