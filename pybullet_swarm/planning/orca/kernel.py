@@ -163,37 +163,46 @@ def obstacle_planes(
     N: NDArray[np.float64],
     P: NDArray[np.float64],
     k: int,
-) -> int:
+) -> tuple[int, int]:
     """STATIC_OBSTACLES: append agent i's planes against the static obstacles (``oc``, ``oh``) after row k;
-    returns the new count.
+    returns (the end of the hard planes, the end of all).
 
     The paper's obstacles: the VO of the agent's shape and the obstacle's box (the agent's margin
     only: an obstacle's place is known; shapes grown by ``LAG_MARGIN`` with the agent's own speed)
     truncated at the obstacle horizon, and the agent takes the whole u (the obstacle does not move).
     Left out: obstacles out of reach within the horizon at the speed sphere's radius (no velocity
     the LP may choose enters their VO) and those the agent's target touches (``rules.targets_obstacle``).
+    The planes of obstacles the agent is clear of are hard: zero velocity satisfies all of them and
+    the bounds. Those of obstacles it already overlaps (within the margin: knocked against one, or
+    just off its target's own) follow them, soft: a recovery plane may contradict the bounds, and
+    the fallback LP then moves the agent as far out as the bounds let it, the way it prefers.
     """
     vi = row(vel, i)
     on, lag = rs.lag_margin, rs.lag_margin_s
     wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
     reach = cs.max_speed / rs.inv_tau_obstacle  # m, the farthest any velocity of the LP goes within the horizon
     goal_rel = add(row(goal, i), row(pos, i), -1.0)
-    for o in range(oc.shape[0]):
-        c, H0 = rules.obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, o)
-        H = (
-            H0[0] + cs.margin + rules.lag_growth(on, lag, abs(vi[0])),
-            H0[1] + cs.margin + rules.lag_growth(on, lag, abs(vi[1])),
-            H0[2] + cs.margin + rules.lag_growth(on, lag, abs(vi[2])),
-        )
-        if max(abs(c[0]) - H[0], abs(c[1]) - H[1], abs(c[2]) - H[2]) > reach:
-            continue
-        if has_goal[i] and rules.targets_obstacle(goal_rel, c, H0, cs.margin + rs.goal_reach):
-            continue
-        nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, wz)
-        set_row(N, k, nrm)
-        set_row(P, k, add(vi, u, 1.0))
-        k += 1
-    return k
+    n_hard = k
+    for overlapping in (False, True):
+        for o in range(oc.shape[0]):
+            c, H0 = rules.obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, o)
+            H = (
+                H0[0] + cs.margin + rules.lag_growth(on, lag, abs(vi[0])),
+                H0[1] + cs.margin + rules.lag_growth(on, lag, abs(vi[1])),
+                H0[2] + cs.margin + rules.lag_growth(on, lag, abs(vi[2])),
+            )
+            gap = max(abs(c[0]) - H[0], abs(c[1]) - H[1], abs(c[2]) - H[2])
+            if gap > reach or (gap <= 0.0) != overlapping:
+                continue
+            if has_goal[i] and rules.targets_obstacle(goal_rel, c, H0, cs.margin + rs.goal_reach):
+                continue
+            nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, wz)
+            set_row(N, k, nrm)
+            set_row(P, k, add(vi, u, 1.0))
+            k += 1
+        if not overlapping:
+            n_hard = k
+    return n_hard, k
 
 
 @njit
@@ -233,13 +242,13 @@ def orca_batch(
     stall_on = side_on or rs.make_way
     for i in range(n):
         n_bounds = core.bound_planes(lo, hi, i, N, P)
-        n_hard = n_bounds
+        n_hard = n_static = n_bounds
         if static:
-            n_hard = obstacle_planes(
-                i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, cs, rs, N, P, n_hard
+            n_hard, n_static = obstacle_planes(
+                i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, cs, rs, N, P, n_bounds
             )
-        m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, n_hard)
-        up = (FLAG_CLIMB if climbs else 0) | (FLAG_OBSTACLE if n_hard > n_bounds else 0)
+        m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, n_static)
+        up = (FLAG_CLIMB if climbs else 0) | (FLAG_OBSTACLE if n_static > n_bounds else 0)
         vc = row(v_cmd, i)
         if rs.minimal_intervention and dot(vc, vc) <= max_speed * max_speed and not core.violates(N, P, m, vc):
             set_row(out, i, vc)  # nothing to avoid: the planner's command stands
@@ -277,7 +286,7 @@ def orca_batch(
                     side = (0.0, 0.0, 1.0)  # above the one in the way: over it
                 else:
                     side = rules.sidestep(scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0))
-            elif side_on and static and n_hard > n_bounds:
+            elif side_on and n_static > n_bounds:
                 held, side = rules.obstacle_in_way(
                     i,
                     pos,

@@ -477,7 +477,9 @@ def obstacle_in_way(
     ``targets_obstacle``) that the agent's shape would enter within ``length`` m along its unit
     preferred direction ``d``. Returns (found, unit direction of the bias): up (with ``climb``) when
     climbing over the obstacle, weighted by ``wz``, is shorter than stepping across ``d`` past its
-    nearer side, else the sideways step of ``sidestep`` (the side the obstacle leaves free, or right).
+    nearer side, else across ``d`` away from the obstacle's centre (right when it lies dead ahead).
+    Unlike ``sidestep``'s choice for a neighbour, the side does not turn with the bearing: an agent
+    sliding along the face of a wide obstacle keeps going the way it started.
     """
     best = -1
     best_t = 1e300
@@ -494,10 +496,15 @@ def obstacle_in_way(
         return False, (0.0, 0.0, 0.0)
     c, H = obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, best)
     h2 = d[0] * d[0] + d[1] * d[1]
-    if climb and h2 > HORIZONTAL_MIN2:
-        hl = math.sqrt(h2)
-        ax, ay = -d[1] / hl, d[0] / hl  # across d, horizontal
-        lateral = abs(ax) * (H[0] + margin) + abs(ay) * (H[1] + margin) - abs(ax * c[0] + ay * c[1])
-        if wz * (c[2] + H[2] + margin) < lateral:
-            return True, (0.0, 0.0, 1.0)
-    return True, sidestep(d, c)
+    if h2 <= HORIZONTAL_MIN2:  # vertical travel: horizontally away
+        return True, sidestep(d, c)
+    hl = math.sqrt(h2)
+    ax, ay = -d[1] / hl, d[0] / hl  # left of d, horizontal
+    side = ax * c[0] + ay * c[1]
+    lateral = abs(ax) * (H[0] + margin) + abs(ay) * (H[1] + margin) - abs(side)
+    if climb and wz * (c[2] + H[2] + margin) < lateral:
+        return True, (0.0, 0.0, 1.0)
+    if abs(side) > SIDE_OFFSET:
+        s = -1.0 if side > 0.0 else 1.0
+        return True, (s * ax, s * ay, 0.0)
+    return True, right_of(d)
