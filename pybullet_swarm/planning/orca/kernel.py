@@ -2,11 +2,12 @@
 
 Per agent: the hard planes (velocity limits, narrowed by ``FLOOR_RULE`` and ``COLUMN_RULE``; then,
 with ``STATIC_OBSTACLES``, one plane per static obstacle within reach, of which the agent takes the
-whole u, as the paper's agents do with obstacles, never traded away by the fallback LP), one
-ORCA plane per neighbour (``core``; shapes grown by ``LAG_MARGIN``, the way out weighted by
-``WEIGHTED_WAY_OUT``, the shares moved by ``CLIMB_OVER``), then either the command unchanged
-(``MINIMAL_INTERVENTION``) or the LP's velocity, which a stalled agent may solve again with a
-bias (``SIDESTEP``, ``CLIMB_PAST``, ``MAKE_WAY``; held up by an obstacle, ``STATIC_OBSTACLES``).
+whole u, as the paper's agents do with obstacles: never traded away by the fallback LP unless the
+agent already overlaps the obstacle), one ORCA plane per neighbour (``core``; shapes grown by
+``LAG_MARGIN``, the way out weighted by ``WEIGHTED_WAY_OUT``, the shares moved by ``CLIMB_OVER``),
+then either the command unchanged (``MINIMAL_INTERVENTION``) or the LP's velocity, which a
+stalled agent may solve again with a bias (``SIDESTEP``, ``CLIMB_PAST``, ``MAKE_WAY``; held up by
+an obstacle, ``STATIC_OBSTACLES``).
 
 Also here: the arrays the kernel is fed from commands and sensed state (neighbour table,
 bounding boxes, preferred and commanded velocities).

@@ -163,9 +163,9 @@ def velocity_bounds(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """FLOOR_RULE and COLUMN_RULE: hard per-axis bounds (lower (n, 3), upper (n, 3)) m/s of each agent's velocity.
 
-    ORCA knows neither the ground nor what stands on it. So (``floor``) it may push an agent down
-    only above ``floor_height``, by at most its height above it per horizon; below, never faster
-    down than the agent intends to go itself. And (``column`` > 0) an agent low down on a vertical
+    ORCA knows no ground (nor, without ``STATIC_OBSTACLES``, what stands on it). So (``floor``) it
+    may push an agent down only above ``floor_height``, by at most its height above it per horizon;
+    below, never faster down than the agent intends to go itself. And (``column`` > 0) an agent low down on a vertical
     leg to or from its target (horizontally within ``column`` of it: descending to grasp or place,
     climbing away) is over a box or the structure, where a sideways dodge tilts the airframe into
     it: avoidance may only slow it down or lift it, not move it sideways. The velocity limits
