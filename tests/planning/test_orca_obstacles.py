@@ -292,7 +292,6 @@ def test_an_agent_passes_over_a_placed_box_only_with_the_rule(on: bool):
         assert r.metrics["collisions"]["agent_structure"] > 0
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("planner", ["stigmergy", "shortest_path"])
 def test_construction_with_orca_grasps_and_places_among_static_obstacles(planner: str):
     r = pybullet_swarm.run("construction", planner=planner, avoidance="orca", seed=3, plots=False)
