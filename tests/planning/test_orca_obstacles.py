@@ -17,10 +17,12 @@ from pybullet_swarm.planning.orca import (
     FLAG_OBSTACLE,
     OrcaLayer,
     OrcaParams,
+    bounding_boxes,
     commanded_velocities,
     orca_plane,
     orca_velocities,
     preferred_velocities,
+    shape_parts,
     solve_velocity,
 )
 from pybullet_swarm.planning.params import Params as PlannerParams
@@ -38,8 +40,12 @@ def _one_agent(
     vel: list[float],
     command: Command,
     obstacles: tuple[np.ndarray, np.ndarray],
+    carrying: bool = False,
 ) -> tuple[np.ndarray, int]:
-    """One level quad150 under ``command`` among static ``obstacles``: (velocity (3,) m/s, flags)."""
+    """One level quad150 (carrying a 10 cm box 6.5 cm below, or not) under ``command`` among static
+    ``obstacles``: (velocity (3,) m/s, flags)."""
+    parts = shape_parts(np.array([[0.0, 0.0, 0.0, 1.0]]), HALF, np.array([carrying]), 0.1, 0.065)
+    centre, half = bounding_boxes(np.array([[0.0, 0.0, 0.0, 1.0]]), HALF, np.array([carrying]), 0.1, 0.065)
     p, v = np.array([pos], dtype=float), np.array([vel], dtype=float)
     kinds = np.array([int(command.kind)])
     vectors = command.vector[None, :]
@@ -52,11 +58,12 @@ def _one_agent(
         params=params,
         sensing_radius=1.0,
         v_max=VM,
-        boxes=(np.zeros((1, 3)), HALF[None, :]),
+        boxes=(centre, half),
         goals=np.where(has_goal[:, None], vectors, p),
         has_goal=has_goal,
         commanded=commanded_velocities(kinds, vectors, p, v_max=VM, a_max=np.ones(3), dt=1.0 / 48.0),
         obstacles=obstacles,
+        parts=parts,
     )
     return out[0], int(flags[0])
 
@@ -119,6 +126,22 @@ def test_the_obstacle_the_target_touches_is_left_out():
     beside = (np.array([[0.4, 0.5, 0.05], [0.6, 0.5, 0.05]]), np.tile(CUBE, (2, 1)))
     _, flags = _one_agent(params, [0.55, 0.5, 0.16], [0.0, 0.0, -0.1], Command.goto(grasp), beside)
     assert flags & FLAG_OBSTACLE
+
+
+def test_a_carrier_places_between_neighbours_but_is_held_above_a_taller_one():
+    # A solid wall (pitch = box size): the load at its drop point (4 mm over the slot) touches the
+    # placed boxes on either side and the ground under it; all three are the target's own and the
+    # carrier descends freely. A box one layer up beside the slot would stand where the 15 cm
+    # airframe must be at the drop point: that target is inside an obstacle, which stays avoided.
+    params = OrcaParams()
+    drop = [2.7, 0.2, 0.05 + 0.004 + 0.065]
+    level = (np.array([[2.7, 0.1, 0.05], [2.7, 0.3, 0.05]]), np.tile(CUBE, (2, 1)))
+    down = [0.0, 0.0, -0.15]
+    v, flags = _one_agent(params, [2.7, 0.2, 0.45], down, Command.goto(drop), level, carrying=True)
+    assert flags & FLAG_FREE and not flags & FLAG_OBSTACLE
+    taller = (np.vstack([level[0], [[2.7, 0.3, 0.15]]]), np.tile(CUBE, (3, 1)))
+    v, flags = _one_agent(params, [2.7, 0.2, 0.45], down, Command.goto(drop), taller, carrying=True)
+    assert flags & FLAG_OBSTACLE and v[2] > -0.1
 
 
 def test_a_stall_in_front_of_a_pillar_steps_aside_and_over_a_low_box_climbs():

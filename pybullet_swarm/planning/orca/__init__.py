@@ -73,10 +73,13 @@ Design decisions the rules share (numbers are ``OrcaParams`` defaults):
   obstacle's own time horizon and the agent's margin only; the planes are hard, after the
   velocity bounds, and never traded away (those of obstacles the agent already overlaps are soft:
   recovery may contradict the bounds). The target's own obstacles are left out: an obstacle that
-  the agent's shape at its POSITION/HOLD target comes within the margin plus ``goal_reach`` of (the
-  box under a grasp point, a slot's support and neighbours under a drop point, the box just let
-  go) must be approached closer than the margin, so its VO would forbid the grasp or the placing.
-  The test needs nothing but the command and the shapes, so it serves any task. A stall in front
+  the airframe or the load at the agent's POSITION/HOLD target comes within the margin plus
+  ``goal_reach`` of (the box under a grasp point, a slot's support and neighbours beside the
+  load at a drop point, the box just let go) must be approached closer than the margin, so its
+  VO would forbid the grasp or the placing; unless one of them would reach into it by more than
+  5 mm (``rules.GOAL_OVERLAP``): such a target lies inside the obstacle (an airframe in a taller
+  neighbour of its slot) and the agent is held off it. The test needs nothing but the command and
+  the shapes, so it serves any task. A stall in front
   of an obstacle takes ``sidestep``'s bias (away from its centre across the way, or over it when
   climbing is shorter, weighted by ``vertical_cost``); ``passthrough`` also needs the obstacles
   but the target's own clear.
@@ -103,6 +106,7 @@ from pybullet_swarm.planning.orca.kernel import (
     neighbour_table,
     orca_velocities,
     preferred_velocities,
+    shape_parts,
 )
 from pybullet_swarm.planning.orca.layer import OrcaLayer
 from pybullet_swarm.planning.orca.params import OrcaParams, Shape
@@ -134,6 +138,7 @@ __all__ = [
     "orca_plane",
     "orca_velocities",
     "preferred_velocities",
+    "shape_parts",
     "solve_velocity",
     "velocity_bounds",
 ]

@@ -159,6 +159,7 @@ def obstacle_planes(
     oh: NDArray[np.float64],
     goal: NDArray[np.float64],
     has_goal: NDArray[np.bool_],
+    parts: NDArray[np.float64],
     cs: np.record,
     rs: np.record,
     N: NDArray[np.float64],
@@ -172,7 +173,7 @@ def obstacle_planes(
     only: an obstacle's place is known; shapes grown by ``LAG_MARGIN`` with the agent's own speed)
     truncated at the obstacle horizon, and the agent takes the whole u (the obstacle does not move).
     Left out: obstacles out of reach within the horizon at the speed sphere's radius (no velocity
-    the LP may choose enters their VO) and those the agent's target touches (``rules.targets_obstacle``).
+    the LP may choose enters their VO) and the target's own (``rules.own_target``).
     The planes of obstacles the agent is clear of are hard: zero velocity satisfies all of them and
     the bounds. Those of obstacles it already overlaps (within the margin: knocked against one, or
     just off its target's own) follow them, soft: a recovery plane may contradict the bounds, and
@@ -182,7 +183,6 @@ def obstacle_planes(
     on, lag = rs.lag_margin, rs.lag_margin_s
     wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
     reach = cs.max_speed / rs.inv_tau_obstacle  # m, the farthest any velocity of the LP goes within the horizon
-    goal_rel = add(row(goal, i), row(pos, i), -1.0)
     n_hard = k
     for overlapping in (False, True):
         for o in range(oc.shape[0]):
@@ -195,7 +195,7 @@ def obstacle_planes(
             gap = max(abs(c[0]) - H[0], abs(c[1]) - H[1], abs(c[2]) - H[2])
             if gap > reach or (gap <= 0.0) != overlapping:
                 continue
-            if has_goal[i] and rules.targets_obstacle(goal_rel, c, H0, cs.margin + rs.goal_reach):
+            if has_goal[i] and rules.own_target(i, o, pos, goal, parts, oc, oh, cs.margin + rs.goal_reach):
                 continue
             nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, wz)
             set_row(N, k, nrm)
@@ -223,6 +223,7 @@ def orca_batch(
     hi: NDArray[np.float64],
     oc: NDArray[np.float64],
     oh: NDArray[np.float64],
+    parts: NDArray[np.float64],
     core_rec: NDArray[np.void],
     rule_rec: NDArray[np.void],
     out: NDArray[np.float64],
@@ -246,7 +247,7 @@ def orca_batch(
         n_hard = n_static = n_bounds
         if static:
             n_hard, n_static = obstacle_planes(
-                i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, cs, rs, N, P, n_bounds
+                i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, parts, cs, rs, N, P, n_bounds
             )
         m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, n_static)
         up = (FLAG_CLIMB if climbs else 0) | (FLAG_OBSTACLE if n_static > n_bounds else 0)
@@ -299,6 +300,7 @@ def orca_batch(
                     oh,
                     goal,
                     has_goal[i],
+                    parts,
                     scale(pr, 1.0 / sp),
                     sp / rs.inv_tau_obstacle,
                     cs.margin,
@@ -355,6 +357,7 @@ def orca_velocities(
     commanded: NDArray[np.float64] | None = None,
     neighbours: NDArray[np.int64] | None = None,
     obstacles: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    parts: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Collision-avoiding velocities of all agents from sensed state (one compiled call).
 
@@ -379,8 +382,10 @@ def orca_velocities(
             commanded); the others get the LP's velocity closest to ``preferred``.
         neighbours: (n, k) neighbour table from ``neighbour_table`` (computed when None).
         obstacles: (centres (K, 3) m, half extents (K, 3) m) of static axis-aligned boxes, avoided
-            with ``STATIC_OBSTACLES`` (none when None); an obstacle that an agent's shape at its
-            goal (``goals``, ``has_goal``) touches is left out for that agent.
+            with ``STATIC_OBSTACLES`` (none when None); an agent's target's own (``rules.own_target``:
+            touched by the agent at its goal, ``goals`` and ``has_goal``) is left out for it.
+        parts: (n, 12) airframe and load boxes of each agent (``shape_parts``), which tell the
+            target's own obstacles (default: each agent's shape as one part).
 
     Returns:
         (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE | FLAG_CLIMB |
@@ -414,6 +419,10 @@ def orca_velocities(
         oc = oh = np.zeros((0, 3))
     else:
         oc, oh = (np.ascontiguousarray(b, dtype=float).reshape(-1, 3) for b in obstacles)
+    if parts is None:
+        parts = np.zeros((n, 12))
+        parts[:, :3] = centre
+        parts[:, 3:6] = half if use_boxes else radius[:, None]
     out = np.empty((n, 3))
     flags = np.zeros(n, dtype=np.int64)
     core_rec, rule_rec = _settings(params, None if v_max is None else tuple(map(float, vm)))
@@ -433,6 +442,7 @@ def orca_velocities(
         hi,
         oc,
         oh,
+        np.ascontiguousarray(parts, dtype=float).reshape(n, 12),
         core_rec,
         rule_rec,
         out,
@@ -520,14 +530,14 @@ def commanded_velocities(
     return out
 
 
-def bounding_boxes(
+def shape_parts(
     quaternions: NDArray[np.float64],
     half_extent: NDArray[np.float64],
     carrying: NDArray[np.bool_],
     box_size: float,
     box_drop: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """World-axis bounding boxes of airframes (and hanging boxes) from sensed attitudes.
+) -> NDArray[np.float64]:
+    """World-axis boxes of each airframe and of the box it carries, from sensed attitudes.
 
     Args:
         quaternions: (n, 4) (x, y, z, w).
@@ -537,7 +547,8 @@ def bounding_boxes(
         box_drop: m, box centre below the agent centre in the body frame.
 
     Returns:
-        (centre offsets (n, 3) m from each agent's position, half extents (n, 3) m).
+        (n, 12): per agent the airframe's centre offset from the agent's position (3,) m (zero) and
+        half extents (3,) m, then the load's centre offset and half extents (zero without a load).
     """
     x, y, z, w = (quaternions[:, k] for k in range(4))
     R = np.empty((len(quaternions), 3, 3))
@@ -551,11 +562,36 @@ def bounding_boxes(
     R[:, 2, 1] = 2 * (y * z + x * w)
     R[:, 2, 2] = 1 - 2 * (x * x + y * y)
     absR = np.abs(R)
-    half = absR @ half_extent  # (n, 3)
-    lo, hi = -half, half.copy()
+    out = np.zeros((len(quaternions), 12))
+    out[:, 3:6] = absR @ half_extent
     if np.any(carrying):
-        c = -box_drop * R[:, :, 2]  # box centre offset, world frame
-        hb = absR @ np.full(3, 0.5 * box_size)
-        lo = np.where(carrying[:, None], np.minimum(lo, c - hb), lo)
-        hi = np.where(carrying[:, None], np.maximum(hi, c + hb), hi)
+        out[carrying, 6:9] = -box_drop * R[carrying, :, 2]  # box centre offset, world frame
+        out[carrying, 9:12] = absR[carrying] @ np.full(3, 0.5 * box_size)
+    return out
+
+
+def bounding_boxes(
+    quaternions: NDArray[np.float64],
+    half_extent: NDArray[np.float64],
+    carrying: NDArray[np.bool_],
+    box_size: float,
+    box_drop: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """World-axis bounding boxes of airframes (and hanging boxes) from sensed attitudes (see ``shape_parts``).
+
+    Returns:
+        (centre offsets (n, 3) m from each agent's position, half extents (n, 3) m).
+    """
+    return union_boxes(shape_parts(quaternions, half_extent, carrying, box_size, box_drop))
+
+
+def union_boxes(parts: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The box around each agent's parts (n, 12) (``shape_parts``): (centre offsets (n, 3) m, half extents (n, 3) m)."""
+    half = parts[:, 3:6]
+    lo, hi = -half, half.copy()
+    load = parts[:, 9] > 0.0
+    if np.any(load):
+        c, h = parts[:, 6:9], parts[:, 9:12]
+        lo = np.where(load[:, None], np.minimum(lo, c - h), lo)
+        hi = np.where(load[:, None], np.maximum(hi, c + h), hi)
     return np.ascontiguousarray(0.5 * (lo + hi)), np.ascontiguousarray(0.5 * (hi - lo))

@@ -16,11 +16,12 @@ from pybullet_swarm.planning.orca.kernel import (
     FLAG_FREE,
     FLAG_INFEASIBLE,
     FLAG_OBSTACLE,
-    bounding_boxes,
     commanded_velocities,
     neighbour_table,
     orca_velocities,
     preferred_velocities,
+    shape_parts,
+    union_boxes,
 )
 from pybullet_swarm.planning.orca.params import OrcaParams, Shape
 from pybullet_swarm.planning.orca.rules import clear_paths, velocity_bounds
@@ -61,6 +62,7 @@ def _warm_up() -> None:
         np.zeros(2, dtype=np.bool_),
         z3,
         np.full((2, 3), 0.05),
+        np.zeros((2, 12)),
         0.0,
     )
 
@@ -133,9 +135,10 @@ class OrcaLayer:
         )
         v_cmd = commanded_velocities(kinds, vectors, pos, v_max=self.v_max, a_max=self.a_max, dt=self.control_dt)
         nbr = perception.nearest_table(p.max_neighbours)
-        centre, half = bounding_boxes(
+        parts = shape_parts(
             np.ascontiguousarray(perception.quaternions), self.half_extent, carrying, self.box_size, self.box_drop
         )
+        centre, half = union_boxes(parts)
         radii = np.where(carrying, self.r_carry, self.r_agent)
         obstacles = self.arena_obstacles + task.obstacles if p.static_obstacles else NO_OBSTACLES
         oc = np.ascontiguousarray(obstacles.centres, dtype=float)
@@ -167,6 +170,7 @@ class OrcaLayer:
             commanded=v_cmd,
             neighbours=nbr,
             obstacles=(oc, oh),
+            parts=parts,
         )
         passthrough = np.zeros(n, dtype=np.bool_)
         if p.passthrough:
@@ -185,6 +189,7 @@ class OrcaLayer:
                     passthrough,
                     oc,
                     oh,
+                    parts,
                     p.margin + p.goal_reach,
                 )
         keep = passthrough | ((flags & FLAG_FREE) != 0)

@@ -99,6 +99,7 @@ SIDE_OFFSET = 0.01  # m, a neighbour ahead further than this to one side has alr
 HORIZONTAL_MIN2 = 1e-6  # squared horizontal part of a unit direction below which it counts as vertical
 BESIDE_MIN2 = 1e-4  # m^2, a neighbour horizontally closer than 1 cm is right above or below
 MIN_PREFERRED_SPEED = 1e-3  # m/s, an agent that prefers to move slower than this is at rest: never stalled
+GOAL_OVERLAP = 0.005  # m, a part of an agent at its target reaching deeper into an obstacle is inside it
 
 
 # ----------------------------------------------------------------------------- margins and the way out
@@ -318,18 +319,19 @@ def clear_paths(
     out: NDArray[np.bool_],
     oc: NDArray[np.float64],
     oh: NDArray[np.float64],
+    parts: NDArray[np.float64],
     reach: float,
 ) -> None:
     """PASSTHROUGH: for each candidate, True when the box it sweeps to its goal stays ``margin`` m clear of
     every neighbour's box swept along the neighbour's velocity over ``lookahead`` s, and of every static
-    obstacle (``oc``, ``oh``: centres and half extents (K, 3) m) but those its goal touches (within
-    ``reach`` m, ``targets_obstacle``)."""
+    obstacle (``oc``, ``oh``: centres and half extents (K, 3) m) but its target's own (``own_target``
+    with ``parts`` and ``reach`` m)."""
     n = pos.shape[0]
     for i in range(n):
         out[i] = False
         if not candidate[i]:
             continue
-        if not clear_of_obstacles(i, pos, goal, centre, half, oc, oh, margin, reach):
+        if not clear_of_obstacles(i, pos, goal, centre, half, oc, oh, parts, margin, reach):
             continue
         ok = True
         for c in range(nbr.shape[1]):
@@ -362,11 +364,12 @@ def clear_of_obstacles(
     half: NDArray[np.float64],
     oc: NDArray[np.float64],
     oh: NDArray[np.float64],
+    parts: NDArray[np.float64],
     margin: float,
     reach: float,
 ) -> bool:
     """STATIC_OBSTACLES with PASSTHROUGH: True when agent i's box swept to its goal stays ``margin`` m clear of
-    every obstacle its goal does not touch (``targets_obstacle`` within ``reach`` m)."""
+    every obstacle but its target's own (``own_target`` within ``reach`` m)."""
     goal_rel = add(row(goal, i), row(pos, i), -1.0)
     for o in range(oc.shape[0]):
         c = (
@@ -375,7 +378,7 @@ def clear_of_obstacles(
             oc[o, 2] - pos[i, 2] - centre[i, 2],
         )
         H = (oh[o, 0] + half[i, 0], oh[o, 1] + half[i, 1], oh[o, 2] + half[i, 2])
-        if targets_obstacle(goal_rel, c, H, reach):
+        if own_target(i, o, pos, goal, parts, oc, oh, reach):
             continue
         apart = False
         for a in range(3):
@@ -418,19 +421,47 @@ def obstacle_shape(
 
 
 @njit
-def targets_obstacle(goal_rel: Vec, c: Vec, H: Vec, reach: float) -> bool:
-    """STATIC_OBSTACLES: True when the obstacle (at ``c`` m, Minkowski half extents ``H`` m) comes within
-    ``reach`` m of the agent's shape moved by ``goal_rel`` m (its target minus its position).
+def own_target(
+    i: int,
+    o: int,
+    pos: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    parts: NDArray[np.float64],
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    reach: float,
+) -> bool:
+    """STATIC_OBSTACLES: True when obstacle o is agent i's target's own: a part of the agent (airframe or
+    load, ``parts``) at its target comes within ``reach`` m of it, and none reaches into it deeper
+    than ``GOAL_OVERLAP``.
 
-    Such an obstacle is the target's own: the box under a grasp point, the slot's support and
-    neighbours under a drop point, the box just let go. The agent must come within its grasp or
-    placement distance of it, which the obstacle's velocity obstacle (grown by the safety margin)
-    would forbid, so it is not avoided.
+    Such an obstacle is the box under a grasp point, the slot's support and neighbours beside the
+    load at a drop point, the box just let go: the agent must come within its grasp or placement
+    distance of it, which the obstacle's velocity obstacle (grown by the safety margin) would
+    forbid, so it is not avoided. A target inside an obstacle (an airframe that would stand in a
+    taller neighbour of its slot) cannot be reached without touching it: that obstacle stays.
+
+    Args:
+        parts: (n, 12) per agent the centre offset (3,) m and half extents (3,) m of its airframe,
+            then of its load (half extents 0: no load), see ``kernel.shape_parts``.
     """
-    for k in range(3):
-        if abs(c[k] - goal_rel[k]) >= H[k] + reach:
+    near = False
+    for k in range(2):
+        b = 6 * k
+        if parts[i, b + 3] <= 0.0:
+            continue
+        depth = 1e300
+        within = True
+        for a in range(3):
+            d = abs(oc[o, a] - goal[i, a] - parts[i, b + a])
+            sep = parts[i, b + 3 + a] + oh[o, a]
+            depth = min(depth, sep - d)
+            if d >= sep + reach:
+                within = False
+        if depth > GOAL_OVERLAP:
             return False
-    return True
+        near = near or within
+    return near
 
 
 @njit
@@ -464,6 +495,7 @@ def obstacle_in_way(
     oh: NDArray[np.float64],
     goal: NDArray[np.float64],
     has_goal: bool,
+    parts: NDArray[np.float64],
     d: Vec,
     length: float,
     margin: float,
@@ -474,7 +506,7 @@ def obstacle_in_way(
     """STATIC_OBSTACLES with SIDESTEP: the way past the nearest obstacle that holds up stalled agent i.
 
     The obstacle is the nearest one (shapes grown by ``margin`` m, the target's own left out, see
-    ``targets_obstacle``) that the agent's shape would enter within ``length`` m along its unit
+    ``own_target``) that the agent's shape would enter within ``length`` m along its unit
     preferred direction ``d``. Returns (found, unit direction of the bias): up (with ``climb``) when
     climbing over the obstacle, weighted by ``wz``, is shorter than stepping across ``d`` past its
     nearer side, else across ``d`` away from the obstacle's centre (right when it lies dead ahead).
@@ -484,11 +516,9 @@ def obstacle_in_way(
     best = -1
     best_t = 1e300
     for o in range(oc.shape[0]):
-        c, H = obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, o)
-        if has_goal and targets_obstacle(
-            (goal[i, 0] - pos[i, 0], goal[i, 1] - pos[i, 1], goal[i, 2] - pos[i, 2]), c, H, reach
-        ):
+        if has_goal and own_target(i, o, pos, goal, parts, oc, oh, reach):
             continue
+        c, H = obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, o)
         t = ray_entry(c, (H[0] + margin, H[1] + margin, H[2] + margin), d, length)
         if 0.0 <= t < best_t:
             best, best_t = o, t
