@@ -131,8 +131,8 @@ class OrcaParams(Params):
         0.02,
         ge=0.0,
         le=1.0,
-        description="m, an obstacle within the safety margin plus this of the agent's shape at its own target "
-        "(the box it grasps, the structure it places on) is not avoided",
+        description="m, an obstacle within the safety margin plus this of the airframe or load at the agent's own "
+        "target (the box it grasps, the structure it places on) is not avoided, unless the target lies inside it",
     )
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}

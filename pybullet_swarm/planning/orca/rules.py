@@ -166,11 +166,11 @@ def velocity_bounds(
 
     ORCA knows no ground (nor, without ``STATIC_OBSTACLES``, what stands on it). So (``floor``) it
     may push an agent down only above ``floor_height``, by at most its height above it per horizon;
-    below, never faster down than the agent intends to go itself. And (``column`` > 0) an agent low down on a vertical
-    leg to or from its target (horizontally within ``column`` of it: descending to grasp or place,
-    climbing away) is over a box or the structure, where a sideways dodge tilts the airframe into
-    it: avoidance may only slow it down or lift it, not move it sideways. The velocity limits
-    bound everything.
+    below, never faster down than the agent intends to go itself. And (``column`` > 0) an agent low
+    down on a vertical leg to or from its target (horizontally within ``column`` of it: descending
+    to grasp or place, climbing away) is over a box or the structure, where a sideways dodge tilts
+    the airframe into it: avoidance may only slow it down or lift it, not move it sideways. The
+    velocity limits bound everything.
 
     Args:
         positions: (n, 3) m, sensed.
