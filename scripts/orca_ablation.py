@@ -17,6 +17,8 @@ interrupted batch or add seeds. Per configuration the script tables:
 * ``agent_agent`` contact events (mean and 95 % t-interval; with ``collisions: ghost``, the
   default of ``construction.yaml``, overlaps that a physical run would turn into contacts) and
   how many runs had any;
+* contacts of agents with boxes and the structure (``agent_box`` + ``agent_structure``, what
+  ``static_obstacles`` is for), mean and 95 % t-interval, and how many runs had any;
 * ``thesis_collisions`` (the thesis's count of crossings of the collision line), mean and 95 %
   t-interval;
 * the median completion time with a distribution-free 95 % interval (order statistics of the
@@ -105,6 +107,7 @@ def table_rows(
                 "completed": r.get("exit_status") == "completed",
                 "completion_time_s": _number(r.get("completion_time_s")),
                 "agent_agent": _number(r.get("collisions.agent_agent")),
+                "agent_static": _number(r.get("collisions.agent_box")) + _number(r.get("collisions.agent_structure")),
                 "thesis_collisions": _number(r.get("thesis_collisions")),
                 "boxes_placed": _number(r.get("boxes_placed")),
                 "orca_changed_fraction": _number(r.get("orca_changed_fraction")),
@@ -122,11 +125,12 @@ def table_rows(
             "completed": sum(r["completed"] for r in runs),
             "other_exits": dict(sorted(Counter(str(r["exit_status"]) for r in runs if not r["completed"]).items())),
             "runs_with_contact": sum(r["agent_agent"] > 0 for r in runs),
+            "runs_with_static_contact": sum(r["agent_static"] > 0 for r in runs),
             "completion_time_median_s": med,
             "completion_time_ci95_low_s": lo,
             "completion_time_ci95_high_s": hi,
         }
-        for key in ("agent_agent", "thesis_collisions", "boxes_placed"):
+        for key in ("agent_agent", "agent_static", "thesis_collisions", "boxes_placed"):
             s = describe([r[key] for r in runs])
             rec.update({f"{key}_mean": s.mean, f"{key}_ci95_low": s.ci95_low, f"{key}_ci95_high": s.ci95_high})
         table.append(rec)
@@ -165,14 +169,15 @@ def _completed_cell(rec: Mapping[str, Any]) -> str:
 def markdown(table: Sequence[Mapping[str, Any]]) -> str:
     """The table as Markdown."""
     lines = [
-        "| planner | configuration | completed | agent_agent contacts | runs with contact | thesis_collisions | "
-        "median completion time [s] |",
-        "|---|---|---|---|---|---|---|",
+        "| planner | configuration | completed | agent_agent contacts | runs with contact | agent_box + "
+        "agent_structure contacts | runs with contact | thesis_collisions | median completion time [s] |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in table:
         lines.append(
             f"| {r['planner']} | {r['configuration']} | {_completed_cell(r)} | {_mean_cell(r, 'agent_agent')} "
-            f"| {r['runs_with_contact']} | {_mean_cell(r, 'thesis_collisions')} | {_median_cell(r)} |"
+            f"| {r['runs_with_contact']} | {_mean_cell(r, 'agent_static')} | {r['runs_with_static_contact']} "
+            f"| {_mean_cell(r, 'thesis_collisions')} | {_median_cell(r)} |"
         )
     return "\n".join(lines)
 

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.planning.base import Obstacles
 from pybullet_swarm.planning.params import NoParams, ParamInfo, ParamRuleError, Params, PlanContext
 from pybullet_swarm.planning.params import field_info as describe_field
 from pybullet_swarm.resources import bundled_scenarios, scenarios_dir
@@ -29,6 +30,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from pybullet_swarm.vehicle import VehicleParams
 
 MAX_COORD = 1e5  # m, largest coordinate accepted anywhere (the largest arena is 1e4 m)
+WALL_THICKNESS = 0.02  # m, of the arena's walls (``arena.walls``)
 Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD)]
 Vec3 = Annotated[list[Coord], Field(min_length=3, max_length=3)]
 PosFloat = Annotated[float, Field(gt=0, le=1e6)]
@@ -88,6 +90,11 @@ class Obstacle(_Strict):
         c, s = abs(math.cos(math.radians(self.yaw_deg))), abs(math.sin(math.radians(self.yaw_deg)))
         return 0.5 * (c * self.size[0] + s * self.size[1]), 0.5 * (s * self.size[0] + c * self.size[1])
 
+    def bounding_box(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(centre (3,) m, half extents (3,) m) of the world-axis box around the obstacle."""
+        h = self.size[1] if self.shape == ObstacleShape.CYLINDER else self.size[2]
+        return self.center(), np.array([*self.half_extents_xy(), 0.5 * h], dtype=float)
+
     def horizontal_distance(self, xy: NDArray[np.float64]) -> NDArray[np.float64]:
         """Horizontal distance (k,) m from points xy (k, 2) m to the footprint (0 inside)."""
         d = np.asarray(xy, dtype=float).reshape(-1, 2) - self.center()[:2]
@@ -106,6 +113,31 @@ class ArenaSection(_Strict):
     walls: bool = False  # add four walls of `wall_height` around the arena
     wall_height: PosFloat = 2.0
     obstacles: list[Obstacle] = Field(default_factory=list)  # static pillars and boxes
+
+    def obstacle_boxes(self) -> Obstacles:
+        """The walls (when ``walls``) and every obstacle as world-axis boxes, for avoidance layers."""
+        centres, halves = [], []
+        if self.walls:
+            lx, ly = self.size
+            t, h = WALL_THICKNESS, self.wall_height
+            for x, y, sx, sy in (
+                (lx / 2, -t / 2, lx + 2 * t, t),
+                (lx / 2, ly + t / 2, lx + 2 * t, t),
+                (-t / 2, ly / 2, t, ly),
+                (lx + t / 2, ly / 2, t, ly),
+            ):
+                centres.append([x, y, h / 2])
+                halves.append([sx / 2, sy / 2, h / 2])
+        for ob in self.obstacles:
+            centre, half = ob.bounding_box()
+            centres.append(centre.tolist())
+            halves.append(half.tolist())
+        k = len(centres)
+        return Obstacles(
+            np.asarray(centres, dtype=float).reshape(k, 3),
+            np.asarray(halves, dtype=float).reshape(k, 3),
+            np.full(k, -1, dtype=np.int64),
+        )
 
 
 class AgentsSection(_Strict):

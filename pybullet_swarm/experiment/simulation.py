@@ -22,7 +22,7 @@ from pybullet_swarm.control.reference import ReferenceShaper
 from pybullet_swarm.control.rotations import quat_to_euler
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.recorder import Recorder, TimeSeries
-from pybullet_swarm.experiment.scenario import Scenario
+from pybullet_swarm.experiment.scenario import WALL_THICKNESS, Scenario
 from pybullet_swarm.metrics.collisions import COLLISION_CLASSES, CollisionClass, ContactTracker
 from pybullet_swarm.metrics.flight import flight_metrics
 from pybullet_swarm.rng import named_rng
@@ -124,7 +124,7 @@ class Simulation:
         self.world = World(physics_hz=s.physics_hz, gravity=s.gravity, gui=self.gui)
         self.world.add_ground()
         if sc.arena.walls:
-            self.world.add_walls(sc.arena.size, sc.arena.wall_height)
+            self.world.add_walls(sc.arena.size, sc.arena.wall_height, thickness=WALL_THICKNESS)
         for k, ob in enumerate(sc.arena.obstacles):  # static pillars and boxes: contacts are agent_obstacle
             if ob.shape == "cylinder":
                 self.world.add_cylinder(ob.center().tolist(), ob.size[0], ob.size[1], name=f"obstacle{k}")
@@ -321,6 +321,7 @@ class Simulation:
             range_angles=np.zeros(0) if fan is None else np.asarray(fan.angles, dtype=float),
             range_m=0.0 if fan is None else float(fan.range_m),
             range_offset=0.0 if fan is None else float(fan.start_offset),
+            obstacles=sc.arena.obstacle_boxes(),
         )
 
     def _make_planner(self) -> None:

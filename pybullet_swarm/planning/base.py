@@ -154,6 +154,47 @@ def _empty_ids() -> NDArray[np.int64]:
 
 
 @dataclasses.dataclass(frozen=True)
+class Obstacles:
+    """Static obstacles as axis-aligned boxes in the world frame: what stands still while agents fly past it.
+
+    A pillar is given as the box around it (its square footprint, conservative by up to
+    (sqrt(2) - 1) r at the corners), a turned box as the world-axis box around its footprint.
+
+    Attributes:
+        centres: (K, 3) m.
+        half_extents: (K, 3) m.
+        objects: (K,) the task object each box is (an index into ``TaskView.objects``), -1 for the arena's.
+    """
+
+    centres: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
+    half_extents: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
+    objects: NDArray[np.int64] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    def __post_init__(self) -> None:
+        k = len(self.centres)
+        if np.shape(self.centres) != (k, 3) or np.shape(self.half_extents) != (k, 3) or np.shape(self.objects) != (k,):
+            raise ValueError(
+                f"obstacles need centres (K, 3), half_extents (K, 3) and objects (K,), got "
+                f"{np.shape(self.centres)}, {np.shape(self.half_extents)} and {np.shape(self.objects)}"
+            )
+
+    def __len__(self) -> int:
+        return len(self.centres)
+
+    def __add__(self, other: Obstacles) -> Obstacles:
+        """Both sets of boxes, these first."""
+        if not len(other):
+            return self
+        if not len(self):
+            return other
+        return Obstacles(
+            np.concatenate([self.centres, other.centres]),
+            np.concatenate([self.half_extents, other.half_extents]),
+            np.concatenate([self.objects, other.objects]),
+        )
+
+
+@dataclasses.dataclass(frozen=True)
 class TaskView:
     """What the task shows at one planner tick: public progress of the task (world frame, SI units).
 
@@ -173,6 +214,8 @@ class TaskView:
         target_yaws: (n,) rad, with ``targets``.
         points: (W, 3) m, points to pass or visit (routes, tours), else (0, 3).
         points_done: (W,) True once a point counts as passed or visited.
+        obstacles: the task's objects that stand still now (free and placed boxes, not carried ones),
+            as avoidance layers keep clear of them (the arena's own are in ``AvoidanceSetup.obstacles``).
     """
 
     time_s: float
@@ -186,6 +229,7 @@ class TaskView:
     target_yaws: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(0))
     points: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
     points_done: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=bool))
+    obstacles: Obstacles = dataclasses.field(default_factory=Obstacles)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -268,6 +312,7 @@ class AvoidanceSetup:
         range_angles: (r,) rad, bearings of the range rays in the body frame (empty without rays).
         range_m: m, longest range reading.
         range_offset: m, rays start this far from the agent centre.
+        obstacles: the arena's static obstacles (pillars, boxes, walls), for the whole run.
     """
 
     n: int
@@ -282,6 +327,7 @@ class AvoidanceSetup:
     range_angles: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(0))
     range_m: float = 0.0
     range_offset: float = 0.0
+    obstacles: Obstacles = dataclasses.field(default_factory=Obstacles)
 
 
 @runtime_checkable

@@ -26,7 +26,7 @@ from pydantic import Field
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.collisions import CollisionClass
 from pybullet_swarm.metrics.construction import task_lower_bound
-from pybullet_swarm.planning.base import Action, LocalView, TaskView, view_distance
+from pybullet_swarm.planning.base import Action, LocalView, Obstacles, TaskView, view_distance
 from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
 from pybullet_swarm.tasks.base import NOT_MINE, ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.tasks.build_order import REACH_MARGIN, Reach, build_order, prerequisites
@@ -37,6 +37,21 @@ from pybullet_swarm.world import BodyKind, World
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
 FREE, CARRIED, PLACED = 0, 1, 2
+
+
+def cube_half_extents(quaternions: NDArray[np.float64], size: float) -> NDArray[np.float64]:
+    """Half extents (k, 3) m of the world-axis boxes around cubes of edge ``size`` m turned by ``quaternions`` (k, 4)
+    (x, y, z, w)."""
+    x, y, z, w = (np.asarray(quaternions, dtype=float).reshape(-1, 4)[:, k] for k in range(4))
+    rows = np.stack(
+        [
+            np.abs(1 - 2 * (y * y + z * z)) + np.abs(2 * (x * y - z * w)) + np.abs(2 * (x * z + y * w)),
+            np.abs(2 * (x * y + z * w)) + np.abs(1 - 2 * (x * x + z * z)) + np.abs(2 * (y * z - x * w)),
+            np.abs(2 * (x * z - y * w)) + np.abs(2 * (y * z + x * w)) + np.abs(1 - 2 * (x * x + y * y)),
+        ],
+        axis=1,
+    )
+    return 0.5 * size * rows
 
 
 class ConstructionTask(pydantic.BaseModel):
@@ -635,6 +650,7 @@ class ConstructionRuntime(TaskBase):
         guided = (filled < 0) & (into >= 0)  # a box on its way into its slot counts as placed there
         filled[guided] = into[guided]
         state[into[guided]] = PLACED
+        still = np.nonzero(state != CARRIED)[0]  # free and placed boxes stand still for avoidance
         return TaskView(
             t,
             self.carrying(self.n),
@@ -643,6 +659,9 @@ class ConstructionRuntime(TaskBase):
             slots=self.slots,
             slot_filled=filled,
             slot_open=self.slot_open,
+            obstacles=Obstacles(
+                self.positions[still], cube_half_extents(self.quaternions[still], self.size), still.astype(np.int64)
+            ),
         )
 
     def local_views(

@@ -36,6 +36,8 @@ The paper's core and our extension rules are kept apart:
   - ``climb_past``: a stalled agent above the one in its way climbs past it instead;
   - ``make_way``: an agent descending onto its goal's occupant rises straight up, the only way the
     one below can leave.
+  - ``static_obstacles``: boxes (free and placed), the structure and the arena's walls and obstacles
+    are velocity obstacles the agent avoids alone, the paper's obstacles (see below).
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.
@@ -61,6 +63,26 @@ Design decisions the rules share (numbers are ``OrcaParams`` defaults):
   way that does not sit on its goal decides the bias. When the biased velocity is still held (the
   bias can exactly cancel the preferred velocity along the one axis a box VO leaves free) the
   agent asks for the sideways step alone. A neighbour sitting on the goal is waited for.
+* Static obstacles (``static_obstacles``, ``obstacle_horizon`` 1 s, ``goal_reach`` 2 cm). They reach
+  the layer as data, axis-aligned boxes (``planning.base.Obstacles``): the arena's walls and
+  obstacles once in ``AvoidanceSetup.obstacles`` (a pillar as the box around it: its corners
+  stick out by (sqrt(2) - 1) r, the price of the box VO, which is exact, against a rounded
+  Minkowski sum the core does not have), the task's at every tick in ``TaskView.obstacles`` (the
+  construction task's free and placed boxes; a carried box is its carrier's shape). As the paper
+  treats obstacles, the agent takes the whole u (not half: the obstacle does not move), with the
+  obstacle's own time horizon and the agent's margin only; the planes are hard, after the
+  velocity bounds, and never traded away (those of obstacles the agent already overlaps are soft:
+  recovery may contradict the bounds). The target's own obstacles are left out: an obstacle that
+  the airframe or the load at the agent's POSITION/HOLD target comes within the margin plus
+  ``goal_reach`` of (the box under a grasp point, a slot's support and neighbours beside the
+  load at a drop point, the box just let go) must be approached closer than the margin, so its
+  VO would forbid the grasp or the placing; unless one of them would reach into it by more than
+  5 mm (``rules.GOAL_OVERLAP``): such a target lies inside the obstacle (an airframe in a taller
+  neighbour of its slot) and the agent is held off it. The test needs nothing but the command and
+  the shapes, so it serves any task. A stall in front
+  of an obstacle takes ``sidestep``'s bias (away from its centre across the way, or over it when
+  climbing is shorter, weighted by ``vertical_cost``); ``passthrough`` also needs the obstacles
+  but the target's own clear.
 * Measured (``construction.yaml``, stigmergy, seeds 0..49): median completion 128.6 s with
   ``vertical_cost`` 3.0 and no climbing over, 117.7 s with both, no contact either way. The
   simulator models no downwash; a study of airframes that suffer from it raises ``vertical_cost``
@@ -78,11 +100,13 @@ from pybullet_swarm.planning.orca.kernel import (
     FLAG_CLIMB,
     FLAG_FREE,
     FLAG_INFEASIBLE,
+    FLAG_OBSTACLE,
     bounding_boxes,
     commanded_velocities,
     neighbour_table,
     orca_velocities,
     preferred_velocities,
+    shape_parts,
 )
 from pybullet_swarm.planning.orca.layer import OrcaLayer
 from pybullet_swarm.planning.orca.params import OrcaParams, Shape
@@ -102,6 +126,7 @@ __all__ = [
     "FLAG_CLIMB",
     "FLAG_FREE",
     "FLAG_INFEASIBLE",
+    "FLAG_OBSTACLE",
     "RULE_DOCS",
     "OrcaLayer",
     "OrcaParams",
@@ -113,6 +138,7 @@ __all__ = [
     "orca_plane",
     "orca_velocities",
     "preferred_velocities",
+    "shape_parts",
     "solve_velocity",
     "velocity_bounds",
 ]

@@ -1,10 +1,13 @@
 """One planner tick of ORCA for all agents: the paper's core composed with the switched-on rules, one compiled call.
 
-Per agent: the hard planes (velocity limits, narrowed by ``FLOOR_RULE`` and ``COLUMN_RULE``), one
-ORCA plane per neighbour (``core``; shapes grown by ``LAG_MARGIN``, the way out weighted by
-``WEIGHTED_WAY_OUT``, the shares moved by ``CLIMB_OVER``), then either the command unchanged
-(``MINIMAL_INTERVENTION``) or the LP's velocity, which a stalled agent may solve again with a
-bias (``SIDESTEP``, ``CLIMB_PAST``, ``MAKE_WAY``).
+Per agent: the hard planes (velocity limits, narrowed by ``FLOOR_RULE`` and ``COLUMN_RULE``; then,
+with ``STATIC_OBSTACLES``, one plane per static obstacle within reach, of which the agent takes the
+whole u, as the paper's agents do with obstacles: never traded away by the fallback LP unless the
+agent already overlaps the obstacle), one ORCA plane per neighbour (``core``; shapes grown by
+``LAG_MARGIN``, the way out weighted by ``WEIGHTED_WAY_OUT``, the shares moved by ``CLIMB_OVER``),
+then either the command unchanged (``MINIMAL_INTERVENTION``) or the LP's velocity, which a
+stalled agent may solve again with a bias (``SIDESTEP``, ``CLIMB_PAST``, ``MAKE_WAY``; held up by
+an obstacle, ``STATIC_OBSTACLES``).
 
 Also here: the arrays the kernel is fed from commands and sensed state (neighbour table,
 bounding boxes, preferred and commanded velocities).
@@ -31,6 +34,7 @@ FLAG_INFEASIBLE = 1  # the ORCA planes had no common velocity: least-violating v
 FLAG_BIASED = 2  # stalled by a neighbour: the sideways (or upward) bias was applied (SIDESTEP, MAKE_WAY)
 FLAG_FREE = 4  # the commanded velocity satisfies every plane: nothing was changed (MINIMAL_INTERVENTION)
 FLAG_CLIMB = 8  # took a pair's whole share of a vertical way out (CLIMB_OVER)
+FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach (STATIC_OBSTACLES)
 
 HARD_PLANES = 6  # at most two velocity bounds per axis
 
@@ -62,6 +66,8 @@ def rule_settings(params: OrcaParams) -> NDArray[np.void]:
     s["time_horizon"] = params.time_horizon
     s["right_bias"] = params.right_bias
     s["stuck_fraction"] = params.stuck_fraction
+    s["inv_tau_obstacle"] = 1.0 / params.obstacle_horizon
+    s["goal_reach"] = params.goal_reach
     return s
 
 
@@ -141,6 +147,66 @@ def agent_planes(
 
 
 @njit
+def obstacle_planes(
+    i: int,
+    pos: NDArray[np.float64],
+    vel: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    has_goal: NDArray[np.bool_],
+    parts: NDArray[np.float64],
+    cs: np.record,
+    rs: np.record,
+    N: NDArray[np.float64],
+    P: NDArray[np.float64],
+    k: int,
+) -> tuple[int, int]:
+    """STATIC_OBSTACLES: append agent i's planes against the static obstacles (``oc``, ``oh``) after row k;
+    returns (the end of the hard planes, the end of all).
+
+    The paper's obstacles: the VO of the agent's shape and the obstacle's box (the agent's margin
+    only: an obstacle's place is known; shapes grown by ``LAG_MARGIN`` with the agent's own speed)
+    truncated at the obstacle horizon, and the agent takes the whole u (the obstacle does not move).
+    Left out: obstacles out of reach within the horizon at the speed sphere's radius (no velocity
+    the LP may choose enters their VO) and the target's own (``rules.own_target``).
+    The planes of obstacles the agent is clear of are hard: zero velocity satisfies all of them and
+    the bounds. Those of obstacles it already overlaps (within the margin: knocked against one, or
+    just off its target's own) follow them, soft: a recovery plane may contradict the bounds, and
+    the fallback LP then moves the agent as far out as the bounds let it, the way it prefers.
+    """
+    vi = row(vel, i)
+    on, lag = rs.lag_margin, rs.lag_margin_s
+    wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
+    reach = cs.max_speed / rs.inv_tau_obstacle  # m, the farthest any velocity of the LP goes within the horizon
+    n_hard = k
+    for overlapping in (False, True):
+        for o in range(oc.shape[0]):
+            c, H0 = rules.obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, o)
+            H = (
+                H0[0] + cs.margin + rules.lag_growth(on, lag, abs(vi[0])),
+                H0[1] + cs.margin + rules.lag_growth(on, lag, abs(vi[1])),
+                H0[2] + cs.margin + rules.lag_growth(on, lag, abs(vi[2])),
+            )
+            gap = max(abs(c[0]) - H[0], abs(c[1]) - H[1], abs(c[2]) - H[2])
+            if gap > reach or (gap <= 0.0) != overlapping:
+                continue
+            if has_goal[i] and rules.own_target(i, o, pos, goal, parts, oc, oh, cs.margin + rs.goal_reach):
+                continue
+            nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, wz)
+            set_row(N, k, nrm)
+            set_row(P, k, add(vi, u, 1.0))
+            k += 1
+        if not overlapping:
+            n_hard = k
+    return n_hard, k
+
+
+@njit
 def orca_batch(
     pos: NDArray[np.float64],
     vel: NDArray[np.float64],
@@ -155,6 +221,9 @@ def orca_batch(
     has_goal: NDArray[np.bool_],
     lo: NDArray[np.float64],
     hi: NDArray[np.float64],
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    parts: NDArray[np.float64],
     core_rec: NDArray[np.void],
     rule_rec: NDArray[np.void],
     out: NDArray[np.float64],
@@ -164,7 +233,8 @@ def orca_batch(
     cs = core_rec[0]
     rs = rule_rec[0]
     n = pos.shape[0]
-    m_max = nbr.shape[1] + HARD_PLANES
+    static = rs.static_obstacles and oc.shape[0] > 0
+    m_max = nbr.shape[1] + HARD_PLANES + (oc.shape[0] if static else 0)
     N = np.empty((m_max, 3))
     P = np.empty((m_max, 3))
     SN = np.empty((m_max, 3))
@@ -173,9 +243,14 @@ def orca_batch(
     side_on = rs.sidestep and right_bias > 0.0
     stall_on = side_on or rs.make_way
     for i in range(n):
-        n_hard = core.bound_planes(lo, hi, i, N, P)
-        m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, n_hard)
-        up = FLAG_CLIMB if climbs else 0
+        n_bounds = core.bound_planes(lo, hi, i, N, P)
+        n_hard = n_static = n_bounds
+        if static:
+            n_hard, n_static = obstacle_planes(
+                i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, parts, cs, rs, N, P, n_bounds
+            )
+        m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, n_static)
+        up = (FLAG_CLIMB if climbs else 0) | (FLAG_OBSTACLE if n_static > n_bounds else 0)
         vc = row(v_cmd, i)
         if rs.minimal_intervention and dot(vc, vc) <= max_speed * max_speed and not core.violates(N, P, m, vc):
             set_row(out, i, vc)  # nothing to avoid: the planner's command stands
@@ -202,14 +277,38 @@ def orca_batch(
                 rs.time_horizon,
                 rs.make_way,
             )
+            held = False
+            side = (0.0, 0.0, 0.0)
             if make_way:
                 feasible, res = core.solve(N, P, m, n_hard, max_speed, (0.0, 0.0, sp), SN, SP)
                 f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
             elif j >= 0 and side_on:
+                held = True
                 if rs.climb_past and pos[i, 2] > pos[j, 2]:
                     side = (0.0, 0.0, 1.0)  # above the one in the way: over it
                 else:
                     side = rules.sidestep(scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0))
+            elif side_on and n_static > n_bounds:
+                held, side = rules.obstacle_in_way(
+                    i,
+                    pos,
+                    radius,
+                    centre,
+                    half,
+                    boxes,
+                    oc,
+                    oh,
+                    goal,
+                    has_goal[i],
+                    parts,
+                    scale(pr, 1.0 / sp),
+                    sp / rs.inv_tau_obstacle,
+                    cs.margin,
+                    cs.margin + rs.goal_reach,
+                    rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost),
+                    rs.climb_past,
+                )
+            if held:
                 feasible, res = core.solve(N, P, m, n_hard, max_speed, add(pr, side, right_bias * sp), SN, SP)
                 if dot(res, res) < stuck * stuck * sp * sp:
                     # still held: the bias cancelled what the neighbours' planes left free (a box VO
@@ -257,6 +356,8 @@ def orca_velocities(
     bounds: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     commanded: NDArray[np.float64] | None = None,
     neighbours: NDArray[np.int64] | None = None,
+    obstacles: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    parts: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Collision-avoiding velocities of all agents from sensed state (one compiled call).
 
@@ -280,9 +381,15 @@ def orca_velocities(
             satisfies all its planes is left alone (flag ``FLAG_FREE``, returned velocity =
             commanded); the others get the LP's velocity closest to ``preferred``.
         neighbours: (n, k) neighbour table from ``neighbour_table`` (computed when None).
+        obstacles: (centres (K, 3) m, half extents (K, 3) m) of static axis-aligned boxes, avoided
+            with ``STATIC_OBSTACLES`` (none when None); an agent's target's own (``rules.own_target``:
+            touched by the agent at its goal, ``goals`` and ``has_goal``) is left out for it.
+        parts: (n, 12) airframe and load boxes of each agent (``shape_parts``), which tell the
+            target's own obstacles (default: each agent's shape as one part).
 
     Returns:
-        (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE | FLAG_CLIMB``).
+        (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE | FLAG_CLIMB |
+        FLAG_OBSTACLE``).
     """
     pos = np.ascontiguousarray(positions, dtype=float)
     n = pos.shape[0]
@@ -308,6 +415,14 @@ def orca_velocities(
         lo, hi = (np.ascontiguousarray(b, dtype=float).reshape(n, 3) for b in bounds)
     pref = np.ascontiguousarray(preferred, dtype=float)
     v_cmd = pref if commanded is None else np.ascontiguousarray(commanded, dtype=float)
+    if obstacles is None:
+        oc = oh = np.zeros((0, 3))
+    else:
+        oc, oh = (np.ascontiguousarray(b, dtype=float).reshape(-1, 3) for b in obstacles)
+    if parts is None:
+        parts = np.zeros((n, 12))
+        parts[:, :3] = centre
+        parts[:, 3:6] = half if use_boxes else radius[:, None]
     out = np.empty((n, 3))
     flags = np.zeros(n, dtype=np.int64)
     core_rec, rule_rec = _settings(params, None if v_max is None else tuple(map(float, vm)))
@@ -325,6 +440,9 @@ def orca_velocities(
         has_goal,
         lo,
         hi,
+        oc,
+        oh,
+        np.ascontiguousarray(parts, dtype=float).reshape(n, 12),
         core_rec,
         rule_rec,
         out,
@@ -412,14 +530,14 @@ def commanded_velocities(
     return out
 
 
-def bounding_boxes(
+def shape_parts(
     quaternions: NDArray[np.float64],
     half_extent: NDArray[np.float64],
     carrying: NDArray[np.bool_],
     box_size: float,
     box_drop: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """World-axis bounding boxes of airframes (and hanging boxes) from sensed attitudes.
+) -> NDArray[np.float64]:
+    """World-axis boxes of each airframe and of the box it carries, from sensed attitudes.
 
     Args:
         quaternions: (n, 4) (x, y, z, w).
@@ -429,7 +547,8 @@ def bounding_boxes(
         box_drop: m, box centre below the agent centre in the body frame.
 
     Returns:
-        (centre offsets (n, 3) m from each agent's position, half extents (n, 3) m).
+        (n, 12): per agent the airframe's centre offset from the agent's position (3,) m (zero) and
+        half extents (3,) m, then the load's centre offset and half extents (zero without a load).
     """
     x, y, z, w = (quaternions[:, k] for k in range(4))
     R = np.empty((len(quaternions), 3, 3))
@@ -443,11 +562,36 @@ def bounding_boxes(
     R[:, 2, 1] = 2 * (y * z + x * w)
     R[:, 2, 2] = 1 - 2 * (x * x + y * y)
     absR = np.abs(R)
-    half = absR @ half_extent  # (n, 3)
-    lo, hi = -half, half.copy()
+    out = np.zeros((len(quaternions), 12))
+    out[:, 3:6] = absR @ half_extent
     if np.any(carrying):
-        c = -box_drop * R[:, :, 2]  # box centre offset, world frame
-        hb = absR @ np.full(3, 0.5 * box_size)
-        lo = np.where(carrying[:, None], np.minimum(lo, c - hb), lo)
-        hi = np.where(carrying[:, None], np.maximum(hi, c + hb), hi)
+        out[carrying, 6:9] = -box_drop * R[carrying, :, 2]  # box centre offset, world frame
+        out[carrying, 9:12] = absR[carrying] @ np.full(3, 0.5 * box_size)
+    return out
+
+
+def bounding_boxes(
+    quaternions: NDArray[np.float64],
+    half_extent: NDArray[np.float64],
+    carrying: NDArray[np.bool_],
+    box_size: float,
+    box_drop: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """World-axis bounding boxes of airframes (and hanging boxes) from sensed attitudes (see ``shape_parts``).
+
+    Returns:
+        (centre offsets (n, 3) m from each agent's position, half extents (n, 3) m).
+    """
+    return union_boxes(shape_parts(quaternions, half_extent, carrying, box_size, box_drop))
+
+
+def union_boxes(parts: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The box around each agent's parts (n, 12) (``shape_parts``): (centre offsets (n, 3) m, half extents (n, 3) m)."""
+    half = parts[:, 3:6]
+    lo, hi = -half, half.copy()
+    load = parts[:, 9] > 0.0
+    if np.any(load):
+        c, h = parts[:, 6:9], parts[:, 9:12]
+        lo = np.where(load[:, None], np.minimum(lo, c - h), lo)
+        hi = np.where(load[:, None], np.maximum(hi, c + h), hi)
     return np.ascontiguousarray(0.5 * (lo + hi)), np.ascontiguousarray(0.5 * (hi - lo))

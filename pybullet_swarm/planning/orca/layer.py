@@ -8,22 +8,26 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, TaskView
+from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, Obstacles, TaskView
 from pybullet_swarm.planning.orca import rules
 from pybullet_swarm.planning.orca.kernel import (
     FLAG_BIASED,
     FLAG_CLIMB,
     FLAG_FREE,
     FLAG_INFEASIBLE,
-    bounding_boxes,
+    FLAG_OBSTACLE,
     commanded_velocities,
     neighbour_table,
     orca_velocities,
     preferred_velocities,
+    shape_parts,
+    union_boxes,
 )
 from pybullet_swarm.planning.orca.params import OrcaParams, Shape
 from pybullet_swarm.planning.orca.rules import clear_paths, velocity_bounds
 from pybullet_swarm.types import Perception
+
+NO_OBSTACLES = Obstacles()
 
 
 def _warm_up() -> None:
@@ -43,9 +47,23 @@ def _warm_up() -> None:
             boxes=(z3, np.full((2, 3), 0.05)),
             bounds=(z3 - 1.0, z3 + 1.0),
             neighbours=nbr,
+            obstacles=(np.array([[0.25, 0.3, 1.0]]), np.full((1, 3), 0.05)),
         )
     clear_paths(
-        pos, pos, z3, np.full((2, 3), 0.05), z3, nbr, np.ones(2, dtype=np.bool_), 0.0, 0.0, np.zeros(2, dtype=np.bool_)
+        pos,
+        pos,
+        z3,
+        np.full((2, 3), 0.05),
+        z3,
+        nbr,
+        np.ones(2, dtype=np.bool_),
+        0.0,
+        0.0,
+        np.zeros(2, dtype=np.bool_),
+        z3,
+        np.full((2, 3), 0.05),
+        np.zeros((2, 12)),
+        0.0,
     )
 
 
@@ -53,7 +71,8 @@ class OrcaLayer:
     """The ``--avoidance orca`` layer: turns every planner's commands into safe ones.
 
     Each planner tick, per agent: the nearest neighbours within the sensing radius (from the swarm's
-    perception snapshot), shapes from sensed attitude and load, one LP; a
+    perception snapshot), shapes from sensed attitude and load, the static obstacles
+    (``static_obstacles``: the arena's from the set-up, the task's from its view), one LP; a
     command is kept when it is safe as it is (``minimal_intervention``) or a precise final approach
     is clear (``passthrough``), else replaced by a VELOCITY command with the same ``action`` and ``yaw``.
 
@@ -81,6 +100,7 @@ class OrcaLayer:
         self.half_extent = 0.5 * np.asarray(setup.collision_size, dtype=float)  # (3,) m
         self.box_size = float(info.box_size)  # m, 0 when the task has no boxes
         self.box_drop = float(info.grasp_height)  # m, box centre below agent
+        self.arena_obstacles = setup.obstacles  # the arena's, for the whole run
         # sphere around the agent centre enclosing airframe and hanging box
         self.r_carry = max(
             self.r_agent, math.hypot(math.sqrt(2.0) * 0.5 * self.box_size, self.box_drop + 0.5 * self.box_size)
@@ -91,6 +111,7 @@ class OrcaLayer:
         self._infeasible = 0
         self._biased = 0
         self._climbing = 0
+        self._obstacle = 0
         self._changed = 0
         self._time_total = 0.0
         self._time_max = 0.0
@@ -114,10 +135,14 @@ class OrcaLayer:
         )
         v_cmd = commanded_velocities(kinds, vectors, pos, v_max=self.v_max, a_max=self.a_max, dt=self.control_dt)
         nbr = perception.nearest_table(p.max_neighbours)
-        centre, half = bounding_boxes(
+        parts = shape_parts(
             np.ascontiguousarray(perception.quaternions), self.half_extent, carrying, self.box_size, self.box_drop
         )
+        centre, half = union_boxes(parts)
         radii = np.where(carrying, self.r_carry, self.r_agent)
+        obstacles = self.arena_obstacles + task.obstacles if p.static_obstacles else NO_OBSTACLES
+        oc = np.ascontiguousarray(obstacles.centres, dtype=float)
+        oh = np.ascontiguousarray(obstacles.half_extents, dtype=float)
         # bounds around what the command itself asks for (per axis it covers the preferred velocity)
         bounds = velocity_bounds(
             pos,
@@ -144,13 +169,28 @@ class OrcaLayer:
             bounds=bounds,
             commanded=v_cmd,
             neighbours=nbr,
+            obstacles=(oc, oh),
+            parts=parts,
         )
         passthrough = np.zeros(n, dtype=np.bool_)
         if p.passthrough:
             near = has_goal & (np.linalg.norm(goals - pos, axis=1) <= p.capture_radius)
             if near.any():
                 clear_paths(
-                    pos, goals, centre, half, vel, nbr, near, p.clearance_margin, p.clearance_lookahead, passthrough
+                    pos,
+                    goals,
+                    centre,
+                    half,
+                    vel,
+                    nbr,
+                    near,
+                    p.clearance_margin,
+                    p.clearance_lookahead,
+                    passthrough,
+                    oc,
+                    oh,
+                    parts,
+                    p.margin + p.goal_reach,
                 )
         keep = passthrough | ((flags & FLAG_FREE) != 0)
         out = [
@@ -163,6 +203,7 @@ class OrcaLayer:
         self._infeasible += int(np.count_nonzero(flags & FLAG_INFEASIBLE))
         self._biased += int(np.count_nonzero(flags & FLAG_BIASED))
         self._climbing += int(np.count_nonzero(flags & FLAG_CLIMB))
+        self._obstacle += int(np.count_nonzero(flags & FLAG_OBSTACLE))
         self._changed += int(n - np.count_nonzero(keep))
         self._time_total += dt
         self._time_max = max(self._time_max, dt)
@@ -177,6 +218,7 @@ class OrcaLayer:
             "orca_infeasible_agent_ticks": self._infeasible,
             "orca_biased_agent_ticks": self._biased,
             "orca_climbing_agent_ticks": self._climbing,
+            "orca_obstacle_agent_ticks": self._obstacle,
             "orca_mean_solve_ms": 1e3 * self._time_total / ticks,
             "orca_max_solve_ms": 1e3 * self._time_max,
         }

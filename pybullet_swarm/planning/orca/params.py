@@ -123,6 +123,17 @@ class OrcaParams(Params):
     )
     climb_past: bool = _switch(Rule.CLIMB_PAST)
     make_way: bool = _switch(Rule.MAKE_WAY)
+    static_obstacles: bool = _switch(Rule.STATIC_OBSTACLES)
+    obstacle_horizon: float = Field(
+        1.0, gt=0.0, le=60.0, description="s, collisions with static obstacles predicted later than this are ignored"
+    )
+    goal_reach: float = Field(
+        0.02,
+        ge=0.0,
+        le=1.0,
+        description="m, an obstacle within the safety margin plus this of the airframe or load at the agent's own "
+        "target (the box it grasps, the structure it places on) is not avoided, unless the target lies inside it",
+    )
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

@@ -40,6 +40,7 @@ class Rule(str, enum.Enum):
     SIDESTEP = "sidestep"
     CLIMB_PAST = "climb_past"
     MAKE_WAY = "make_way"
+    STATIC_OBSTACLES = "static_obstacles"
 
     @property
     def doc(self) -> str:
@@ -72,6 +73,8 @@ RULE_DOCS: dict[Rule, str] = {
     "sideways (acts with sidestep)",
     Rule.MAKE_WAY: "a stalled agent descending onto a neighbour that sits on its goal rises straight up, the only "
     "way that one can leave",
+    Rule.STATIC_OBSTACLES: "boxes, structure and arena obstacles are velocity obstacles avoided alone, but those "
+    "the agent's target touches",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -83,6 +86,8 @@ RULES = np.dtype(
         ("time_horizon", np.float64),  # s, how far ahead a neighbour counts as in the way
         ("right_bias", np.float64),  # fraction of the preferred speed added sideways to a stalled agent
         ("stuck_fraction", np.float64),  # progress below this fraction of the preferred speed is a stall
+        ("inv_tau_obstacle", np.float64),  # 1/s, inverse time horizon of static obstacles
+        ("goal_reach", np.float64),  # m, an obstacle this close to the agent's shape at its target is the target's
     ],
     align=True,
 )
@@ -94,6 +99,7 @@ SIDE_OFFSET = 0.01  # m, a neighbour ahead further than this to one side has alr
 HORIZONTAL_MIN2 = 1e-6  # squared horizontal part of a unit direction below which it counts as vertical
 BESIDE_MIN2 = 1e-4  # m^2, a neighbour horizontally closer than 1 cm is right above or below
 MIN_PREFERRED_SPEED = 1e-3  # m/s, an agent that prefers to move slower than this is at rest: never stalled
+GOAL_OVERLAP = 0.005  # m, a part of an agent at its target reaching deeper into an obstacle is inside it
 
 
 # ----------------------------------------------------------------------------- margins and the way out
@@ -158,13 +164,13 @@ def velocity_bounds(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """FLOOR_RULE and COLUMN_RULE: hard per-axis bounds (lower (n, 3), upper (n, 3)) m/s of each agent's velocity.
 
-    ORCA knows neither the ground nor what stands on it. So (``floor``) it may push an agent down
-    only above ``floor_height``, by at most its height above it per horizon; below, never faster
-    down than the agent intends to go itself. And (``column`` > 0) an agent low down on a vertical
-    leg to or from its target (horizontally within ``column`` of it: descending to grasp or place,
-    climbing away) is over a box or the structure, where a sideways dodge tilts the airframe into
-    it: avoidance may only slow it down or lift it, not move it sideways. The velocity limits
-    bound everything.
+    ORCA knows no ground (nor, without ``STATIC_OBSTACLES``, what stands on it). So (``floor``) it
+    may push an agent down only above ``floor_height``, by at most its height above it per horizon;
+    below, never faster down than the agent intends to go itself. And (``column`` > 0) an agent low
+    down on a vertical leg to or from its target (horizontally within ``column`` of it: descending
+    to grasp or place, climbing away) is over a box or the structure, where a sideways dodge tilts
+    the airframe into it: avoidance may only slow it down or lift it, not move it sideways. The
+    velocity limits bound everything.
 
     Args:
         positions: (n, 3) m, sensed.
@@ -311,13 +317,21 @@ def clear_paths(
     margin: float,
     lookahead: float,
     out: NDArray[np.bool_],
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    parts: NDArray[np.float64],
+    reach: float,
 ) -> None:
     """PASSTHROUGH: for each candidate, True when the box it sweeps to its goal stays ``margin`` m clear of
-    every neighbour's box swept along the neighbour's velocity over ``lookahead`` s."""
+    every neighbour's box swept along the neighbour's velocity over ``lookahead`` s, and of every static
+    obstacle (``oc``, ``oh``: centres and half extents (K, 3) m) but its target's own (``own_target``
+    with ``parts`` and ``reach`` m)."""
     n = pos.shape[0]
     for i in range(n):
         out[i] = False
         if not candidate[i]:
+            continue
+        if not clear_of_obstacles(i, pos, goal, centre, half, oc, oh, parts, margin, reach):
             continue
         ok = True
         for c in range(nbr.shape[1]):
@@ -338,3 +352,189 @@ def clear_paths(
                 ok = False
                 break
         out[i] = ok
+
+
+# ----------------------------------------------------------------------------- static obstacles
+@njit
+def clear_of_obstacles(
+    i: int,
+    pos: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    parts: NDArray[np.float64],
+    margin: float,
+    reach: float,
+) -> bool:
+    """STATIC_OBSTACLES with PASSTHROUGH: True when agent i's box swept to its goal stays ``margin`` m clear of
+    every obstacle but its target's own (``own_target`` within ``reach`` m)."""
+    goal_rel = add(row(goal, i), row(pos, i), -1.0)
+    for o in range(oc.shape[0]):
+        c = (
+            oc[o, 0] - pos[i, 0] - centre[i, 0],
+            oc[o, 1] - pos[i, 1] - centre[i, 1],
+            oc[o, 2] - pos[i, 2] - centre[i, 2],
+        )
+        H = (oh[o, 0] + half[i, 0], oh[o, 1] + half[i, 1], oh[o, 2] + half[i, 2])
+        if own_target(i, o, pos, goal, parts, oc, oh, reach):
+            continue
+        apart = False
+        for a in range(3):
+            # the swept box runs from the shape now (0) to the shape at the goal (goal_rel)
+            lo = min(0.0, goal_rel[a]) - H[a] - margin
+            hi = max(0.0, goal_rel[a]) + H[a] + margin
+            if c[a] <= lo or c[a] >= hi:
+                apart = True
+                break
+        if not apart:
+            return False
+    return True
+
+
+@njit
+def obstacle_shape(
+    i: int,
+    pos: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    o: int,
+) -> tuple[Vec, Vec]:
+    """STATIC_OBSTACLES: (centre m of obstacle o relative to agent i's shape, half extents m of their Minkowski box).
+
+    An agent modelled as a sphere counts as the cube around it. No margin is added.
+    """
+    if boxes:
+        c = (
+            oc[o, 0] - pos[i, 0] - centre[i, 0],
+            oc[o, 1] - pos[i, 1] - centre[i, 1],
+            oc[o, 2] - pos[i, 2] - centre[i, 2],
+        )
+        return c, (oh[o, 0] + half[i, 0], oh[o, 1] + half[i, 1], oh[o, 2] + half[i, 2])
+    c = (oc[o, 0] - pos[i, 0], oc[o, 1] - pos[i, 1], oc[o, 2] - pos[i, 2])
+    return c, (oh[o, 0] + radius[i], oh[o, 1] + radius[i], oh[o, 2] + radius[i])
+
+
+@njit
+def own_target(
+    i: int,
+    o: int,
+    pos: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    parts: NDArray[np.float64],
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    reach: float,
+) -> bool:
+    """STATIC_OBSTACLES: True when obstacle o is agent i's target's own: a part of the agent (airframe or
+    load, ``parts``) at its target comes within ``reach`` m of it, and none reaches into it deeper
+    than ``GOAL_OVERLAP``.
+
+    Such an obstacle is the box under a grasp point, the slot's support and neighbours beside the
+    load at a drop point, the box just let go: the agent must come within its grasp or placement
+    distance of it, which the obstacle's velocity obstacle (grown by the safety margin) would
+    forbid, so it is not avoided. A target inside an obstacle (an airframe that would stand in a
+    taller neighbour of its slot) cannot be reached without touching it: that obstacle stays.
+
+    Args:
+        parts: (n, 12) per agent the centre offset (3,) m and half extents (3,) m of its airframe,
+            then of its load (half extents 0: no load), see ``kernel.shape_parts``.
+    """
+    near = False
+    for k in range(2):
+        b = 6 * k
+        if parts[i, b + 3] <= 0.0:
+            continue
+        depth = 1e300
+        within = True
+        for a in range(3):
+            d = abs(oc[o, a] - goal[i, a] - parts[i, b + a])
+            sep = parts[i, b + 3 + a] + oh[o, a]
+            depth = min(depth, sep - d)
+            if d >= sep + reach:
+                within = False
+        if depth > GOAL_OVERLAP:
+            return False
+        near = near or within
+    return near
+
+
+@njit
+def ray_entry(c: Vec, H: Vec, d: Vec, length: float) -> float:
+    """STATIC_OBSTACLES: distance m along unit ``d`` from the origin at which the ray enters the box
+    [c - H, c + H] within ``length`` m (0 when it starts inside), or -1 when it misses."""
+    lo, hi = 0.0, length
+    for k in range(3):
+        if abs(d[k]) < 1e-12:
+            if abs(c[k]) >= H[k]:
+                return -1.0
+            continue
+        a = (c[k] - H[k]) / d[k]
+        b = (c[k] + H[k]) / d[k]
+        lo = max(lo, min(a, b))
+        hi = min(hi, max(a, b))
+        if lo > hi:
+            return -1.0
+    return lo
+
+
+@njit
+def obstacle_in_way(
+    i: int,
+    pos: NDArray[np.float64],
+    radius: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    has_goal: bool,
+    parts: NDArray[np.float64],
+    d: Vec,
+    length: float,
+    margin: float,
+    reach: float,
+    wz: float,
+    climb: bool,
+) -> tuple[bool, Vec]:
+    """STATIC_OBSTACLES with SIDESTEP: the way past the nearest obstacle that holds up stalled agent i.
+
+    The obstacle is the nearest one (shapes grown by ``margin`` m, the target's own left out, see
+    ``own_target``) that the agent's shape would enter within ``length`` m along its unit
+    preferred direction ``d``. Returns (found, unit direction of the bias): up (with ``climb``) when
+    climbing over the obstacle, weighted by ``wz``, is shorter than stepping across ``d`` past its
+    nearer side, else across ``d`` away from the obstacle's centre (right when it lies dead ahead).
+    Unlike ``sidestep``'s choice for a neighbour, the side does not turn with the bearing: an agent
+    sliding along the face of a wide obstacle keeps going the way it started.
+    """
+    best = -1
+    best_t = 1e300
+    for o in range(oc.shape[0]):
+        if has_goal and own_target(i, o, pos, goal, parts, oc, oh, reach):
+            continue
+        c, H = obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, o)
+        t = ray_entry(c, (H[0] + margin, H[1] + margin, H[2] + margin), d, length)
+        if 0.0 <= t < best_t:
+            best, best_t = o, t
+    if best < 0:
+        return False, (0.0, 0.0, 0.0)
+    c, H = obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, best)
+    h2 = d[0] * d[0] + d[1] * d[1]
+    if h2 <= HORIZONTAL_MIN2:  # vertical travel: horizontally away
+        return True, sidestep(d, c)
+    hl = math.sqrt(h2)
+    ax, ay = -d[1] / hl, d[0] / hl  # left of d, horizontal
+    side = ax * c[0] + ay * c[1]
+    lateral = abs(ax) * (H[0] + margin) + abs(ay) * (H[1] + margin) - abs(side)
+    if climb and wz * (c[2] + H[2] + margin) < lateral:
+        return True, (0.0, 0.0, 1.0)
+    if abs(side) > SIDE_OFFSET:
+        s = -1.0 if side > 0.0 else 1.0
+        return True, (s * ax, s * ay, 0.0)
+    return True, right_of(d)
