@@ -120,6 +120,11 @@ def format_cell(v: Cell) -> str:
     return str(v)
 
 
+#: columns that are names, read back as the text written: a run id of hex digits may read as a number
+#: ("7600923850e0" as 7.6e12, "012345678901" without its leading zero)
+TEXT_COLUMNS = frozenset({"run_id", "run_dir"})
+
+
 def parse_cell(text: str) -> Cell:
     """Inverse of ``format_cell``: '' -> None, numbers, ``true``/``false``, else the text."""
     if text == "":
@@ -189,7 +194,7 @@ class RunsTable:
             for cells in reader:
                 if not cells:
                     continue
-                row = {c: parse_cell(t) for c, t in zip(header, cells)}
+                row = {c: (t if c in TEXT_COLUMNS else parse_cell(t)) for c, t in zip(header, cells)}
                 run_id = str(row["run_id"])
                 if run_id in self._rows:
                     repaired = True  # keep one row per run: the later one, unless it is an error

@@ -200,6 +200,19 @@ def test_runs_table_appends_whole_lines_and_widens_its_header(tmp_path: Path) ->
     assert RunsTable(tmp_path / "runs.csv").ids() == {"a", "b", "c"}
 
 
+def test_run_ids_that_look_like_numbers_read_back_as_written(tmp_path: Path) -> None:
+    # hex run ids: "7600923850e0" parses as a float and "012345678901" as an int without its zero; a resumed
+    # sweep that read them so would not recognise its finished runs and append them again
+    ids = ["7600923850e0", "012345678901", "515030448e97"]
+    t = RunsTable(tmp_path / "runs.csv")
+    for k, run_id in enumerate(ids):
+        t.append({"run_id": run_id, "seed": k, "run_dir": f"runs/{run_id}"})
+    back = RunsTable(tmp_path / "runs.csv")
+    assert back.ids() == set(ids)
+    assert [r["run_id"] for r in back.rows] == ids and [r["run_dir"] for r in back.rows] == [f"runs/{i}" for i in ids]
+    assert all(back.get(i) is not None for i in ids)
+
+
 # ----------------------------------------------------------------- statistics
 def test_statistics_against_known_numbers_and_scipy() -> None:
     x = [1.0, 2.0, 3.0, 4.0, 5.0]
