@@ -71,11 +71,6 @@ class ContactTracker:
                 self.time_s[cls.value] += self.dt
         return events
 
-    def reclassify(self, pair: tuple[int, int]) -> None:
-        """Classify an active pair again (its bodies changed role, e.g. a box was released)."""
-        if pair in self._active:
-            self._active[pair] = self.classify(*pair)
-
     def reclassify_all(self) -> None:
         """Classify every touching pair again (a body changed role: a box grasped or released); a pair
         that now counts accumulates contact time from here, it is not a new onset."""
