@@ -121,7 +121,8 @@ class Simulation:
     # ------------------------------------------------------------------ set-up
     def _build(self) -> None:
         sc, s, p, n = self.scenario, self.scenario.sim, self.params, self.n
-        self.world = World(physics_hz=s.physics_hz, gravity=s.gravity, gui=self.gui)
+        # one broad phase of the ghost pairs per control period; their exact query still runs every step
+        self.world = World(physics_hz=s.physics_hz, gravity=s.gravity, gui=self.gui, ghost_horizon=self.control_every)
         self.world.add_ground()
         if sc.arena.walls:
             self.world.add_walls(sc.arena.size, sc.arena.wall_height, thickness=WALL_THICKNESS)

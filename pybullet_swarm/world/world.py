@@ -63,11 +63,23 @@ class World:
         physics_hz: physics rate, Hz (the Bullet time step is its inverse).
         gravity: magnitude of gravity, m/s^2 (acting along -z).
         gui: open the Bullet GUI instead of the headless DIRECT mode.
+        ghost_horizon: physics steps one broad phase of the ghost pairs serves (``ghost_overlaps``); 1: a broad
+            phase every step.
     """
 
-    def __init__(self, *, physics_hz: float = 240.0, gravity: float = 9.81, gui: bool = False) -> None:
+    #: m/s^2, the largest acceleration the ghost broad phase allows a body between two of its runs: ten times
+    #: gravity, more than three times what the rotors of the bundled vehicles give (thrust-to-weight about 2)
+    #: with gravity added; contacts with the ground, walls and resting boxes stop a body, they do not speed it up
+    GHOST_MAX_ACCELERATION = 100.0
+
+    def __init__(
+        self, *, physics_hz: float = 240.0, gravity: float = 9.81, gui: bool = False, ghost_horizon: int = 1
+    ) -> None:
+        if int(ghost_horizon) < 1:
+            raise ValueError(f"ghost_horizon must be at least 1 physics step, got {ghost_horizon}")
         self.physics_hz = float(physics_hz)
         self.gui = gui
+        self.ghost_horizon = int(ghost_horizon)
         self._cid = pb.connect(pb.GUI if gui else pb.DIRECT)
         if self._cid < 0:
             raise RuntimeError("could not connect to a PyBullet physics server")
@@ -94,6 +106,10 @@ class World:
         self._states: NDArray[np.float64] | None = None  # (n, 13), the array of the last read_agent_states
         self._ghost_pairs: set[tuple[int, int]] = set()
         self._ghosts: _GhostIndex | None = None  # built from _ghost_pairs when first needed
+        # the last broad phase over a horizon: state version it ran at, the pairs that may overlap until the
+        # horizon ends, the bodies' base positions (k, 3) m then and how far (k,) m each may move
+        self._ghost_plan: tuple[int, list[tuple[int, int]], NDArray[np.float64], NDArray[np.float64]] | None = None
+        self.ghost_bound_exceeded = 0  # broad phases that found a body beyond its bound (see _plan_ghosts)
         self._reach: dict[int, float] = {}  # m, per body: farthest point of its shape from its base position
 
     # ------------------------------------------------------------------ bodies
@@ -328,19 +344,67 @@ class World:
 
         One broad phase for all bodies of ghost pairs (bounding spheres about their base positions;
         agents' positions from the last ``read_agent_states``, other bodies' read now), then Bullet's
-        exact closest-points query only for registered pairs whose spheres overlap.
+        exact closest-points query only for registered pairs whose spheres overlap. With a ``ghost_horizon``
+        of h > 1 steps the broad phase runs once per h steps, its spheres grown by how far each body can
+        move in that time (``_plan_ghosts``), and the exact query runs every step on the pairs it found.
         """
+        if self.ghost_horizon > 1:
+            plan = self._ghost_plan
+            pairs = (
+                plan[1] if plan is not None and self._version - plan[0] < self.ghost_horizon else self._plan_ghosts()
+            )
+            if pairs is not None:
+                cid, closest = self._cid, self._closest
+                return [(a, b) for a, b in pairs if closest(a, b, 0.0, physicsClientId=cid)]
         g = self._ghosts if self._ghosts is not None else self._index_ghosts()
-        cid, c, m = self._cid, g.centres, g.n_agents
+        near = g.near_pairs(self._ghost_centres(g))
+        cid, closest = self._cid, self._closest
+        return [(a, b) for a, b in near if closest(a, b, 0.0, physicsClientId=cid)]
+
+    def _ghost_centres(self, g: _GhostIndex) -> NDArray[np.float64]:
+        """(k, 3) m, base positions of the ghost bodies now, agents first (``g.centres``, filled)."""
+        c, m = g.centres, g.n_agents
         if m:
             states = self._states if self._states is not None else np.array(self._poses, dtype=float)
             c[:m] = states[g.agent_rows, :3]
         if g.others:
-            gp = self._get_pose
+            gp, cid = self._get_pose, self._cid
             c[m:] = [gp(b, cid)[0] for b in g.others]
-        near = g.near_pairs(c)
-        closest = self._closest
-        return [(a, b) for a, b in near if closest(a, b, 0.0, physicsClientId=cid)]
+        return c
+
+    def _plan_ghosts(self) -> list[tuple[int, int]] | None:
+        """Broad phase for the next ``ghost_horizon`` steps: the registered pairs whose bounding spheres, each
+        grown by the farthest its body can move in that time (speed now times the horizon, plus half
+        ``GHOST_MAX_ACCELERATION`` times its square), overlap now. No other pair can overlap before the
+        horizon ends, so the exact query on these alone finds what a broad phase every step would.
+        None (a broad phase every step) while the agents' velocities are unknown (after a teleport).
+
+        Each run also checks the last one's bound: a body farther from where it was than it could have moved
+        is counted in ``ghost_bound_exceeded``, and from then on the broad phase runs every step.
+        """
+        if self._states is None:
+            return None
+        g = self._ghosts if self._ghosts is not None else self._index_ghosts()
+        c = self._ghost_centres(g).copy()
+        v = np.empty_like(c)
+        m = g.n_agents
+        v[:m] = self._states[g.agent_rows, 7:10]
+        if g.others:
+            gv, cid = self._get_vel, self._cid
+            v[m:] = [gv(b, cid)[0] for b in g.others]
+        tau = self.ghost_horizon / self.physics_hz
+        grow = np.sqrt(np.einsum("ij,ij->i", v, v)) * tau + 0.5 * self.GHOST_MAX_ACCELERATION * tau * tau
+        last = self._ghost_plan
+        if last is not None and self._version - last[0] == self.ghost_horizon:
+            d = c - last[2]
+            if np.any(np.einsum("ij,ij->i", d, d) > last[3] * last[3]):
+                self.ghost_bound_exceeded += 1
+                self.ghost_horizon = 1
+                self._ghost_plan = None
+                return None
+        pairs = g.near_pairs(c, grow)
+        self._ghost_plan = (self._version, pairs, c, grow)
+        return pairs
 
     def set_ghost_pair(self, a: int, b: int, ghost: bool) -> None:
         """Make two bodies ghosts of each other (``ghost``): no contact response between them, but their
@@ -360,6 +424,7 @@ class World:
         else:
             self._ghost_pairs.discard(key)
         self._ghosts = None
+        self._ghost_plan = None
 
     def _index_ghosts(self) -> _GhostIndex:
         bodies = {b for pair in self._ghost_pairs for b in pair}
@@ -395,6 +460,7 @@ class World:
         self._poses[index] = tuple(float(v) for v in position)
         self._states = None  # no longer what the agents' states are
         self._version += 1
+        self._ghost_plan = None  # a teleport is no motion the broad phase bounded
 
     def reset_body(self, body: int, position: Sequence[float], quaternion: Sequence[float] = (0, 0, 0, 1)) -> None:
         """Teleport any body to a pose, at rest."""
@@ -403,6 +469,7 @@ class World:
         )
         pb.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=self._cid)
         self._version += 1
+        self._ghost_plan = None  # a teleport is no motion the broad phase bounded
         if self._kind.get(body) is BodyKind.AGENT:
             self._poses[self._agents.index(body)] = tuple(float(v) for v in position)
             self._states = None
@@ -682,23 +749,31 @@ class _GhostIndex:
             self.ab = sorted(pairs)
             i = np.array([at[a] for a, _ in self.ab], dtype=np.int64)
             j = np.array([at[b] for _, b in self.ab], dtype=np.int64)
+            self.pair_index = (i, j)
             self.limit2 = (reach[i] + reach[j] + self.SLACK) ** 2
             # (p, k): one matrix product gives every pair's separation (faster than gathers on small arrays)
             self.difference = np.zeros((len(i), len(bodies)))
             self.difference[np.arange(len(i)), i] = 1.0
             self.difference[np.arange(len(i)), j] = -1.0
 
-    def near_pairs(self, centres: NDArray[np.float64]) -> list[tuple[int, int]]:
-        """Registered pairs (a < b) whose bounding spheres overlap, given the base positions (k, 3) m."""
+    def near_pairs(
+        self, centres: NDArray[np.float64], grow: NDArray[np.float64] | None = None
+    ) -> list[tuple[int, int]]:
+        """Registered pairs (a < b) whose bounding spheres overlap, given the base positions (k, 3) m (and
+        ``grow`` (k,) m added to each body's radius)."""
         if self.dense:
+            limit2 = self.limit2
+            if grow is not None:
+                i, j = self.pair_index
+                limit2 = (self.reach[i] + self.reach[j] + self.SLACK + grow[i] + grow[j]) ** 2
             d = self.difference @ centres
             d *= d
-            near = d @ _ONES3 <= self.limit2
+            near = d @ _ONES3 <= limit2
             if not near.any():
                 return []
             ab = self.ab
             return [ab[k] for k in np.flatnonzero(near).tolist()]
-        i, j = sphere_pairs(centres, self.reach, self.SLACK)
+        i, j = sphere_pairs(centres, self.reach if grow is None else self.reach + grow, self.SLACK)
         a, b = self.bodies[i], self.bodies[j]
         lo, hi = np.minimum(a, b).tolist(), np.maximum(a, b).tolist()
         pairs = self.pairs

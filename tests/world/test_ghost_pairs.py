@@ -173,3 +173,66 @@ def test_sphere_pairs_finds_every_overlapping_pair_once(k, layout):
     assert got == expected
     if k == 300:
         assert len(expected) > 50
+
+
+def _crossing(horizon: int, push: float = 0.0) -> tuple[World, list[list[tuple[int, int]]]]:
+    """Six agents flying through each other and two boxes at 1-3 m/s (no gravity) for 0.5 s: the
+    ghost overlaps found after every physics step with a broad phase every ``horizon`` steps. ``push`` N: a
+    force on agent 0 from the 10th step on (an acceleration no vehicle has)."""
+    p = load_vehicle("quad150")
+    w = World(gravity=0.0, ghost_horizon=horizon)
+    w.add_ground()
+    rng = named_rng(0, "test/ghost_horizon")
+    starts = np.column_stack([rng.uniform(0.0, 0.6, 6), rng.uniform(0.0, 0.6, 6), np.full(6, 1.0)])
+    w.add_agents(p.urdf_path, starts, mass=p.mass, inertia=p.inertia)
+    agents = list(w.agent_bodies)
+    boxes = [w.add_box([0.3, 0.3 * k, 1.0], [0.1] * 3, mass=0.01, kind=BodyKind.BOX) for k in range(2)]
+    w.set_agent_collisions(False)
+    for a in agents[1:]:
+        w.set_ghost_pair(a, boxes[0], True)
+    w.set_ghost_pair(boxes[0], boxes[1], True)
+    w.set_pair_collision(agents[0], boxes[0], False)
+    # every agent heads for the middle of the group, so that pairs cross
+    heading = [0.3, 0.3, 1.0] - starts
+    heading /= np.linalg.norm(heading, axis=1, keepdims=True)
+    for i in range(6):
+        w.reset_agent(i, starts[i], velocity=(rng.uniform(1.0, 3.0) * heading[i]).tolist())
+    states = np.zeros((6, 13))
+    found = []
+    for k in range(120):
+        if push and k >= 10:
+            w.apply_agent_wrenches(np.array([[push, 0.0, 0.0]] + [[0.0, 0.0, 0.0]] * 5), np.zeros((6, 3)))
+        w.step()
+        w.read_agent_states(states)
+        found.append(sorted(w.ghost_overlaps()))
+    return w, found
+
+
+@pytest.mark.parametrize("push", [0.0, 60.0], ids=["flying", "pushed"])
+def test_a_broad_phase_over_a_horizon_finds_what_one_every_step_finds(push):
+    """Bodies crossing each other: the same overlaps after every step whether the broad phase runs every
+    step or once per 5 steps (its spheres grown by how far each body can move meanwhile). A body pushed
+    harder than ``GHOST_MAX_ACCELERATION`` allows is caught at the next broad phase, which then runs every step."""
+    every, expected = _crossing(1, push)
+    horizon, got = _crossing(5, push)
+    with every, horizon:
+        assert sum(len(f) for f in expected) > 20  # the bodies do overlap
+        if push:  # what the broad phase may have missed before it caught the push is not asserted
+            assert horizon.ghost_bound_exceeded == 1 and horizon.ghost_horizon == 1
+            assert got[20:] == expected[20:]
+        else:
+            assert horizon.ghost_bound_exceeded == 0 and horizon.ghost_horizon == 5
+            assert got == expected
+
+
+def test_a_teleport_ends_the_horizon():
+    w, agents, boxes = _crowd(2, 0)
+    with w:
+        w.ghost_horizon = 5
+        w.set_agent_collisions(False)
+        states = np.zeros((2, 13))
+        w.read_agent_states(states)
+        assert w.ghost_overlaps() == []
+        w.reset_agent(1, [0.08, 0.0, 1.0])  # onto agent 0, within the horizon
+        w.read_agent_states(states)
+        assert w.ghost_overlaps() == [(min(agents), max(agents))]
