@@ -7,6 +7,7 @@ body handles) and numpy arrays; the client id never leaves this class.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import enum
 import itertools
 import os
@@ -44,6 +45,30 @@ with _quiet_stdout(), _quiet_stdout(sys.stderr):
 
 
 _NO_PAIRS: frozenset[tuple[int, int]] = frozenset()
+
+
+@dataclasses.dataclass(frozen=True)
+class _AgentPairTest:
+    """The candidate pairs of two agents of a broad phase over a horizon, for a sphere test every step.
+
+    Attributes:
+        which: (p,) their places in the candidate list.
+        rows_a, rows_b: (p,) rows of their agents in the state array.
+        limit2: (p,) m^2, squared sum of their bounding radii and the slack.
+        n_pairs: length of the candidate list.
+    """
+
+    which: NDArray[np.int64]
+    rows_a: NDArray[np.int64]
+    rows_b: NDArray[np.int64]
+    limit2: NDArray[np.float64]
+    n_pairs: int
+
+
+#: a broad phase over a horizon: the state version it ran at, the pairs that may overlap before the horizon
+#: ends, the ghost bodies' base positions (k, 3) m then, how far (k,) m each may move, and the sphere test of
+#: the candidate pairs of two agents
+_GhostPlan = tuple[int, list[tuple[int, int]], NDArray[np.float64], NDArray[np.float64], _AgentPairTest | None]
 
 
 class BodyKind(str, enum.Enum):
@@ -106,9 +131,7 @@ class World:
         self._states: NDArray[np.float64] | None = None  # (n, 13), the array of the last read_agent_states
         self._ghost_pairs: set[tuple[int, int]] = set()
         self._ghosts: _GhostIndex | None = None  # built from _ghost_pairs when first needed
-        # the last broad phase over a horizon: state version it ran at, the pairs that may overlap until the
-        # horizon ends, the bodies' base positions (k, 3) m then and how far (k,) m each may move
-        self._ghost_plan: tuple[int, list[tuple[int, int]], NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._ghost_plan: _GhostPlan | None = None  # the last broad phase over a horizon
         self.ghost_bound_exceeded = 0  # broad phases that found a body beyond its bound (see _plan_ghosts)
         self._reach: dict[int, float] = {}  # m, per body: farthest point of its shape from its base position
 
@@ -350,12 +373,10 @@ class World:
         """
         if self.ghost_horizon > 1:
             plan = self._ghost_plan
-            pairs = (
-                plan[1] if plan is not None and self._version - plan[0] < self.ghost_horizon else self._plan_ghosts()
-            )
-            if pairs is not None:
-                cid, closest = self._cid, self._closest
-                return [(a, b) for a, b in pairs if closest(a, b, 0.0, physicsClientId=cid)]
+            if plan is None or self._version - plan[0] >= self.ghost_horizon:
+                plan = self._plan_ghosts()
+            if plan is not None:
+                return self._overlapping(plan)
         g = self._ghosts if self._ghosts is not None else self._index_ghosts()
         near = g.near_pairs(self._ghost_centres(g))
         cid, closest = self._cid, self._closest
@@ -372,7 +393,7 @@ class World:
             c[m:] = [gp(b, cid)[0] for b in g.others]
         return c
 
-    def _plan_ghosts(self) -> list[tuple[int, int]] | None:
+    def _plan_ghosts(self) -> _GhostPlan | None:
         """Broad phase for the next ``ghost_horizon`` steps: the registered pairs whose bounding spheres, each
         grown by the farthest its body can move in that time (speed now times the horizon, plus half
         ``GHOST_MAX_ACCELERATION`` times its square), overlap now. No other pair can overlap before the
@@ -403,8 +424,40 @@ class World:
                 self._ghost_plan = None
                 return None
         pairs = g.near_pairs(c, grow)
-        self._ghost_plan = (self._version, pairs, c, grow)
-        return pairs
+        self._ghost_plan = (self._version, pairs, c, grow, self._agent_pair_test(g, pairs))
+        return self._ghost_plan
+
+    #: from this many candidate pairs of a broad phase over a horizon on, those of two agents are tested with
+    #: their bounding spheres every step (one vectorised test) before Bullet's exact query
+    SPHERE_TEST_MIN_PAIRS = 8
+
+    def _agent_pair_test(self, g: _GhostIndex, pairs: list[tuple[int, int]]) -> _AgentPairTest | None:
+        """The per-step sphere test of the candidate pairs of two agents (None when there are few candidates)."""
+        if len(pairs) < self.SPHERE_TEST_MIN_PAIRS:
+            return None
+        at = {b: k for k, b in enumerate(g.bodies.tolist())}
+        rows = np.arange(len(self._agents))[g.agent_rows]
+        m = g.n_agents
+        which = [k for k, (a, b) in enumerate(pairs) if at[a] < m and at[b] < m]
+        if not which:
+            return None
+        i = np.array([at[pairs[k][0]] for k in which], dtype=np.int64)
+        j = np.array([at[pairs[k][1]] for k in which], dtype=np.int64)
+        limit2 = (g.reach[i] + g.reach[j] + g.SLACK) ** 2
+        return _AgentPairTest(np.asarray(which, dtype=np.int64), rows[i], rows[j], limit2, len(pairs))
+
+    def _overlapping(self, plan: _GhostPlan) -> list[tuple[int, int]]:
+        """The candidate pairs of a broad phase over a horizon that overlap now (Bullet's exact query; the pairs
+        of two agents first tested with their bounding spheres about the agents' positions now, when many)."""
+        pairs, test = plan[1], plan[4]
+        cid, closest = self._cid, self._closest
+        if test is None or self._states is None:
+            return [(a, b) for a, b in pairs if closest(a, b, 0.0, physicsClientId=cid)]
+        s = self._states
+        d = s[test.rows_a, :3] - s[test.rows_b, :3]
+        keep = np.ones(test.n_pairs, dtype=bool)
+        keep[test.which] = np.einsum("ij,ij->i", d, d) <= test.limit2
+        return [(a, b) for (a, b), k in zip(pairs, keep.tolist()) if k and closest(a, b, 0.0, physicsClientId=cid)]
 
     def set_ghost_pair(self, a: int, b: int, ghost: bool) -> None:
         """Make two bodies ghosts of each other (``ghost``): no contact response between them, but their

@@ -208,11 +208,14 @@ def _crossing(horizon: int, push: float = 0.0) -> tuple[World, list[list[tuple[i
     return w, found
 
 
+@pytest.mark.parametrize("sphere_test", [False, True], ids=["exact_query", "sphere_test_first"])
 @pytest.mark.parametrize("push", [0.0, 60.0], ids=["flying", "pushed"])
-def test_a_broad_phase_over_a_horizon_finds_what_one_every_step_finds(push):
+def test_a_broad_phase_over_a_horizon_finds_what_one_every_step_finds(monkeypatch, push, sphere_test):
     """Bodies crossing each other: the same overlaps after every step whether the broad phase runs every
-    step or once per 5 steps (its spheres grown by how far each body can move meanwhile). A body pushed
-    harder than ``GHOST_MAX_ACCELERATION`` allows is caught at the next broad phase, which then runs every step."""
+    step or once per 5 steps (its spheres grown by how far each body can move meanwhile; candidate pairs of
+    two agents tested with their spheres every step, or not). A body pushed harder than
+    ``GHOST_MAX_ACCELERATION`` allows is caught at the next broad phase, which then runs every step."""
+    monkeypatch.setattr(World, "SPHERE_TEST_MIN_PAIRS", 1 if sphere_test else 10**6)
     every, expected = _crossing(1, push)
     horizon, got = _crossing(5, push)
     with every, horizon:
