@@ -45,12 +45,18 @@ class ContactTracker:
         self.debounce_s = float(debounce_s)
         self.counts = {c: 0 for c in COLLISION_CLASSES}
         self.time_s = {c: 0.0 for c in COLLISION_CLASSES}
-        self._active: dict[tuple[int, int], CollisionClass | None] = {}
+        self._active: dict[tuple[int, int], CollisionClass | None] = {}  # touching pairs and their classes
+        self._counted: dict[tuple[int, int], CollisionClass] = {}  # those of them that count
+        # when each pair was last seen touching, written when it stops touching (stale while it touches)
         self._last_seen: dict[tuple[int, int], float] = {}
         self._prev: AbstractSet[tuple[int, int]] = frozenset()
+        self._t_prev = 0.0  # s, time of the last update
 
     def update(self, pairs: AbstractSet[tuple[int, int]], t: float) -> list[tuple[CollisionClass, int, int]]:
-        """Account for the pairs touching at time ``t`` s; returns new events (class, a, b)."""
+        """Account for the pairs touching at time ``t`` s; returns new events (class, a, b).
+
+        The pairs touching at the last update must be given again while they touch (an empty set may be
+        left out only when none touched at the last update either)."""
         events: list[tuple[CollisionClass, int, int]] = []
         if pairs != self._prev:
             for pair in pairs - self._prev:
@@ -58,24 +64,30 @@ class ContactTracker:
                 self._active[pair] = cls
                 if cls is None:
                     continue
+                self._counted[pair] = cls
                 last = self._last_seen.get(pair)
                 if last is None or t - last >= self.debounce_s - 1e-12:
                     self.counts[cls.value] += 1
                     events.append((cls, pair[0], pair[1]))
-            for pair in self._prev - pairs:
+            for pair in self._prev - pairs:  # last seen touching at the last update
+                self._last_seen[pair] = self._t_prev
                 self._active.pop(pair, None)
+                self._counted.pop(pair, None)
             self._prev = pairs
-        for pair, cls in self._active.items():
-            self._last_seen[pair] = t
-            if cls is not None:
-                self.time_s[cls.value] += self.dt
+        for cls in self._counted.values():
+            self.time_s[cls.value] += self.dt
+        self._t_prev = t
         return events
 
     def reclassify_all(self) -> None:
         """Classify every touching pair again (a body changed role: a box grasped or released); a pair
         that now counts accumulates contact time from here, it is not a new onset."""
         for pair in self._active:
-            self._active[pair] = self.classify(*pair)
+            cls = self._active[pair] = self.classify(*pair)
+            if cls is None:
+                self._counted.pop(pair, None)
+            else:
+                self._counted[pair] = cls
 
 
 def proximity_episodes(distances: np.ndarray, threshold: float, dt: float) -> tuple[int, float]:

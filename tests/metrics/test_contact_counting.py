@@ -7,6 +7,7 @@ import pytest
 
 from pybullet_swarm.experiment.scenario import load_scenario
 from pybullet_swarm.metrics.collisions import CollisionClass, ContactTracker
+from pybullet_swarm.rng import named_rng
 
 
 def _two_agents(mode: str):
@@ -78,3 +79,75 @@ def test_debounce_merges_flicker_and_counts_separate_touches():
     assert sum(len(e) for e in events) == 2  # the re-touch after 0.02 s is the same collision
     assert tracker.counts["agent_agent"] == 2
     assert tracker.time_s["agent_agent"] == pytest.approx(0.04)
+
+
+class _EagerTracker:
+    """The tracker as first written: every touching pair's last sighting and contact time updated every
+    update. ``ContactTracker`` keeps a pair's last sighting when it stops touching and loops over the pairs
+    that count only; it must count and time exactly as this does."""
+
+    def __init__(self, classify, dt: float, debounce_s: float) -> None:
+        self.classify, self.dt, self.debounce_s = classify, dt, debounce_s
+        self.counts = {c.value: 0 for c in CollisionClass}
+        self.time_s = {c.value: 0.0 for c in CollisionClass}
+        self._active: dict = {}
+        self._last_seen: dict = {}
+        self._prev: frozenset | set = frozenset()
+
+    def update(self, pairs, t):
+        events = []
+        if pairs != self._prev:
+            for pair in pairs - self._prev:
+                cls = self._active[pair] = self.classify(*pair)
+                if cls is None:
+                    continue
+                last = self._last_seen.get(pair)
+                if last is None or t - last >= self.debounce_s - 1e-12:
+                    self.counts[cls.value] += 1
+                    events.append((cls, pair[0], pair[1]))
+            for pair in self._prev - pairs:
+                self._active.pop(pair, None)
+            self._prev = pairs
+        for pair, cls in self._active.items():
+            self._last_seen[pair] = t
+            if cls is not None:
+                self.time_s[cls.value] += self.dt
+        return events
+
+    def reclassify_all(self):
+        for pair in self._active:
+            self._active[pair] = self.classify(*pair)
+
+
+def test_tracker_counts_and_times_as_one_that_updates_every_pair_every_step():
+    """Random flickering contacts of 6 bodies over 3,000 steps, the classes of pairs changing now and then
+    (a body taking a load's role): the same events, counts and contact times as the eager tracker."""
+    rng = named_rng(7, "test/contact_tracker")
+    loads: set[int] = set()
+
+    def classify(a: int, b: int):
+        if a in loads or b in loads:
+            return CollisionClass.LOAD_BOX
+        return CollisionClass.AGENT_AGENT if (a + b) % 3 else None
+
+    pairs_all = [(a, b) for a in range(6) for b in range(a + 1, 6)]
+    lazy = ContactTracker(classify, dt=1 / 240, debounce_s=0.1)
+    eager = _EagerTracker(classify, dt=1 / 240, debounce_s=0.1)
+    touching: set[tuple[int, int]] = set()
+    n_events = 0
+    for k in range(3000):
+        t = k / 240
+        for pair in pairs_all:  # each pair touches for a few steps to a few tenths of a second at a time
+            if rng.random() < (0.05 if pair in touching else 0.01):
+                touching ^= {pair}
+        if rng.random() < 0.005:  # a role changes between steps, as a grasp or release does at a planner tick
+            loads ^= {int(rng.integers(6))}
+            lazy.reclassify_all()
+            eager.reclassify_all()
+        if touching or lazy._prev:
+            now = frozenset(touching)
+            got, expected = lazy.update(now, t), eager.update(now, t)
+            assert got == expected
+            n_events += len(got)
+    assert lazy.counts == eager.counts and lazy.time_s == eager.time_s
+    assert n_events > 100 and lazy.counts["load_box"] > 0 and lazy.counts["agent_agent"] > 0
