@@ -370,8 +370,7 @@ class ConstructionRuntime(TaskBase):
         self.prereq = prerequisites(self.slots, self.reach)  # slots to fill before each slot (the build order)
         self.positions = self.start.copy()  # (B, 3) m
         self.quaternions = np.tile([0.0, 0.0, 0.0, 1.0], (self.B, 1))
-        self.speeds = np.zeros(self.B)  # m/s
-        self._states = np.zeros((self.B, 13))  # the boxes' states as the World reads them
+        self._states = np.zeros((self.B, 7))  # the boxes' poses as the World reads them
         self._read_at: int | None = None  # the World's state version of the last read
         self._slots_still: tuple[NDArray[np.float64], bytes] | None = None  # see _update_slots
         self._open: tuple[bytes, NDArray[np.bool_]] | None = None  # slot_open of a slot_box
@@ -407,17 +406,22 @@ class ConstructionRuntime(TaskBase):
 
     # ------------------------------------------------------------ bookkeeping
     def read(self) -> None:
-        """Read box poses and speeds from the World (once per state of the World: nothing moved since the
-        last read, nothing is read)."""
+        """Read box poses from the World (once per state of the World: nothing moved since the last read,
+        nothing is read)."""
         version = self.world.state_version
         if version == self._read_at:
             return
         st = self._states
-        self.world.read_body_states(self.bodies, st)
+        self.world.read_body_poses(self.bodies, st)
         self.positions[:] = st[:, :3]
         self.quaternions[:] = st[:, 3:7]
-        self.speeds[:] = np.linalg.norm(st[:, 7:10], axis=1)
         self._read_at = version
+
+    def speeds(self, boxes: NDArray[np.int64]) -> NDArray[np.float64]:
+        """(k,) m/s, the speeds of ``boxes`` now (read when asked: only the completion check needs them)."""
+        v = np.zeros((len(boxes), 6))
+        self.world.read_body_velocities([self.bodies[i] for i in boxes.tolist()], v)
+        return np.linalg.norm(v[:, :3], axis=1)
 
     def _update_slots(self, t: float) -> None:
         """Fill and empty slots from the boxes' poses; nothing to do when the last update changed nothing and
@@ -611,7 +615,7 @@ class ConstructionRuntime(TaskBase):
         self._update_slots(t)
         if self.completed_at is not None:
             return True
-        if self.boxes_placed == self.S and np.all(self.speeds[self.slot_box] < self.spec.settle_speed):
+        if self.boxes_placed == self.S and np.all(self.speeds(self.slot_box) < self.spec.settle_speed):
             if self.still_since is None:
                 self.still_since = t
             if t - self.still_since >= self.spec.settle_s - 1e-9:

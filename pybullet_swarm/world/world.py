@@ -348,6 +348,26 @@ class World:
             flat += ang
         out.reshape(-1)[:] = flat
 
+    def read_body_poses(self, bodies: Sequence[int], out: NDArray[np.float64]) -> None:
+        """Read the poses of ``bodies`` into ``out`` (k, 7): position m and quaternion (x, y, z, w)."""
+        cid, gp = self._cid, self._get_pose
+        flat: list[float] = []
+        for b in bodies:
+            pos, orn = gp(b, cid)
+            flat += pos
+            flat += orn
+        out.reshape(-1)[:] = flat
+
+    def read_body_velocities(self, bodies: Sequence[int], out: NDArray[np.float64]) -> None:
+        """Read the velocities of ``bodies`` into ``out`` (k, 6): linear m/s and angular rad/s, world frame."""
+        cid, gv = self._cid, self._get_vel
+        flat: list[float] = []
+        for b in bodies:
+            vel, ang = gv(b, cid)
+            flat += vel
+            flat += ang
+        out.reshape(-1)[:] = flat
+
     def contact_pairs(self) -> frozenset[tuple[int, int]] | set[tuple[int, int]]:
         """Body pairs (a < b) in contact now: Bullet's contacts (one query) and the ghost pairs whose
         shapes overlap (``set_ghost_pair``), as if their contacts were enabled."""

@@ -339,8 +339,8 @@ def test_boxes_are_read_once_per_state_of_the_world(make_sim, monkeypatch):
     sim = make_sim(load_scenario("construction_single", {"agents.start_jitter": 0.0}))
     c, world = sim.task, sim.world
     reads = []
-    read = world.read_body_states
-    monkeypatch.setattr(world, "read_body_states", lambda bodies, out: (reads.append(1), read(bodies, out)))
+    read = world.read_body_poses
+    monkeypatch.setattr(world, "read_body_poses", lambda bodies, out: (reads.append(1), read(bodies, out)))
     c.read()
     c.sample()
     c.update(sim.time)
