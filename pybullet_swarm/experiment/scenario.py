@@ -51,6 +51,10 @@ class SimSection(_Strict):
     control_hz: int = Field(48, ge=1, le=10_000)  # Hz, position-loop and reference rate
     planner_hz: int = Field(10, ge=1, le=10_000)  # Hz, planner and task rate
     record_hz: int = Field(20, ge=1, le=10_000)  # Hz, time-series decimation
+    # Hz, contact and overlap reads for collision counting (None: every physics step); at most one debounce
+    # interval (0.1 s) apart. Coarser reads miss contacts shorter than their period and time contacts in
+    # whole periods
+    contact_hz: int | None = Field(None, ge=10, le=10_000)
     gravity: float = Field(9.81, ge=0.0, le=100.0)  # m/s^2
     drag_coefficient: float = Field(0.0, ge=0.0, le=10.0)  # N/(m/s), linear air drag
     ground_effect: bool = False  # thrust gain near the ground
@@ -538,8 +542,10 @@ def _resolve_plugins(f: _ScenarioFile, task: Any, source: str) -> tuple[str, Par
 
 
 def _check_rates(sim: SimSection, source: str) -> None:
-    for name in ("control_hz", "planner_hz", "record_hz"):
+    for name in ("control_hz", "planner_hz", "record_hz", "contact_hz"):
         rate = getattr(sim, name)
+        if rate is None:
+            continue
         if rate > sim.physics_hz or sim.physics_hz % rate != 0:
             raise ConfigError(
                 f"must divide sim.physics_hz ({sim.physics_hz}) into an integer ratio, got {rate}",

@@ -109,6 +109,7 @@ class Simulation:
         self.control_every = s.physics_hz // s.control_hz
         self.planner_every = s.physics_hz // s.planner_hz
         self.record_every = s.physics_hz // s.record_hz
+        self.contact_every = s.physics_hz // (s.contact_hz or s.physics_hz)  # physics steps between contact reads
         self.params: VehicleParams = load_vehicle(scenario.agents.vehicle)
         self.n = scenario.agents.count
         self.gui = gui
@@ -121,8 +122,10 @@ class Simulation:
     # ------------------------------------------------------------------ set-up
     def _build(self) -> None:
         sc, s, p, n = self.scenario, self.scenario.sim, self.params, self.n
-        # one broad phase of the ghost pairs per control period; their exact query still runs every step
-        self.world = World(physics_hz=s.physics_hz, gravity=s.gravity, gui=self.gui, ghost_horizon=self.control_every)
+        # read every step, the ghost pairs get one broad phase per control period (their exact query still runs
+        # every step); read less often, one at each read
+        horizon = self.control_every if self.contact_every == 1 else 1
+        self.world = World(physics_hz=s.physics_hz, gravity=s.gravity, gui=self.gui, ghost_horizon=horizon)
         self.world.add_ground()
         if sc.arena.walls:
             self.world.add_walls(sc.arena.size, sc.arena.wall_height, thickness=WALL_THICKNESS)
@@ -164,7 +167,10 @@ class Simulation:
         self.ghost = sc.collisions == "ghost"
         self.diameter = float(max(p.collision_size[0], p.collision_size[1]))  # m, agent "diameter"
         self.max_height = self.starts[:, 2].copy()  # m, highest recorded altitude per agent
-        self.contacts = ContactTracker(self._classify, self.dt, debounce_s=0.1)
+        self.contacts = ContactTracker(self._classify, self.dt * self.contact_every, debounce_s=0.1)
+        # m/s, each agent's lowest vertical velocity since the last contact read (a ground impact's speed); the
+        # state's own when contacts are read every step
+        self._vz_low = np.full(n, np.inf) if self.contact_every > 1 else self.state_array[:, 9]
         self.events: list[Event] = []
         self.step_count = 0
         self.exit_status = ExitStatus.RUNNING
@@ -621,7 +627,7 @@ class Simulation:
             if cls is CollisionClass.AGENT_GROUND:
                 body = a if self.world.body_kind(a) is BodyKind.AGENT else b
                 i = self.agent_index[body]
-                vz = self.state_array[i, 9]
+                vz = self._vz_low[i]
                 if -vz > self.scenario.sim.crash_speed:
                     self._finish(ExitStatus.CRASHED, i, f"hit the ground at {-vz:.2f} m/s")
 
@@ -651,7 +657,8 @@ class Simulation:
             world.read_agent_states,
             world.contact_pairs,
         )
-        ce, pe, re = self.control_every, self.planner_every, self.record_every
+        ce, pe, re, cte = self.control_every, self.planner_every, self.record_every, self.contact_every
+        vz_low = self._vz_low
         est = self.estimation
         fe = self.fix_every if est is not None else 0
         sensed = self.sensed_state_array
@@ -676,9 +683,17 @@ class Simulation:
             k += 1
             self.step_count = k
             read(state)
-            pairs = contact_pairs()  # ghost mode's overlaps included (World.set_ghost_pair)
-            if pairs or contacts._prev:
-                self._on_contacts(pairs)
+            if cte == 1:
+                pairs = contact_pairs()  # ghost mode's overlaps included (World.set_ghost_pair)
+                if pairs or contacts._prev:
+                    self._on_contacts(pairs)
+            else:
+                np.minimum(vz_low, state[:, 9], out=vz_low)
+                if k % cte == 0:
+                    pairs = contact_pairs()
+                    if pairs or contacts._prev:
+                        self._on_contacts(pairs)
+                    vz_low[:] = np.inf
             if worst:
                 self._on_status(worst)
             if k % re == 0:

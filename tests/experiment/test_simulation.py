@@ -65,8 +65,10 @@ def test_crash_when_agent_flips(make_sim):
     assert any(e.kind == "crashed" for e in sim.events)
 
 
-def test_hard_ground_impact_is_a_crash(make_sim):
-    sim = make_sim(physics_scenario(start_z=2.0))
+@pytest.mark.parametrize("contact_hz", [None, 48], ids=["every_step", "every_control_tick"])
+def test_hard_ground_impact_is_a_crash(make_sim, contact_hz):
+    # read at the control rate, the impact's speed is the lowest vertical velocity since the last read
+    sim = make_sim(physics_scenario(start_z=2.0, **{"sim.contact_hz": contact_hz}))
     sim.set_open_loop(np.zeros((1, 4)), motor_state=True)
     sim.world.reset_agent(0, [1.5, 1.5, 2.0], velocity=[0.0, 0.0, -4.0])
     sim.step(2 * sim.physics_hz)

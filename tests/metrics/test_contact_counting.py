@@ -10,10 +10,11 @@ from pybullet_swarm.metrics.collisions import CollisionClass, ContactTracker
 from pybullet_swarm.rng import named_rng
 
 
-def _two_agents(mode: str):
+def _two_agents(mode: str, contact_hz: int | None = None):
     return load_scenario(
         "hover",
         {
+            "sim.contact_hz": contact_hz,
             "agents.count": 2,
             "agents.start": [[1.0, 1.5, 0.011], [2.0, 1.5, 0.011]],
             "collisions": mode,
@@ -25,9 +26,9 @@ def _two_agents(mode: str):
     )
 
 
-def _encounter(make_sim, mode: str, half_gap: float):
+def _encounter(make_sim, mode: str, half_gap: float, contact_hz: int | None = None):
     """Both agents take off to 1 m, then swap places along x, passing 2 * half_gap apart in y."""
-    sim = make_sim(_two_agents(mode))
+    sim = make_sim(_two_agents(mode, contact_hz))
     start = sim.state.positions.copy()
     sim.set_targets(start * [1, 1, 0] + [0, 0, 1.0])
     sim.step(5 * sim.physics_hz)
@@ -151,3 +152,23 @@ def test_tracker_counts_and_times_as_one_that_updates_every_pair_every_step():
             n_events += len(got)
     assert lazy.counts == eager.counts and lazy.time_s == eager.time_s
     assert n_events > 100 and lazy.counts["load_box"] > 0 and lazy.counts["agent_agent"] > 0
+
+
+@pytest.mark.parametrize(
+    ("mode", "half_gap"), [("ghost", 0.0), ("ghost", 0.06), ("physical", 0.06), ("ghost", 0.15), ("physical", 0.15)]
+)
+def test_contacts_read_at_the_control_rate_count_the_same_encounters(make_sim, mode, half_gap):
+    """Read once per control period (48 Hz, about 21 ms) instead of every physics step: the same events of the
+    same classes, each at most one period later, and contact time within one period of it per event. (Not
+    asserted: physical agents meeting exactly on one line touch a second time, 0.87 s later, for less than a
+    period; every step counts it, the control rate here missed it.)"""
+    every = _encounter(make_sim, mode, half_gap)
+    coarse = _encounter(make_sim, mode, half_gap, contact_hz=48)
+    period = 1.0 / 48
+    assert coarse.contacts.counts == every.contacts.counts
+    a, b = every.all_events(), coarse.all_events()
+    assert [e.kind for e in a] == [e.kind for e in b]
+    assert all(0.0 <= eb.time_s - ea.time_s < period + 1e-9 for ea, eb in zip(a, b))
+    n = sum(every.contacts.counts.values())
+    for cls, t in every.contacts.time_s.items():
+        assert coarse.contacts.time_s[cls] == pytest.approx(t, abs=n * period + 1e-9)
