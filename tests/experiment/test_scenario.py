@@ -123,6 +123,7 @@ def test_with_overrides_validates_again() -> None:
         ("sim.control_hz=50", "sim.control_hz", "50"),
         ("sim.record_hz=7", "sim.record_hz", "7"),
         ("sim.planner_hz=11", "sim.planner_hz", "11"),
+        ("sim.contact_hz=50", "sim.contact_hz", "50"),
         ("sim.control_hz=480", "sim.control_hz", "480"),  # faster than physics
         ("sim.physics_hz=250", "sim.control_hz", "48"),  # 48 no longer divides
     ],
@@ -144,7 +145,8 @@ def test_non_dividing_rate_by_mapping_override() -> None:
 
 
 @pytest.mark.parametrize(
-    ("field", "value"), [("control_hz", 0), ("record_hz", -20), ("physics_hz", 59), ("physics_hz", 10_001)]
+    ("field", "value"),
+    [("control_hz", 0), ("record_hz", -20), ("physics_hz", 59), ("physics_hz", 10_001), ("contact_hz", 8)],
 )
 def test_out_of_range_rates(field: str, value: int) -> None:
     err = bad(_set(hover_data(), f"sim.{field}", value))
