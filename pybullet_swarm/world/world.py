@@ -388,16 +388,18 @@ class World:
         One broad phase for all bodies of ghost pairs (bounding spheres about their base positions;
         agents' positions from the last ``read_agent_states``, other bodies' read now), then Bullet's
         exact closest-points query only for registered pairs whose spheres overlap. With a ``ghost_horizon``
-        of h > 1 steps the broad phase runs once per h steps, its spheres grown by how far each body can
-        move in that time (``_plan_ghosts``), and the exact query runs every step on the pairs it found.
+        of h > 1 steps and more ghost bodies than one vectorised test of every pair is quick for
+        (``_GhostIndex.DENSE_MAX_BODIES``), the broad phase runs once per h steps, its spheres grown by how far
+        each body can move in that time (``_plan_ghosts``), and the exact query runs every step on the pairs
+        it found (fewer bodies: the grown spheres' extra exact queries cost more than the broad phase saves).
         """
-        if self.ghost_horizon > 1:
+        g = self._ghosts if self._ghosts is not None else self._index_ghosts()
+        if self.ghost_horizon > 1 and not g.dense:
             plan = self._ghost_plan
             if plan is None or self._version - plan[0] >= self.ghost_horizon:
-                plan = self._plan_ghosts()
+                plan = self._plan_ghosts(g)
             if plan is not None:
                 return self._overlapping(plan)
-        g = self._ghosts if self._ghosts is not None else self._index_ghosts()
         near = g.near_pairs(self._ghost_centres(g))
         cid, closest = self._cid, self._closest
         return [(a, b) for a, b in near if closest(a, b, 0.0, physicsClientId=cid)]
@@ -413,7 +415,7 @@ class World:
             c[m:] = [gp(b, cid)[0] for b in g.others]
         return c
 
-    def _plan_ghosts(self) -> _GhostPlan | None:
+    def _plan_ghosts(self, g: _GhostIndex) -> _GhostPlan | None:
         """Broad phase for the next ``ghost_horizon`` steps: the registered pairs whose bounding spheres, each
         grown by the farthest its body can move in that time (speed now times the horizon, plus half
         ``GHOST_MAX_ACCELERATION`` times its square), overlap now. No other pair can overlap before the
@@ -425,7 +427,6 @@ class World:
         """
         if self._states is None:
             return None
-        g = self._ghosts if self._ghosts is not None else self._index_ghosts()
         c = self._ghost_centres(g).copy()
         v = np.empty_like(c)
         m = g.n_agents

@@ -216,6 +216,7 @@ def test_a_broad_phase_over_a_horizon_finds_what_one_every_step_finds(monkeypatc
     two agents tested with their spheres every step, or not). A body pushed harder than
     ``GHOST_MAX_ACCELERATION`` allows is caught at the next broad phase, which then runs every step."""
     monkeypatch.setattr(World, "SPHERE_TEST_MIN_PAIRS", 1 if sphere_test else 10**6)
+    monkeypatch.setattr(_GhostIndex, "DENSE_MAX_BODIES", 0)  # the horizon serves the k-d tree's broad phase
     every, expected = _crossing(1, push)
     horizon, got = _crossing(5, push)
     with every, horizon:
@@ -228,7 +229,8 @@ def test_a_broad_phase_over_a_horizon_finds_what_one_every_step_finds(monkeypatc
             assert got == expected
 
 
-def test_a_teleport_ends_the_horizon():
+def test_a_teleport_ends_the_horizon(monkeypatch):
+    monkeypatch.setattr(_GhostIndex, "DENSE_MAX_BODIES", 0)
     w, agents, boxes = _crowd(2, 0)
     with w:
         w.ghost_horizon = 5
@@ -239,3 +241,12 @@ def test_a_teleport_ends_the_horizon():
         w.reset_agent(1, [0.08, 0.0, 1.0])  # onto agent 0, within the horizon
         w.read_agent_states(states)
         assert w.ghost_overlaps() == [(min(agents), max(agents))]
+
+
+def test_few_ghost_bodies_get_a_broad_phase_every_step():
+    w, agents, boxes = _crowd(3, 0)
+    with w:
+        w.ghost_horizon = 5
+        w.set_agent_collisions(False)
+        w.read_agent_states(np.zeros((3, 13)))
+        assert w.ghost_overlaps() == [] and w._ghost_plan is None
