@@ -68,6 +68,7 @@ def rule_settings(params: OrcaParams) -> NDArray[np.void]:
     s["stuck_fraction"] = params.stuck_fraction
     s["inv_tau_obstacle"] = 1.0 / params.obstacle_horizon
     s["goal_reach"] = params.goal_reach
+    s["wake_depth"] = params.wake(downwash=False)  # the layer resolves a null depth against the run
     return s
 
 
@@ -94,7 +95,11 @@ def pair_u(
         H = (
             half[a, 0] + half[b, 0] + m2 + rules.lag_growth(on, lag, abs(v[0])),
             half[a, 1] + half[b, 1] + m2 + rules.lag_growth(on, lag, abs(v[1])),
-            half[a, 2] + half[b, 2] + m2 + rules.lag_growth(on, lag, abs(v[2])),
+            half[a, 2]
+            + half[b, 2]
+            + m2
+            + rules.lag_growth(on, lag, abs(v[2]))
+            + rules.wake_growth(rs.wake_column, rs.wake_depth),
         )
         wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
         return core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz)
@@ -276,6 +281,7 @@ def orca_batch(
                 2.0 * cs.margin,
                 rs.time_horizon,
                 rs.make_way,
+                rules.wake_growth(rs.wake_column and boxes, rs.wake_depth),
             )
             held = False
             side = (0.0, 0.0, 0.0)
