@@ -137,7 +137,9 @@ def test_wake_column_keeps_agents_out_of_each_others_wake():
     assert np.all(flags & FLAG_FREE) and np.array_equal(v[1], [-0.15, 0.0, 0.0])
     # with the wake column 0.5 m deep it must not pass within 0.5 m over the other: a conflict
     v, flags = _over(OrcaParams.model_validate({**base, "wake_column": True, "wake_depth": 0.5}), dz=0.3)
-    assert not np.any(flags & FLAG_FREE) and v[1, 0] > -0.15 + 1e-3
+    assert not flags[1] & FLAG_FREE and v[1, 0] > -0.15 + 1e-3
+    # the boxes are apart vertically: only the upper one's wake is in the way, so it alone gives way
+    assert flags[0] & FLAG_FREE and np.array_equal(v[0], [0.0, 0.0, 0.0])
     # 0.7 m over it (boxes 2 cm tall) it is out of the 0.5 m column: free again
     v, flags = _over(OrcaParams.model_validate({**base, "wake_column": True, "wake_depth": 0.5}), dz=0.7)
     assert np.all(flags & FLAG_FREE)

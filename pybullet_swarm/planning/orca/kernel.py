@@ -133,6 +133,7 @@ def agent_planes(
     n = pos.shape[0]
     vi = row(vel, i)
     climbs = False
+    m2 = 2.0 * cs.margin
     for c in range(nbr.shape[1]):
         j = nbr[i, c]
         if j < 0 or j >= n or j == i:
@@ -144,6 +145,10 @@ def agent_planes(
             nrm = scale(nrm, -1.0)
             u = scale(u, -1.0)
         r, up = rules.climb_share(rs.climb_over, nrm, u, vel[i, 2], vel[j, 2], cs.responsibility)
+        if boxes and rs.wake_column and rs.wake_depth > 0.0:
+            r = rules.wake_share(
+                r, pos[j, 2] + centre[j, 2] - pos[i, 2] - centre[i, 2], half[i, 2] + half[j, 2] + m2, cs.responsibility
+            )
         climbs = climbs or up
         set_row(N, k, nrm)
         set_row(P, k, add(vi, u, r))

@@ -127,6 +127,22 @@ def wake_growth(on: bool, wake_depth: float) -> float:
     return wake_depth if on else 0.0
 
 
+@njit
+def wake_share(share: float, dz: float, reach: float, resp: float) -> float:
+    """WAKE_COLUMN: share of a pair's u this agent takes, when the other's shape is ``dz`` m above its own
+    (centres) and the two touch vertically within ``reach`` m (half heights and margins, no wake).
+
+    A pair whose shapes are apart vertically is in conflict only through the upper one's wake, and
+    only the upper one can keep its wake off the other: it takes the whole share, the lower one
+    none. Shared, the lower agent would be pushed ahead of the upper one for as long as their
+    paths agree (a carrier herded back across the arena by an agent flying home above it). Both
+    agents see the same numbers, so the shares still add up.
+    """
+    if abs(dz) < reach:
+        return share
+    return 2.0 * resp if dz < 0.0 else 0.0
+
+
 def uncertainty_growth(sigmas: float, position_std: float) -> float:
     """UNCERTAINTY_MARGIN: m each shape grows by when sensed positions err by ``position_std`` m per axis.
 
