@@ -329,6 +329,7 @@ class Simulation:
             range_m=0.0 if fan is None else float(fan.range_m),
             range_offset=0.0 if fan is None else float(fan.start_offset),
             obstacles=sc.arena.obstacle_boxes(),
+            downwash=bool(sc.sim.downwash),
         )
 
     def _make_planner(self) -> None:

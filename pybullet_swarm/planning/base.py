@@ -313,6 +313,8 @@ class AvoidanceSetup:
         range_m: m, longest range reading.
         range_offset: m, rays start this far from the agent centre.
         obstacles: the arena's static obstacles (pillars, boxes, walls), for the whole run.
+        downwash: True when the simulation models the rotor wake of each vehicle pushing down those
+            below it (``sim.downwash``).
     """
 
     n: int
@@ -328,6 +330,7 @@ class AvoidanceSetup:
     range_m: float = 0.0
     range_offset: float = 0.0
     obstacles: Obstacles = dataclasses.field(default_factory=Obstacles)
+    downwash: bool = False
 
 
 @runtime_checkable

@@ -99,6 +99,55 @@ def test_climb_over_gives_the_whole_share_to_the_upper_agent():
     assert v[1, 2] > 0.1  # the upper one takes the whole way out
 
 
+def _over(params: OrcaParams, dz: float, dx: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+    """Agent 0 hovers at 0.4 m; agent 1, ``dz`` m higher and ``dx`` m away along x, flies over it at 0.15 m/s."""
+    pos = np.array([[0.0, 0.0, 0.4], [dx, 0.0, 0.4 + dz]])
+    vel = np.array([[0.0, 0.0, 0.0], [-0.15, 0.0, 0.0]])
+    return orca_velocities(
+        pos,
+        vel,
+        vel,
+        params=params,
+        sensing_radius=2.0,
+        v_max=VM,
+        boxes=(np.zeros((2, 3)), np.tile(HALF, (2, 1))),
+        goals=pos + 10.0 * vel,
+        has_goal=np.ones(2, dtype=bool),
+    )
+
+
+@pytest.mark.parametrize("downwash", [True, False])
+def test_a_null_wake_depth_acts_only_where_the_run_models_downwash(downwash: bool):
+    sim = Simulation(_layer_scenario(**{"sim.downwash": downwash}))
+    try:
+        layer = sim.avoidance_layer
+        assert isinstance(layer, OrcaLayer)
+        assert layer.params.wake_depth == (0.5 if downwash else 0.0)
+    finally:
+        sim.close()
+    assert OrcaParams(wake_depth=0.3).wake(downwash=False) == 0.3  # an explicit depth always acts
+    assert OrcaParams(wake_depth=0.3, wake_column=False).wake(downwash=True) == 0.0
+    assert OrcaParams(wake_depth=0.3, shape="sphere").wake(downwash=True) == 0.0
+
+
+def test_wake_column_keeps_agents_out_of_each_others_wake():
+    base = {**PAPER, "minimal_intervention": True, "safety_margin": 0.0}
+    # 0.3 m over a hovering agent: the boxes clear each other, so the paper's ORCA lets it pass
+    v, flags = _over(OrcaParams.model_validate(base), dz=0.3)
+    assert np.all(flags & FLAG_FREE) and np.array_equal(v[1], [-0.15, 0.0, 0.0])
+    # with the wake column 0.5 m deep it must not pass within 0.5 m over the other: a conflict
+    v, flags = _over(OrcaParams.model_validate({**base, "wake_column": True, "wake_depth": 0.5}), dz=0.3)
+    assert not flags[1] & FLAG_FREE and v[1, 0] > -0.15 + 1e-3
+    # the boxes are apart vertically: only the upper one's wake is in the way, so it alone gives way
+    assert flags[0] & FLAG_FREE and np.array_equal(v[0], [0.0, 0.0, 0.0])
+    # 0.7 m over it (boxes 2 cm tall) it is out of the 0.5 m column: free again
+    v, flags = _over(OrcaParams.model_validate({**base, "wake_column": True, "wake_depth": 0.5}), dz=0.7)
+    assert np.all(flags & FLAG_FREE)
+    # right above the other, 0.3 m up, both are in the column: they separate sideways, not vertically
+    v, flags = _over(OrcaParams.model_validate({**base, "wake_column": True, "wake_depth": 0.5}), dz=0.3, dx=0.05)
+    assert v[1, 0] - v[0, 0] > 0.05 and abs(v[1, 2] - v[0, 2]) < 1e-9
+
+
 def _line_of_stalled_agents(params: OrcaParams) -> tuple[np.ndarray, np.ndarray]:
     """Three agents at rest in a line, two heading one way and one the other (see test_orca)."""
     pos = np.array([[1.735, 0.401, 0.215], [1.554, 0.319, 0.215], [1.374, 0.163, 0.215]])
@@ -217,13 +266,15 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
         cmds = [Command.goto(pos[0] + [0.01, 0.0, 0.0], Action.GRASP), Command.goto(pos[1] + [0.3, 0.0, 0.0])]
         for off in (None, *Rule):
             seen.clear()
-            layer.params = OrcaParams() if off is None else OrcaParams.model_validate({off.value: False})
+            layer.params = OrcaParams.model_validate({"wake_depth": 0.4} | ({} if off is None else {off.value: False}))
             out = layer.filter(cmds, sim.perceive(), sim.task.view(sim.time))
             kw = seen["velocity_bounds"][1]
             assert kw["floor"] is (off is not Rule.FLOOR_RULE)
             assert (kw["column"] > 0.0) is (off is not Rule.COLUMN_RULE)
             assert seen["reference"][0][2] is (off is not Rule.CLIPPED_REFERENCE)
             assert ("clear_paths" in seen) is (off is not Rule.PASSTHROUGH)  # agent 0 is 1 cm from its target
+            if "clear_paths" in seen:  # the swept boxes reach the wake depth down unless the wake column is off
+                assert seen["clear_paths"][0][-1] == (0.0 if off is Rule.WAKE_COLUMN else 0.4)
             assert out[0].action is Action.GRASP
             # agent 1 flies away from agent 0: nothing to avoid, its command stands unless the rule is off
             assert out[1].kind is (CommandKind.VELOCITY if off is Rule.MINIMAL_INTERVENTION else CommandKind.POSITION)

@@ -68,6 +68,7 @@ def rule_settings(params: OrcaParams) -> NDArray[np.void]:
     s["stuck_fraction"] = params.stuck_fraction
     s["inv_tau_obstacle"] = 1.0 / params.obstacle_horizon
     s["goal_reach"] = params.goal_reach
+    s["wake_depth"] = params.wake(downwash=False)  # the layer resolves a null depth against the run
     return s
 
 
@@ -94,7 +95,11 @@ def pair_u(
         H = (
             half[a, 0] + half[b, 0] + m2 + rules.lag_growth(on, lag, abs(v[0])),
             half[a, 1] + half[b, 1] + m2 + rules.lag_growth(on, lag, abs(v[1])),
-            half[a, 2] + half[b, 2] + m2 + rules.lag_growth(on, lag, abs(v[2])),
+            half[a, 2]
+            + half[b, 2]
+            + m2
+            + rules.lag_growth(on, lag, abs(v[2]))
+            + rules.wake_growth(rs.wake_column, rs.wake_depth),
         )
         wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
         return core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz)
@@ -128,6 +133,7 @@ def agent_planes(
     n = pos.shape[0]
     vi = row(vel, i)
     climbs = False
+    m2 = 2.0 * cs.margin
     for c in range(nbr.shape[1]):
         j = nbr[i, c]
         if j < 0 or j >= n or j == i:
@@ -139,6 +145,10 @@ def agent_planes(
             nrm = scale(nrm, -1.0)
             u = scale(u, -1.0)
         r, up = rules.climb_share(rs.climb_over, nrm, u, vel[i, 2], vel[j, 2], cs.responsibility)
+        if boxes and rs.wake_column and rs.wake_depth > 0.0:
+            r = rules.wake_share(
+                r, pos[j, 2] + centre[j, 2] - pos[i, 2] - centre[i, 2], half[i, 2] + half[j, 2] + m2, cs.responsibility
+            )
         climbs = climbs or up
         set_row(N, k, nrm)
         set_row(P, k, add(vi, u, r))
@@ -276,6 +286,7 @@ def orca_batch(
                 2.0 * cs.margin,
                 rs.time_horizon,
                 rs.make_way,
+                rules.wake_growth(rs.wake_column and boxes, rs.wake_depth),
             )
             held = False
             side = (0.0, 0.0, 0.0)

@@ -64,6 +64,7 @@ def _warm_up() -> None:
         np.full((2, 3), 0.05),
         np.zeros((2, 12)),
         0.0,
+        0.0,
     )
 
 
@@ -91,6 +92,8 @@ class OrcaLayer:
         if std > 0.0 and self.params.uncertainty_margin:
             grow = rules.uncertainty_growth(self.params.uncertainty_sigmas, std)
             self.params = self.params.model_copy(update={"safety_margin": self.params.margin + grow})
+        if self.params.wake_depth is None:  # the wake column acts where the run has wakes
+            self.params = self.params.model_copy(update={"wake_depth": self.params.wake(setup.downwash)})
         self.n = setup.n
         self.v_max = setup.v_max  # (3,) m/s or None
         self.a_max = setup.a_max  # (3,) m/s^2
@@ -191,6 +194,7 @@ class OrcaLayer:
                     oh,
                     parts,
                     p.margin + p.goal_reach,
+                    p.wake(downwash=False),
                 )
         keep = passthrough | ((flags & FLAG_FREE) != 0)
         out = [

@@ -41,6 +41,7 @@ class Rule(str, enum.Enum):
     CLIMB_PAST = "climb_past"
     MAKE_WAY = "make_way"
     STATIC_OBSTACLES = "static_obstacles"
+    WAKE_COLUMN = "wake_column"
 
     @property
     def doc(self) -> str:
@@ -75,6 +76,8 @@ RULE_DOCS: dict[Rule, str] = {
     "way that one can leave",
     Rule.STATIC_OBSTACLES: "boxes, structure and arena obstacles are velocity obstacles avoided alone, but those "
     "the agent's target touches",
+    Rule.WAKE_COLUMN: "against other agents each agent's box reaches wake_depth further down: nobody flies in "
+    "another's rotor wake (downwash)",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -88,6 +91,7 @@ RULES = np.dtype(
         ("stuck_fraction", np.float64),  # progress below this fraction of the preferred speed is a stall
         ("inv_tau_obstacle", np.float64),  # 1/s, inverse time horizon of static obstacles
         ("goal_reach", np.float64),  # m, an obstacle this close to the agent's shape at its target is the target's
+        ("wake_depth", np.float64),  # m, how far below each agent's box its wake is kept clear of others
     ],
     align=True,
 )
@@ -107,6 +111,36 @@ GOAL_OVERLAP = 0.005  # m, a part of an agent at its target reaching deeper into
 def lag_growth(on: bool, lag_margin_s: float, closing_speed: float) -> float:
     """LAG_MARGIN: m a pair's shapes grow by at ``closing_speed`` m/s (per axis for boxes, radially for spheres)."""
     return lag_margin_s * closing_speed if on else 0.0
+
+
+@njit
+def wake_growth(on: bool, wake_depth: float) -> float:
+    """WAKE_COLUMN: m the vertical half extent of a pair's Minkowski box grows by.
+
+    Each agent's box reaches ``wake_depth`` further down, against other agents only: its rotor
+    wake (``vehicle/downwash.py``) pushes down whoever flies in it, as hard half a metre below as
+    ten centimetres below (the momentum bound), and a vehicle pushed down near the ground, a box
+    or the structure strikes it. Growing both boxes downwards by D leaves the pair's relative
+    centre where it was and grows the Minkowski box's vertical half extent by D: neither agent
+    may be within D under the other while they overlap horizontally.
+    """
+    return wake_depth if on else 0.0
+
+
+@njit
+def wake_share(share: float, dz: float, reach: float, resp: float) -> float:
+    """WAKE_COLUMN: share of a pair's u this agent takes, when the other's shape is ``dz`` m above its own
+    (centres) and the two touch vertically within ``reach`` m (half heights and margins, no wake).
+
+    A pair whose shapes are apart vertically is in conflict only through the upper one's wake, and
+    only the upper one can keep its wake off the other: it takes the whole share, the lower one
+    none. Shared, the lower agent would be pushed ahead of the upper one for as long as their
+    paths agree (a carrier herded back across the arena by an agent flying home above it). Both
+    agents see the same numbers, so the shares still add up.
+    """
+    if abs(dz) < reach:
+        return share
+    return 2.0 * resp if dz < 0.0 else 0.0
 
 
 def uncertainty_growth(sigmas: float, position_std: float) -> float:
@@ -199,12 +233,22 @@ def velocity_bounds(
 # ----------------------------------------------------------------------------- stalls
 @njit
 def overlap(
-    pa: Vec, pb: Vec, ra: float, rb: float, ca: Vec, cb: Vec, ha: Vec, hb: Vec, boxes: bool, grow: float
+    pa: Vec,
+    pb: Vec,
+    ra: float,
+    rb: float,
+    ca: Vec,
+    cb: Vec,
+    ha: Vec,
+    hb: Vec,
+    boxes: bool,
+    grow: float,
+    wake: float = 0.0,
 ) -> bool:
-    """True when shape a at pa and shape b at pb come closer than ``grow`` m."""
+    """True when shape a at pa and shape b at pb come closer than ``grow`` m (boxes: ``wake`` m more vertically)."""
     if boxes:
         for k in range(3):
-            if abs((pb[k] + cb[k]) - (pa[k] + ca[k])) >= ha[k] + hb[k] + grow:
+            if abs((pb[k] + cb[k]) - (pa[k] + ca[k])) >= ha[k] + hb[k] + grow + (wake if k == 2 else 0.0):
                 return False
         return True
     d = add(pb, pa, -1.0)
@@ -227,14 +271,16 @@ def stalled_by(
     margin2: float,
     tau: float,
     make_way: bool,
+    wake: float,
 ) -> tuple[int, bool]:
     """SIDESTEP and MAKE_WAY: who holds up stalled agent i.
 
     Returns the nearest neighbour ahead (reachable at speed ``sp`` m/s over ``tau`` s, shapes grown
-    by ``margin2`` m) that is in the way and does not sit on i's goal, or -1; and, with
-    ``make_way``, True instead when, descending straight down, i first meets a neighbour below
-    that sits on its goal: that one can only leave upwards, through i. A neighbour on the goal is
-    otherwise waited for: circling it would not help.
+    by ``margin2`` m, and vertically by ``wake`` m: ``WAKE_COLUMN``) that is in the way and does
+    not sit on i's goal (its wake column included), or -1; and, with ``make_way``, True instead
+    when, descending straight down, i first meets a neighbour below whose shape itself sits on
+    its goal: that one can only leave upwards, through i. A neighbour on the goal is otherwise
+    waited for: circling it would not help.
     """
     n = pos.shape[0]
     pi = row(pos, i)
@@ -247,32 +293,18 @@ def stalled_by(
         if dot(rel, dh) <= 0.0:
             continue
         pj = row(pos, j)
-        if not overlap(
-            pi,
-            pj,
-            radius[i],
-            radius[j],
-            row(centre, i),
-            row(centre, j),
-            row(half, i),
-            row(half, j),
-            boxes,
-            margin2 + sp * tau,
-        ):
+        ci, cj, hi, hj = row(centre, i), row(centre, j), row(half, i), row(half, j)
+        if not overlap(pi, pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2 + sp * tau, wake):
             continue
-        if has_goal and overlap(
-            row(goal, i),
-            pj,
-            radius[i],
-            radius[j],
-            row(centre, i),
-            row(centre, j),
-            row(half, i),
-            row(half, j),
-            boxes,
-            margin2,
-        ):
-            if make_way and dh[2] < 0.0 and dh[2] * dh[2] > VERTICAL_COS2 and rel[2] < 0.0:
+        gi = row(goal, i)
+        if has_goal and overlap(gi, pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2, wake):
+            if (
+                make_way
+                and dh[2] < 0.0
+                and dh[2] * dh[2] > VERTICAL_COS2
+                and rel[2] < 0.0
+                and (wake == 0.0 or overlap(gi, pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2))
+            ):
                 return -1, True  # over the goal's occupant: make way upwards
             continue  # the neighbour occupies the goal: wait, do not circle it
         return j, False
@@ -321,11 +353,13 @@ def clear_paths(
     oh: NDArray[np.float64],
     parts: NDArray[np.float64],
     reach: float,
+    wake: float,
 ) -> None:
     """PASSTHROUGH: for each candidate, True when the box it sweeps to its goal stays ``margin`` m clear of
     every neighbour's box swept along the neighbour's velocity over ``lookahead`` s, and of every static
     obstacle (``oc``, ``oh``: centres and half extents (K, 3) m) but its target's own (``own_target``
-    with ``parts`` and ``reach`` m)."""
+    with ``parts`` and ``reach`` m). With ``WAKE_COLUMN`` (``wake`` m) both boxes of a pair reach that
+    much further down."""
     n = pos.shape[0]
     for i in range(n):
         out[i] = False
@@ -340,10 +374,11 @@ def clear_paths(
                 continue
             apart = False
             for a in range(3):
-                lo_i = min(pos[i, a], goal[i, a]) + centre[i, a] - half[i, a]
+                down = wake if a == 2 else 0.0
+                lo_i = min(pos[i, a], goal[i, a]) + centre[i, a] - half[i, a] - down
                 hi_i = max(pos[i, a], goal[i, a]) + centre[i, a] + half[i, a]
                 ahead = vel[j, a] * lookahead
-                lo_j = pos[j, a] + centre[j, a] - half[j, a] - margin + min(ahead, 0.0)
+                lo_j = pos[j, a] + centre[j, a] - half[j, a] - down - margin + min(ahead, 0.0)
                 hi_j = pos[j, a] + centre[j, a] + half[j, a] + margin + max(ahead, 0.0)
                 if hi_i <= lo_j or hi_j <= lo_i:
                     apart = True
