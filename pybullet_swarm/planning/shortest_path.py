@@ -34,6 +34,13 @@ switch              default  thesis  what it does
                                      not over it, while an agent cruising higher still has to come
                                      down to a slot near that column (with an avoidance layer the
                                      waiting agent would block that descent for ever)
+``spaced_descents`` true     false   an agent starts its descent to a box or slot only when no
+                                     other agent is on a vertical leg (descending, placing,
+                                     lifting or climbing back) within an airframe's width and
+                                     ``DESCENT_SPACING_MARGIN`` of its column (per axis); it waits at its cruise altitude, beside the column
+                                     while the other cruises higher (boxes side by side: two
+                                     airframes over neighbouring slots 10 cm apart touch, and a
+                                     wake pushes the lower one onto the structure)
 ==================  =======  ======  ===========================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
@@ -66,6 +73,9 @@ SERVO_LIMIT = 0.03
 
 VERTICAL_CLEARANCE = 0.03
 """m: a carried box stays this far above the finished structure and the depot's boxes."""
+DESCENT_SPACING_MARGIN = 0.02
+"""m: ``spaced_descents`` keeps two vertical legs an airframe's width and this far apart (per horizontal axis;
+the airframe a square in the agent's enclosing circle: 17 cm for ``quad150``, so a 20 cm pitch is not held up)."""
 
 
 def cruise_base(info: TaskInfo) -> float:
@@ -117,8 +127,14 @@ class ShortestPathParams(Params):
         "has yet to come down near that column [false]",
     )
 
+    spaced_descents: bool = Field(
+        True,
+        description="start a descent only when no other agent is on a vertical leg within an airframe's "
+        "width (and 2 cm) of the column [false]",
+    )
+
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
-        Preset.THESIS: {"altitude_step": 0.0, "retry_slots": False, "wait_beside": False}
+        Preset.THESIS: {"altitude_step": 0.0, "retry_slots": False, "wait_beside": False, "spaced_descents": False}
     }
 
 
@@ -161,6 +177,7 @@ class ShortestPath:
         self.correction = np.zeros((n, 3))  # m, servo correction of each carrier's target
         self.within_since = np.full(n, np.nan)  # s, since when each held box is within release_tol
         self.last_box = np.full((n, 3), np.nan)  # m, held box position at the previous tick
+        self.columns = np.zeros((n, 2))  # m, where each agent's current vertical leg is
 
     def _assign(self, i: int, view: WorldView) -> None:
         taken_boxes = set(self.box[self.box >= 0].tolist())
@@ -213,6 +230,28 @@ class ShortestPath:
         d = np.linalg.norm(self.info.slots[self.slot[others], :2] - self.info.slots[s, :2], axis=1)
         return bool(np.any(d < 2.0 * self.info.agent_radius))
 
+    def _descents_near(self, i: int, xy: np.ndarray) -> np.ndarray:
+        """Agents (indices) other than ``i`` on a vertical leg (down to a box or slot, or back up) whose
+        column lies within an airframe's width and ``DESCENT_SPACING_MARGIN`` (per axis) of ``xy`` (2,) m,
+        where ``i`` would descend (``spaced_descents``; none without it)."""
+        if not self.params.spaced_descents:
+            return np.zeros(0, dtype=np.int64)
+        vertical = np.isin(self.phase, (Phase.DESCEND_BOX, Phase.LIFT, Phase.DESCEND_SLOT, Phase.CLIMB))
+        vertical[i] = False
+        others = np.flatnonzero(vertical)
+        if others.size == 0:
+            return others
+        width = np.sqrt(2.0) * self.info.agent_radius  # m, a square airframe in the enclosing circle
+        d = np.max(np.abs(self.columns[others] - xy[:2]), axis=1)
+        return others[d < width + DESCENT_SPACING_MARGIN]
+
+    def _wait_for_descents(self, i: int, p: np.ndarray, above: np.ndarray, near: np.ndarray) -> Command:
+        """Wait at the cruise altitude for the vertical legs ``near`` to end: over the column ``above``
+        (3,) m, or beside it while one of them climbs back to a higher cruise altitude (through this one's)."""
+        if np.any(self.hs[near] > self.hs[i]):
+            return self._cruise(i, p, self._beside(above))
+        return self._cruise(i, p, above)
+
     def _beside(self, above: np.ndarray) -> np.ndarray:
         """A waiting point (3,) m three agent radii from ``above`` (3,) m towards the arena's centre."""
         away = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
@@ -246,8 +285,12 @@ class ShortestPath:
                 self.box[i] = -1
                 return Command.goto([p[0], p[1], self.h])
             above = np.array([*view.box_positions[b, :2], self.h])
+            near = self._descents_near(i, above)
+            if near.size:
+                return self._wait_for_descents(i, p, above, near)
             if self._near_xy(p, above) and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_BOX
+                self.columns[i] = above[:2]
             return self._cruise(i, p, above)
         if ph == Phase.DESCEND_BOX:
             grasp = view.box_positions[b] + [0.0, 0.0, self.gh]
@@ -278,8 +321,12 @@ class ShortestPath:
                 # there, and the avoidance layer (on jittering estimates, or a higher agent's way down
                 # through this one's altitude) would hold it up for ever
                 return self._cruise(i, p, self._beside(above))
+            near = self._descents_near(i, above)
+            if near.size:
+                return self._wait_for_descents(i, p, above, near)
             if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_SLOT
+                self.columns[i] = above[:2]
                 self.correction[i] = 0.0
                 self.within_since[i] = np.nan
                 self.last_box[i] = np.nan

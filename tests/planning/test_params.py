@@ -48,7 +48,7 @@ THESIS_LAYERED = {
     "ahead_cone": False,
     "detour": False,
 }
-THESIS_SHORTEST_PATH = {"altitude_step": 0.0, "retry_slots": False, "wait_beside": False}
+THESIS_SHORTEST_PATH = {"altitude_step": 0.0, "retry_slots": False, "wait_beside": False, "spaced_descents": False}
 
 
 @pytest.mark.parametrize(
@@ -70,7 +70,7 @@ def test_the_thesis_preset_resolves_to_the_documented_values(model, documented):
 
 
 def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
-    assert list(extensions(ShortestPathParams)) == ["altitude_step", "retry_slots", "wait_beside"]
+    assert list(extensions(ShortestPathParams)) == ["altitude_step", "retry_slots", "wait_beside", "spaced_descents"]
     assert list(extensions(StigmergyParams)) == [
         "ties",
         "claims",
