@@ -59,6 +59,11 @@ extension with its own switch (bold; the table below).
   in it. **retake**: a box that did not come to rest in its slot is still a free box: the agent that
   let it go watches it for ``SETTLE_S``, takes it again and serves the slot once more.
   **descent_timeout_s**: a descent that does not end in a release by then is broken off.
+* **clear_spent_goals**: an agent with a box that reaches its search point and sees no open slot
+  there clears the goal marks (-1) over the columns whose every slot it sees from there: they mark
+  slots filled since, and in a large structure the strongest-pheromone search would otherwise draw
+  among every column ever built on, the last open slot's as likely as any (a column whose upper
+  slot opens later gets a fresh mark from the placement that opens it, next to it).
 * **claims**: an agent leaves a box or slot to a neighbour already working over it (lower, or at
   the same height and nearer), so two agents never descend onto one object.
 * **wide_view**: an agent notices every object the task shows it (grasp point within the task's
@@ -94,6 +99,7 @@ switch                        default     thesis      source of the thesis's val
 ``loose_box_check``           true        false       not in the thesis
 ``retake``                    true        false       appendix A: a box let go counts as placed
 ``descent_timeout_s``         20 s        null        not in the thesis
+``clear_spent_goals``         true        false       appendix A: goal marks never change (fatigue 0)
 ``lookahead``                 0.2 m       0.1 m       appendix B: the cells next to the agent's own
 ``footprint``                 true        false       appendix B: the agent marks its own cell only
 ``ahead_cone``                true        false       chapter 6.0.4: "any area they move into"
@@ -390,6 +396,11 @@ class StigmergyParams(Params):
         le=1e4,
         description="s, break off a descent with a box that has not ended in a release by then [null: never]",
     )
+    clear_spent_goals: bool = Field(
+        True,
+        description="at a search point with no open slot in view, clear the goal marks over the columns "
+        "whose every slot is in view [false]",
+    )
 
     #: pheromone layers of the grid (sizes its memory)
     LAYERS: ClassVar[int] = 1
@@ -413,6 +424,7 @@ class StigmergyParams(Params):
             "loose_box_check": False,
             "retake": False,
             "descent_timeout_s": None,
+            "clear_spent_goals": False,
         }
     }
 
@@ -1078,9 +1090,39 @@ class Stigmergy:
             self.phase = Phase.TO_SLOT
             return None
         if self._arrived(p, self.target):
+            self._clear_spent_goals(obs, medium)
             self.phase = Phase.CHOOSE_GOAL
             return None
         return self._travel(p, self.target)
+
+    def _clear_spent_goals(self, obs: Observation, medium: PheromoneGrid | None) -> None:
+        """``clear_spent_goals``: with no open slot in view (claimed ones included), clear the goal marks
+        over the columns whose every slot the agent sees from here (a mark over no slot: when its cell's
+        centre is in view horizontally)."""
+        if medium is None or not self.params.clear_spent_goals or len(obs.slot_ids):
+            return
+        layer = Layer.TASK.value
+        idx = np.argwhere(medium.values[layer] < 0.0)  # (k, 3) cells with a goal mark
+        if len(idx) == 0:
+            return
+        p = obs.position
+        reach = self.geo.view_range - VIEW_MARGIN
+        norm = str(self.info.extra.get("view_norm", "chebyshev"))
+        slots = self.info.slots
+        seen = view_distance(slots + [0.0, 0.0, self.info.grasp_height] - p, norm) <= reach  # (S,)
+        half = 0.5 * medium.cell + 1e-9
+        cleared = 0
+        for c in medium.centre(idx):
+            under = np.all(np.abs(slots[:, :2] - c[:2]) <= half, axis=1)  # slots in the mark's column
+            if under.any():
+                spent = bool(np.all(seen[under]))
+            else:
+                spent = bool(np.max(np.abs(c[:2] - p[:2])) <= reach)
+            if spent:
+                medium.deposit(layer, c, 0.0, rule=DepositRule.SET, source=self.id)
+                cleared += 1
+        if cleared:
+            medium.tally("goal_marks_cleared", cleared)
 
     def _ignoring_objects(self, obs: Observation) -> bool:
         """True while the agent keeps to its search point whatever it sees (none in 3-D stigmergy)."""

@@ -38,6 +38,7 @@ THESIS_STIGMERGY = {
     "loose_box_check": False,
     "retake": False,
     "descent_timeout_s": None,
+    "clear_spent_goals": False,
 }
 THESIS_LAYERED = {
     **THESIS_STIGMERGY,
@@ -81,6 +82,7 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "loose_box_check",
         "retake",
         "descent_timeout_s",
+        "clear_spent_goals",
     ]
     assert list(extensions(LayeredStigmergyParams)) == [
         *extensions(StigmergyParams),
