@@ -23,25 +23,35 @@ Extensions of the thesis's baseline (chapter 3.5: "directs the agents to move in
 from the boxes to their desired location, until all boxes have been placed correctly"), each a
 switch of ``ShortestPathParams``, on by default, off under ``preset: thesis``:
 
-==================  =======  ======  ===========================================================
-switch              default  thesis  what it does
-==================  =======  ======  ===========================================================
-``altitude_step``   0.2 m    0       agent i cruises ``i * altitude_step`` above the search height,
-                                     so that loaded airframes do not meet at one cruise altitude
-``retry_slots``     true     false   a slot whose box came to rest off it is served again (with
-                                     the box lying in it first, if there is one)
-``wait_beside``     true     false   an agent whose slot is not open yet waits beside its column,
-                                     not over it, while an agent cruising higher still has to come
-                                     down to a slot near that column (with an avoidance layer the
-                                     waiting agent would block that descent for ever)
-``spaced_descents`` true     false   an agent starts its descent to a box or slot only when no
-                                     other agent is on a vertical leg (descending, placing,
-                                     lifting or climbing back) within an airframe's width and
-                                     ``DESCENT_SPACING_MARGIN`` of its column (per axis); it waits at its cruise altitude, beside the column
-                                     while the other cruises higher (boxes side by side: two
-                                     airframes over neighbouring slots 10 cm apart touch, and a
-                                     wake pushes the lower one onto the structure)
-==================  =======  ======  ===========================================================
+===========================  =======  ======  ==================================================
+switch                       default  thesis  what it does
+===========================  =======  ======  ==================================================
+``altitude_step``            0.2 m    0       agent i cruises ``i * altitude_step`` above the
+                                              search height, so that loaded airframes do not
+                                              meet at one cruise altitude
+``retry_slots``              true     false   a slot whose box came to rest off it is served
+                                              again (with the box lying in it first, if any)
+``wait_beside``              true     false   an agent whose slot is not open yet waits beside
+                                              its column, not over it, while an agent cruising
+                                              higher still has to come down to a slot near that
+                                              column (with an avoidance layer the waiting agent
+                                              would block that descent for ever)
+``spaced_descents``          true     false   an agent starts its descent to a box or slot only
+                                              when no other agent is on a vertical leg
+                                              (descending, placing, lifting or climbing back)
+                                              within an airframe's width and
+                                              ``DESCENT_SPACING_MARGIN`` of its column (per
+                                              axis); it waits at its cruise altitude, beside the
+                                              column while the other cruises higher (boxes side
+                                              by side: airframes over neighbouring slots 10 cm
+                                              apart were stacked by the avoidance layer, none
+                                              placing, or one came down on another)
+``release_over_neighbours``  true     false   a box for a slot with others beside it on its
+                                              level is let go above their tops where the task's
+                                              guide takes it (``planning/placing.py``): lowered
+                                              into a gap of its own width it catches on their
+                                              edges and tips its carrier over
+===========================  =======  ======  ==================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
 chapter 3.5 is all the preset follows. The climb to the cruise altitude before flying, the
@@ -60,6 +70,7 @@ from pydantic import Field
 
 from pybullet_swarm.planning.base import Action, Command, TaskInfo, WorldView
 from pybullet_swarm.planning.params import Params, Preset
+from pybullet_swarm.planning.placing import release_clearances
 
 CLEARANCE_SIGMAS = 3.0
 """Least release clearance, in standard deviations of an agent's own position estimate."""
@@ -133,8 +144,20 @@ class ShortestPathParams(Params):
         "width (and 2 cm) of the column [false]",
     )
 
+    release_over_neighbours: bool = Field(
+        True,
+        description="let a box for a slot with boxes beside it go above their tops, where the task's guide "
+        "takes it [false]",
+    )
+
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
-        Preset.THESIS: {"altitude_step": 0.0, "retry_slots": False, "wait_beside": False, "spaced_descents": False}
+        Preset.THESIS: {
+            "altitude_step": 0.0,
+            "retry_slots": False,
+            "wait_beside": False,
+            "spaced_descents": False,
+            "release_over_neighbours": False,
+        }
     }
 
 
@@ -174,6 +197,8 @@ class ShortestPath:
         sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agents' own estimates
         self.estimated = sigma > 0.0
         self.clearance = max(self.release_clearance, CLEARANCE_SIGMAS * sigma)  # m
+        # (S,) m, release height of each slot's box (over its neighbours' tops with ``release_over_neighbours``)
+        self.clearances = release_clearances(info, self.clearance, over_neighbours=self.params.release_over_neighbours)
         self.correction = np.zeros((n, 3))  # m, servo correction of each carrier's target
         self.within_since = np.full(n, np.nan)  # s, since when each held box is within release_tol
         self.last_box = np.full((n, 3), np.nan)  # m, held box position at the previous tick
@@ -312,7 +337,7 @@ class ShortestPath:
                 self.offset[i] = view.box_positions[b] - p
             return Command.goto([p[0], p[1], self.h])
         # where the agent must be for the box it holds (at its actual offset) to hang just above the slot
-        drop = self.info.slots[s] + [0.0, 0.0, self.clearance]
+        drop = self.info.slots[s] + [0.0, 0.0, self.clearances[s]]
         slot_top = drop - self.offset[i]
         if ph == Phase.TO_SLOT:
             above = np.array([slot_top[0], slot_top[1], self.h])

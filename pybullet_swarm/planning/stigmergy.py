@@ -59,6 +59,10 @@ extension with its own switch (bold; the table below).
   in it. **retake**: a box that did not come to rest in its slot is still a free box: the agent that
   let it go watches it for ``SETTLE_S``, takes it again and serves the slot once more.
   **descent_timeout_s**: a descent that does not end in a release by then is broken off.
+* **release_over_neighbours**: a box for a slot with others beside it on its level (boxes side by
+  side) is let go ``OVER_NEIGHBOURS_CLEARANCE`` above their tops, where the task's guide still takes
+  it (``pybullet_swarm/planning/placing.py``); lowered into a gap of its own width it would catch on
+  their edges and tip its carrier over.
 * **clear_spent_goals**: an agent with a box that reaches its search point and sees no open slot
   there clears the goal marks (-1) over the columns whose every slot it sees from there: they mark
   slots filled since, and in a large structure the strongest-pheromone search would otherwise draw
@@ -99,6 +103,7 @@ switch                        default     thesis      source of the thesis's val
 ``loose_box_check``           true        false       not in the thesis
 ``retake``                    true        false       appendix A: a box let go counts as placed
 ``descent_timeout_s``         20 s        null        not in the thesis
+``release_over_neighbours``   true        false       not in the thesis (its boxes passed through each other)
 ``clear_spent_goals``         true        false       appendix A: goal marks never change (fatigue 0)
 ``lookahead``                 0.2 m       0.1 m       appendix B: the cells next to the agent's own
 ``footprint``                 true        false       appendix B: the agent marks its own cell only
@@ -154,6 +159,7 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import Action, Command, CommandKind, Observation, TaskInfo, view_distance
 from pybullet_swarm.planning.params import Params, PlanContext, Preset, check_memory
 from pybullet_swarm.planning.pheromone_grid import DepositRule, LayerSpec, PheromoneGrid
+from pybullet_swarm.planning.placing import release_clearances
 
 
 class Layer(str, enum.Enum):
@@ -396,6 +402,11 @@ class StigmergyParams(Params):
         le=1e4,
         description="s, break off a descent with a box that has not ended in a release by then [null: never]",
     )
+    release_over_neighbours: bool = Field(
+        True,
+        description="let a box for a slot with boxes beside it go above their tops, where the task's guide "
+        "takes it [false]",
+    )
     clear_spent_goals: bool = Field(
         True,
         description="at a search point with no open slot in view, clear the goal marks over the columns "
@@ -424,6 +435,7 @@ class StigmergyParams(Params):
             "loose_box_check": False,
             "retake": False,
             "descent_timeout_s": None,
+            "release_over_neighbours": False,
             "clear_spent_goals": False,
         }
     }
@@ -910,6 +922,8 @@ class Stigmergy:
         self.attach = float(info.extra.get("attach_threshold", 0.02))
         sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agent's own position estimate
         self.clearance = max(self.params.release_clearance, CLEARANCE_SIGMAS * sigma)  # m
+        # (S,) m, release height of each slot's box (over its neighbours' tops with ``release_over_neighbours``)
+        self.clearances = release_clearances(info, self.clearance, over_neighbours=self.params.release_over_neighbours)
         dwell = self.params.release_dwell_s
         self.dwell = (0.5 if sigma > 0.0 else 0.0) if dwell is None else float(dwell)  # s
         self.phase = Phase.CHOOSE_BOX
@@ -1268,8 +1282,10 @@ class Stigmergy:
         return False
 
     def _drop_point(self) -> NDArray[np.float64]:
-        """(3,) m, the agent's centre when the box it holds hangs ``clearance`` above its slot."""
-        return self.slot.pos + [0.0, 0.0, self.clearance] - self.offset
+        """(3,) m, the agent's centre when the box it holds hangs its slot's clearance above the slot."""
+        k = self.slot.id
+        c = self.clearances[k] if 0 <= k < len(self.clearances) else self.clearance
+        return self.slot.pos + [0.0, 0.0, c] - self.offset
 
     def _step_to_slot(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
         """TO_SLOT -> DESCEND_SLOT (over it at the flying altitude) | SEEK_GOAL (lost, or a loose box in it)."""

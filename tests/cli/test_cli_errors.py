@@ -689,6 +689,7 @@ def test_check_prints_every_parameter_resolved(capsys: pytest.CaptureFixture[str
             "retry_slots": True,
             "wait_beside": True,
             "spaced_descents": True,
+            "release_over_neighbours": True,
         },
     }
 
