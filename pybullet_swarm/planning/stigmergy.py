@@ -616,6 +616,8 @@ class FlightGeometry:
             does not touch it.
         hidden: (h, 2) m, centres of the columns with a slot an agent beside the structure does not see
             (searched for from above them).
+        sight: m, the farthest horizontal (per-axis) distance from a search point beside the structure at
+            which a column's slots count as in view (the view range less ``arrive_tol``; 0: not checked).
     """
 
     floor_altitude: float
@@ -628,6 +630,7 @@ class FlightGeometry:
     columns: NDArray[np.float64]
     clearance: float
     hidden: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 2)))
+    sight: float = 0.0
 
     @property
     def look_altitude(self) -> float:
@@ -690,6 +693,7 @@ class FlightGeometry:
             standoff=max(0.03, p.structure_margin),
             columns=cols,
             clearance=0.5 * bs + r,
+            sight=view - p.arrive_tol,
         )
         if not seeing:
             return geo
@@ -747,12 +751,14 @@ class FlightGeometry:
     ) -> NDArray[np.float64]:
         """The point (2,) m itself when it lies outside the keep-out zone, else the point just outside
         it (``standoff`` beyond an edge, within the arena) on the shortest way from ``start`` (2,) m
-        via the edge to ``xy``; with ``keep_hidden``, a point whose nearest column is ``hidden`` is moved
-        over that column instead (its slots are seen from above)."""
+        via the edge to ``xy``; with ``keep_hidden`` (a search for slots), a point whose nearest column
+        is ``hidden`` is moved over that column instead (its slots are seen from above), and otherwise
+        to an edge from which that column is in view (``sight``; the far side of a structure several
+        columns deep, for a column there)."""
         if not self.inside(xy):
             return xy
+        c = self.columns[int(np.argmin(np.max(np.abs(self.columns - xy), axis=1)))] if len(self.columns) else xy
         if keep_hidden and len(self.hidden):
-            c = self.columns[int(np.argmin(np.max(np.abs(self.columns - xy), axis=1)))]
             if np.any(np.all(np.isclose(self.hidden, c, atol=1e-9), axis=1)):
                 return c.copy()
         k = self.structure
@@ -763,6 +769,9 @@ class FlightGeometry:
         if not ok.any():  # the zone fills the arena across: nowhere to look from but above it
             return xy
         pts = pts[ok]
+        if keep_hidden and self.sight > 0.0:
+            seen = np.max(np.abs(pts - c), axis=1) <= self.sight
+            pts = pts[seen] if seen.any() else pts
         cost = np.linalg.norm(pts - xy, axis=1) + np.linalg.norm(pts - start, axis=1)
         return pts[int(np.argmin(cost))]
 
