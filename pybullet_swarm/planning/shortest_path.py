@@ -41,11 +41,12 @@ switch                       default  thesis  what it does
                                               (descending, placing, lifting or climbing back)
                                               within an airframe's width and
                                               ``DESCENT_SPACING_MARGIN`` of its column (per
-                                              axis); it waits at its cruise altitude, beside the
-                                              column while the other cruises higher (boxes side
-                                              by side: airframes over neighbouring slots 10 cm
-                                              apart were stacked by the avoidance layer, none
-                                              placing, or one came down on another)
+                                              axis); it waits beside the column at its cruise
+                                              altitude (boxes side by side: airframes over
+                                              neighbouring slots 10 cm apart were stacked by the
+                                              avoidance layer, none placing, or one came down on
+                                              another; waiting over a tower's column, an agent's
+                                              wake held one climbing from it down)
 ``release_over_neighbours``  true     false   a box for a slot with others beside it on its
                                               level is let go above their tops where the task's
                                               guide takes it (``planning/placing.py``): lowered
@@ -270,12 +271,11 @@ class ShortestPath:
         d = np.max(np.abs(self.columns[others] - xy[:2]), axis=1)
         return others[d < width + DESCENT_SPACING_MARGIN]
 
-    def _wait_for_descents(self, i: int, p: np.ndarray, above: np.ndarray, near: np.ndarray) -> Command:
-        """Wait at the cruise altitude for the vertical legs ``near`` to end: over the column ``above``
-        (3,) m, or beside it while one of them climbs back to a higher cruise altitude (through this one's)."""
-        if np.any(self.hs[near] > self.hs[i]):
-            return self._cruise(i, p, self._beside(above))
-        return self._cruise(i, p, above)
+    def _wait_for_descents(self, i: int, p: np.ndarray, above: np.ndarray) -> Command:
+        """Wait at the cruise altitude, beside the column ``above`` (3,) m, for the vertical legs near it to end
+        (over it, the waiting agent's wake would push a climbing one down, or one climbing to a higher
+        cruise altitude would pass through it)."""
+        return self._cruise(i, p, self._beside(above))
 
     def _beside(self, above: np.ndarray) -> np.ndarray:
         """A waiting point (3,) m three agent radii from ``above`` (3,) m towards the arena's centre."""
@@ -310,9 +310,8 @@ class ShortestPath:
                 self.box[i] = -1
                 return Command.goto([p[0], p[1], self.h])
             above = np.array([*view.box_positions[b, :2], self.h])
-            near = self._descents_near(i, above)
-            if near.size:
-                return self._wait_for_descents(i, p, above, near)
+            if self._descents_near(i, above).size:
+                return self._wait_for_descents(i, p, above)
             if self._near_xy(p, above) and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_BOX
                 self.columns[i] = above[:2]
@@ -346,9 +345,8 @@ class ShortestPath:
                 # there, and the avoidance layer (on jittering estimates, or a higher agent's way down
                 # through this one's altitude) would hold it up for ever
                 return self._cruise(i, p, self._beside(above))
-            near = self._descents_near(i, above)
-            if near.size:
-                return self._wait_for_descents(i, p, above, near)
+            if self._descents_near(i, above).size:
+                return self._wait_for_descents(i, p, above)
             if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_SLOT
                 self.columns[i] = above[:2]

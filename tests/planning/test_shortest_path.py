@@ -67,7 +67,7 @@ def test_retry_slots_serves_again_a_slot_left_behind_empty():
 @pytest.mark.parametrize("pitch, spaced, held", [(0.1, True, True), (0.1, False, False), (0.2, True, False)])
 def test_spaced_descents_holds_a_descent_beside_another_at_a_box_pitch_not_at_the_thesis_pitch(pitch, spaced, held):
     """Agent 0 sets a box down on slot 0; agent 1, over the next slot at its cruise altitude with its box,
-    waits there while that column is within an airframe's width (slots side by side, 10 cm), and starts
+    waits beside it while that column is within an airframe's width (slots side by side, 10 cm), and starts
     its descent without ``spaced_descents`` or at the thesis's 20 cm pitch."""
     slots = np.array([[2.7, 0.4, 0.05], [2.7, 0.4 + pitch, 0.05]])
     sp = _planner(2, slots, spaced_descents=spaced)
@@ -80,4 +80,5 @@ def test_spaced_descents_holds_a_descent_beside_another_at_a_box_pitch_not_at_th
     cmds = sp.plan_all(view)
     assert sp.phase[1] == (Phase.TO_SLOT if held else Phase.DESCEND_SLOT)
     if held:
-        assert cmds[1].vector == pytest.approx(above)  # waits over its column at its cruise altitude
+        assert cmds[1].vector == pytest.approx(sp._beside(np.array(above)))  # waits beside its column, at its altitude
+        assert cmds[1].vector[2] == pytest.approx(sp.hs[1])
