@@ -85,6 +85,12 @@ SERVO_LIMIT = 0.03
 
 VERTICAL_CLEARANCE = 0.03
 """m: a carried box stays this far above the finished structure and the depot's boxes."""
+ASIDE_RADII = 4.0
+"""Agent radii from a column at which agents held up by ``spaced_descents`` wait."""
+ASIDE_SPREAD_DEG = 150.0
+"""deg: the waiting points of several agents are spread over this arc facing the arena's centre."""
+GOLDEN_FRACTION = 0.6180339887498949
+"""Agent i waits at the fraction (i x this mod 1) of the arc: neighbouring indices far apart on it."""
 DESCENT_SPACING_MARGIN = 0.02
 """m: ``spaced_descents`` keeps two vertical legs an airframe's width and this far apart (per horizontal axis;
 the airframe a square in the agent's enclosing circle: 17 cm for ``quad150``, so a 20 cm pitch is not held up)."""
@@ -272,10 +278,18 @@ class ShortestPath:
         return others[d < width + DESCENT_SPACING_MARGIN]
 
     def _wait_for_descents(self, i: int, p: np.ndarray, above: np.ndarray) -> Command:
-        """Wait at the cruise altitude, beside the column ``above`` (3,) m, for the vertical legs near it to end
-        (over it, the waiting agent's wake would push a climbing one down, or one climbing to a higher
-        cruise altitude would pass through it)."""
-        return self._cruise(i, p, self._beside(above))
+        """Wait at the cruise altitude, aside from the column ``above`` (3,) m, for the vertical legs near it to
+        end (over it, the waiting agent's wake would push a climbing one down, or one climbing to a higher
+        cruise altitude would pass through it). Agents waiting for one column wait at points
+        ``ASIDE_RADII`` agent radii from it, spread over the half towards the arena's centre by their
+        index (one over another, the upper one's wake pushes the lower one down)."""
+        away = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
+        base = float(np.arctan2(away[1], away[0])) if np.linalg.norm(away) > 1e-9 else 0.0
+        turn = ((i * GOLDEN_FRACTION) % 1.0 - 0.5) * np.radians(ASIDE_SPREAD_DEG)
+        r = self.info.agent_radius
+        xy = above[:2] + ASIDE_RADII * r * np.array([np.cos(base + turn), np.sin(base + turn)])
+        xy = np.clip(xy, r, np.asarray(self.info.arena_size, dtype=float)[:2] - r)
+        return self._cruise(i, p, np.array([xy[0], xy[1], above[2]]))
 
     def _beside(self, above: np.ndarray) -> np.ndarray:
         """A waiting point (3,) m three agent radii from ``above`` (3,) m towards the arena's centre."""
