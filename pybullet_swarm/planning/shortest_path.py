@@ -31,11 +31,12 @@ switch                       default  thesis  what it does
                                               meet at one cruise altitude
 ``retry_slots``              true     false   a slot whose box came to rest off it is served
                                               again (with the box lying in it first, if any)
-``wait_beside``              true     false   an agent whose slot is not open yet waits beside
-                                              its column, not over it, while an agent cruising
-                                              higher still has to come down to a slot near that
-                                              column (with an avoidance layer the waiting agent
-                                              would block that descent for ever)
+``wait_beside``              true     false   an agent whose slot is not open yet waits aside
+                                              from its column (``_wait_aside``), not over it,
+                                              while an agent cruising higher still has to come
+                                              down to a slot near that column (with an avoidance
+                                              layer the waiting agent would block that descent
+                                              for ever)
 ``spaced_descents``          true     false   an agent starts its descent to a box or slot only
                                               when no other agent is on a vertical leg
                                               (descending, placing, lifting or climbing back)
@@ -277,12 +278,12 @@ class ShortestPath:
         d = np.max(np.abs(self.columns[others] - xy[:2]), axis=1)
         return others[d < width + DESCENT_SPACING_MARGIN]
 
-    def _wait_for_descents(self, i: int, p: np.ndarray, above: np.ndarray) -> Command:
-        """Wait at the cruise altitude, aside from the column ``above`` (3,) m, for the vertical legs near it to
-        end (over it, the waiting agent's wake would push a climbing one down, or one climbing to a higher
-        cruise altitude would pass through it). Agents waiting for one column wait at points
-        ``ASIDE_RADII`` agent radii from it, spread over the half towards the arena's centre by their
-        index (one over another, the upper one's wake pushes the lower one down)."""
+    def _wait_aside(self, i: int, p: np.ndarray, above: np.ndarray) -> Command:
+        """Wait at the cruise altitude aside from the column ``above`` (3,) m (``wait_beside``, ``spaced_descents``:
+        over it, the waiting agent would block a descent, its wake would push a climbing agent down, or one
+        climbing to a higher cruise altitude would pass through it). Agents waiting for one column wait at points
+        ``ASIDE_RADII`` agent radii from it, spread by their index over an arc facing the arena's centre (at
+        one point, one over another, the upper one's wake pushed the lower one down)."""
         away = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
         base = float(np.arctan2(away[1], away[0])) if np.linalg.norm(away) > 1e-9 else 0.0
         turn = ((i * GOLDEN_FRACTION) % 1.0 - 0.5) * np.radians(ASIDE_SPREAD_DEG)
@@ -290,13 +291,6 @@ class ShortestPath:
         xy = above[:2] + ASIDE_RADII * r * np.array([np.cos(base + turn), np.sin(base + turn)])
         xy = np.clip(xy, r, np.asarray(self.info.arena_size, dtype=float)[:2] - r)
         return self._cruise(i, p, np.array([xy[0], xy[1], above[2]]))
-
-    def _beside(self, above: np.ndarray) -> np.ndarray:
-        """A waiting point (3,) m three agent radii from ``above`` (3,) m towards the arena's centre."""
-        away = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
-        norm = float(np.linalg.norm(away))
-        step = away / norm if norm > 1e-9 else np.array([1.0, 0.0])
-        return np.array([*(above[:2] + 3.0 * self.info.agent_radius * step), above[2]])
 
     def _near_xy(self, p: np.ndarray, q: np.ndarray) -> bool:
         return bool(np.linalg.norm(p[:2] - q[:2]) <= self.arrive_tol)
@@ -325,7 +319,7 @@ class ShortestPath:
                 return Command.goto([p[0], p[1], self.h])
             above = np.array([*view.box_positions[b, :2], self.h])
             if self._descents_near(i, above).size:
-                return self._wait_for_descents(i, p, above)
+                return self._wait_aside(i, p, above)
             if self._near_xy(p, above) and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_BOX
                 self.columns[i] = above[:2]
@@ -358,9 +352,9 @@ class ShortestPath:
                 # wait beside the column, not over it: an agent serving a slot under this one descends
                 # there, and the avoidance layer (on jittering estimates, or a higher agent's way down
                 # through this one's altitude) would hold it up for ever
-                return self._cruise(i, p, self._beside(above))
+                return self._wait_aside(i, p, above)
             if self._descents_near(i, above).size:
-                return self._wait_for_descents(i, p, above)
+                return self._wait_aside(i, p, above)
             if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_SLOT
                 self.columns[i] = above[:2]
