@@ -23,18 +23,37 @@ Extensions of the thesis's baseline (chapter 3.5: "directs the agents to move in
 from the boxes to their desired location, until all boxes have been placed correctly"), each a
 switch of ``ShortestPathParams``, on by default, off under ``preset: thesis``:
 
-==================  =======  ======  ===========================================================
-switch              default  thesis  what it does
-==================  =======  ======  ===========================================================
-``altitude_step``   0.2 m    0       agent i cruises ``i * altitude_step`` above the search height,
-                                     so that loaded airframes do not meet at one cruise altitude
-``retry_slots``     true     false   a slot whose box came to rest off it is served again (with
-                                     the box lying in it first, if there is one)
-``wait_beside``     true     false   an agent whose slot is not open yet waits beside its column,
-                                     not over it, while an agent cruising higher still has to come
-                                     down to a slot near that column (with an avoidance layer the
-                                     waiting agent would block that descent for ever)
-==================  =======  ======  ===========================================================
+===========================  =======  ======  ==================================================
+switch                       default  thesis  what it does
+===========================  =======  ======  ==================================================
+``altitude_step``            0.2 m    0       agent i cruises ``i * altitude_step`` above the
+                                              search height, so that loaded airframes do not
+                                              meet at one cruise altitude
+``retry_slots``              true     false   a slot whose box came to rest off it is served
+                                              again (with the box lying in it first, if any)
+``wait_beside``              true     false   an agent whose slot is not open yet waits aside
+                                              from its column (``_wait_aside``), not over it,
+                                              while an agent cruising higher still has to come
+                                              down to a slot near that column (with an avoidance
+                                              layer the waiting agent would block that descent
+                                              for ever)
+``spaced_descents``          true     false   an agent starts its descent to a box or slot only
+                                              when no other agent is on a vertical leg
+                                              (descending, placing, lifting or climbing back)
+                                              within an airframe's width and
+                                              ``DESCENT_SPACING_MARGIN`` of its column (per
+                                              axis); it waits beside the column at its cruise
+                                              altitude (boxes side by side: airframes over
+                                              neighbouring slots 10 cm apart were stacked by the
+                                              avoidance layer, none placing, or one came down on
+                                              another; waiting over a tower's column, an agent's
+                                              wake held one climbing from it down)
+``release_over_neighbours``  true     false   a box for a slot with others beside it on its
+                                              level is let go above their tops where the task's
+                                              guide takes it (``planning/placing.py``): lowered
+                                              into a gap of its own width it catches on their
+                                              edges and tips its carrier over
+===========================  =======  ======  ==================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
 chapter 3.5 is all the preset follows. The climb to the cruise altitude before flying, the
@@ -53,6 +72,7 @@ from pydantic import Field
 
 from pybullet_swarm.planning.base import Action, Command, TaskInfo, WorldView
 from pybullet_swarm.planning.params import Params, Preset
+from pybullet_swarm.planning.placing import release_clearances
 
 CLEARANCE_SIGMAS = 3.0
 """Least release clearance, in standard deviations of an agent's own position estimate."""
@@ -66,6 +86,15 @@ SERVO_LIMIT = 0.03
 
 VERTICAL_CLEARANCE = 0.03
 """m: a carried box stays this far above the finished structure and the depot's boxes."""
+ASIDE_RADII = 4.0
+"""Agent radii from a column at which agents held up by ``spaced_descents`` wait."""
+ASIDE_SPREAD_DEG = 150.0
+"""deg: the waiting points of several agents are spread over this arc facing the arena's centre."""
+GOLDEN_FRACTION = 0.6180339887498949
+"""Agent i waits at the fraction (i x this mod 1) of the arc: neighbouring indices far apart on it."""
+DESCENT_SPACING_MARGIN = 0.02
+"""m: ``spaced_descents`` keeps two vertical legs an airframe's width and this far apart (per horizontal axis;
+the airframe a square in the agent's enclosing circle: 17 cm for ``quad150``, so a 20 cm pitch is not held up)."""
 
 
 def cruise_base(info: TaskInfo) -> float:
@@ -117,8 +146,26 @@ class ShortestPathParams(Params):
         "has yet to come down near that column [false]",
     )
 
+    spaced_descents: bool = Field(
+        True,
+        description="start a descent only when no other agent is on a vertical leg within an airframe's "
+        "width (and 2 cm) of the column [false]",
+    )
+
+    release_over_neighbours: bool = Field(
+        True,
+        description="let a box for a slot with boxes beside it go above their tops, where the task's guide "
+        "takes it [false]",
+    )
+
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
-        Preset.THESIS: {"altitude_step": 0.0, "retry_slots": False, "wait_beside": False}
+        Preset.THESIS: {
+            "altitude_step": 0.0,
+            "retry_slots": False,
+            "wait_beside": False,
+            "spaced_descents": False,
+            "release_over_neighbours": False,
+        }
     }
 
 
@@ -158,9 +205,12 @@ class ShortestPath:
         sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agents' own estimates
         self.estimated = sigma > 0.0
         self.clearance = max(self.release_clearance, CLEARANCE_SIGMAS * sigma)  # m
+        # (S,) m, release height of each slot's box (over its neighbours' tops with ``release_over_neighbours``)
+        self.clearances = release_clearances(info, self.clearance, over_neighbours=self.params.release_over_neighbours)
         self.correction = np.zeros((n, 3))  # m, servo correction of each carrier's target
         self.within_since = np.full(n, np.nan)  # s, since when each held box is within release_tol
         self.last_box = np.full((n, 3), np.nan)  # m, held box position at the previous tick
+        self.columns = np.zeros((n, 2))  # m, where each agent's current vertical leg is
 
     def _assign(self, i: int, view: WorldView) -> None:
         taken_boxes = set(self.box[self.box >= 0].tolist())
@@ -213,12 +263,34 @@ class ShortestPath:
         d = np.linalg.norm(self.info.slots[self.slot[others], :2] - self.info.slots[s, :2], axis=1)
         return bool(np.any(d < 2.0 * self.info.agent_radius))
 
-    def _beside(self, above: np.ndarray) -> np.ndarray:
-        """A waiting point (3,) m three agent radii from ``above`` (3,) m towards the arena's centre."""
+    def _descents_near(self, i: int, xy: np.ndarray) -> np.ndarray:
+        """Agents (indices) other than ``i`` on a vertical leg (down to a box or slot, or back up) whose
+        column lies within an airframe's width and ``DESCENT_SPACING_MARGIN`` (per axis) of ``xy`` (2,) m,
+        where ``i`` would descend (``spaced_descents``; none without it)."""
+        if not self.params.spaced_descents:
+            return np.zeros(0, dtype=np.int64)
+        vertical = np.isin(self.phase, (Phase.DESCEND_BOX, Phase.LIFT, Phase.DESCEND_SLOT, Phase.CLIMB))
+        vertical[i] = False
+        others = np.flatnonzero(vertical)
+        if others.size == 0:
+            return others
+        width = np.sqrt(2.0) * self.info.agent_radius  # m, a square airframe in the enclosing circle
+        d = np.max(np.abs(self.columns[others] - xy[:2]), axis=1)
+        return others[d < width + DESCENT_SPACING_MARGIN]
+
+    def _wait_aside(self, i: int, p: np.ndarray, above: np.ndarray) -> Command:
+        """Wait at the cruise altitude aside from the column ``above`` (3,) m (``wait_beside``, ``spaced_descents``:
+        over it, the waiting agent would block a descent, its wake would push a climbing agent down, or one
+        climbing to a higher cruise altitude would pass through it). Agents waiting for one column wait at points
+        ``ASIDE_RADII`` agent radii from it, spread by their index over an arc facing the arena's centre (at
+        one point, one over another, the upper one's wake pushed the lower one down)."""
         away = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
-        norm = float(np.linalg.norm(away))
-        step = away / norm if norm > 1e-9 else np.array([1.0, 0.0])
-        return np.array([*(above[:2] + 3.0 * self.info.agent_radius * step), above[2]])
+        base = float(np.arctan2(away[1], away[0])) if np.linalg.norm(away) > 1e-9 else 0.0
+        turn = ((i * GOLDEN_FRACTION) % 1.0 - 0.5) * np.radians(ASIDE_SPREAD_DEG)
+        r = self.info.agent_radius
+        xy = above[:2] + ASIDE_RADII * r * np.array([np.cos(base + turn), np.sin(base + turn)])
+        xy = np.clip(xy, r, np.asarray(self.info.arena_size, dtype=float)[:2] - r)
+        return self._cruise(i, p, np.array([xy[0], xy[1], above[2]]))
 
     def _near_xy(self, p: np.ndarray, q: np.ndarray) -> bool:
         return bool(np.linalg.norm(p[:2] - q[:2]) <= self.arrive_tol)
@@ -246,8 +318,11 @@ class ShortestPath:
                 self.box[i] = -1
                 return Command.goto([p[0], p[1], self.h])
             above = np.array([*view.box_positions[b, :2], self.h])
+            if self._descents_near(i, above).size:
+                return self._wait_aside(i, p, above)
             if self._near_xy(p, above) and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_BOX
+                self.columns[i] = above[:2]
             return self._cruise(i, p, above)
         if ph == Phase.DESCEND_BOX:
             grasp = view.box_positions[b] + [0.0, 0.0, self.gh]
@@ -269,7 +344,7 @@ class ShortestPath:
                 self.offset[i] = view.box_positions[b] - p
             return Command.goto([p[0], p[1], self.h])
         # where the agent must be for the box it holds (at its actual offset) to hang just above the slot
-        drop = self.info.slots[s] + [0.0, 0.0, self.clearance]
+        drop = self.info.slots[s] + [0.0, 0.0, self.clearances[s]]
         slot_top = drop - self.offset[i]
         if ph == Phase.TO_SLOT:
             above = np.array([slot_top[0], slot_top[1], self.h])
@@ -277,9 +352,12 @@ class ShortestPath:
                 # wait beside the column, not over it: an agent serving a slot under this one descends
                 # there, and the avoidance layer (on jittering estimates, or a higher agent's way down
                 # through this one's altitude) would hold it up for ever
-                return self._cruise(i, p, self._beside(above))
+                return self._wait_aside(i, p, above)
+            if self._descents_near(i, above).size:
+                return self._wait_aside(i, p, above)
             if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
                 self.phase[i] = Phase.DESCEND_SLOT
+                self.columns[i] = above[:2]
                 self.correction[i] = 0.0
                 self.within_since[i] = np.nan
                 self.last_box[i] = np.nan

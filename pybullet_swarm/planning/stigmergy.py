@@ -59,6 +59,15 @@ extension with its own switch (bold; the table below).
   in it. **retake**: a box that did not come to rest in its slot is still a free box: the agent that
   let it go watches it for ``SETTLE_S``, takes it again and serves the slot once more.
   **descent_timeout_s**: a descent that does not end in a release by then is broken off.
+* **release_over_neighbours**: a box for a slot with others beside it on its level (boxes side by
+  side) is let go ``OVER_NEIGHBOURS_CLEARANCE`` above their tops, where the task's guide still takes
+  it (``pybullet_swarm/planning/placing.py``); lowered into a gap of its own width it would catch on
+  their edges and tip its carrier over.
+* **clear_spent_goals**: an agent with a box that reaches its search point and sees no open slot
+  there clears the goal marks (-1) over the columns whose every slot it sees from there: they mark
+  slots filled since, and in a large structure the strongest-pheromone search would otherwise draw
+  among every column ever built on, the last open slot's as likely as any (a column whose upper
+  slot opens later gets a fresh mark from the placement that opens it, next to it).
 * **claims**: an agent leaves a box or slot to a neighbour already working over it (lower, or at
   the same height and nearer), so two agents never descend onto one object.
 * **wide_view**: an agent notices every object the task shows it (grasp point within the task's
@@ -94,6 +103,8 @@ switch                        default     thesis      source of the thesis's val
 ``loose_box_check``           true        false       not in the thesis
 ``retake``                    true        false       appendix A: a box let go counts as placed
 ``descent_timeout_s``         20 s        null        not in the thesis
+``release_over_neighbours``   true        false       not in the thesis (its boxes passed through each other)
+``clear_spent_goals``         true        false       appendix A: goal marks never change (fatigue 0)
 ``lookahead``                 0.2 m       0.1 m       appendix B: the cells next to the agent's own
 ``footprint``                 true        false       appendix B: the agent marks its own cell only
 ``ahead_cone``                true        false       chapter 6.0.4: "any area they move into"
@@ -148,6 +159,7 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import Action, Command, CommandKind, Observation, TaskInfo, view_distance
 from pybullet_swarm.planning.params import Params, PlanContext, Preset, check_memory
 from pybullet_swarm.planning.pheromone_grid import DepositRule, LayerSpec, PheromoneGrid
+from pybullet_swarm.planning.placing import release_clearances
 
 
 class Layer(str, enum.Enum):
@@ -390,6 +402,16 @@ class StigmergyParams(Params):
         le=1e4,
         description="s, break off a descent with a box that has not ended in a release by then [null: never]",
     )
+    release_over_neighbours: bool = Field(
+        True,
+        description="let a box for a slot with boxes beside it go above their tops, where the task's guide "
+        "takes it [false]",
+    )
+    clear_spent_goals: bool = Field(
+        True,
+        description="at a search point with no open slot in view, clear the goal marks over the columns "
+        "whose every slot is in view [false]",
+    )
 
     #: pheromone layers of the grid (sizes its memory)
     LAYERS: ClassVar[int] = 1
@@ -413,6 +435,8 @@ class StigmergyParams(Params):
             "loose_box_check": False,
             "retake": False,
             "descent_timeout_s": None,
+            "release_over_neighbours": False,
+            "clear_spent_goals": False,
         }
     }
 
@@ -592,6 +616,8 @@ class FlightGeometry:
             does not touch it.
         hidden: (h, 2) m, centres of the columns with a slot an agent beside the structure does not see
             (searched for from above them).
+        sight: m, the farthest horizontal (per-axis) distance from a search point beside the structure at
+            which a column's slots count as in view (the view range less ``arrive_tol``; 0: not checked).
     """
 
     floor_altitude: float
@@ -604,6 +630,7 @@ class FlightGeometry:
     columns: NDArray[np.float64]
     clearance: float
     hidden: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 2)))
+    sight: float = 0.0
 
     @property
     def look_altitude(self) -> float:
@@ -666,6 +693,7 @@ class FlightGeometry:
             standoff=max(0.03, p.structure_margin),
             columns=cols,
             clearance=0.5 * bs + r,
+            sight=view - p.arrive_tol,
         )
         if not seeing:
             return geo
@@ -723,12 +751,14 @@ class FlightGeometry:
     ) -> NDArray[np.float64]:
         """The point (2,) m itself when it lies outside the keep-out zone, else the point just outside
         it (``standoff`` beyond an edge, within the arena) on the shortest way from ``start`` (2,) m
-        via the edge to ``xy``; with ``keep_hidden``, a point whose nearest column is ``hidden`` is moved
-        over that column instead (its slots are seen from above)."""
+        via the edge to ``xy``; with ``keep_hidden`` (a search for slots), a point whose nearest column
+        is ``hidden`` is moved over that column instead (its slots are seen from above), and otherwise
+        to an edge from which that column is in view (``sight``; the far side of a structure several
+        columns deep, for a column there)."""
         if not self.inside(xy):
             return xy
+        c = self.columns[int(np.argmin(np.max(np.abs(self.columns - xy), axis=1)))] if len(self.columns) else xy
         if keep_hidden and len(self.hidden):
-            c = self.columns[int(np.argmin(np.max(np.abs(self.columns - xy), axis=1)))]
             if np.any(np.all(np.isclose(self.hidden, c, atol=1e-9), axis=1)):
                 return c.copy()
         k = self.structure
@@ -739,6 +769,9 @@ class FlightGeometry:
         if not ok.any():  # the zone fills the arena across: nowhere to look from but above it
             return xy
         pts = pts[ok]
+        if keep_hidden and self.sight > 0.0:
+            seen = np.max(np.abs(pts - c), axis=1) <= self.sight
+            pts = pts[seen] if seen.any() else pts
         cost = np.linalg.norm(pts - xy, axis=1) + np.linalg.norm(pts - start, axis=1)
         return pts[int(np.argmin(cost))]
 
@@ -898,6 +931,8 @@ class Stigmergy:
         self.attach = float(info.extra.get("attach_threshold", 0.02))
         sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agent's own position estimate
         self.clearance = max(self.params.release_clearance, CLEARANCE_SIGMAS * sigma)  # m
+        # (S,) m, release height of each slot's box (over its neighbours' tops with ``release_over_neighbours``)
+        self.clearances = release_clearances(info, self.clearance, over_neighbours=self.params.release_over_neighbours)
         dwell = self.params.release_dwell_s
         self.dwell = (0.5 if sigma > 0.0 else 0.0) if dwell is None else float(dwell)  # s
         self.phase = Phase.CHOOSE_BOX
@@ -1078,9 +1113,39 @@ class Stigmergy:
             self.phase = Phase.TO_SLOT
             return None
         if self._arrived(p, self.target):
+            self._clear_spent_goals(obs, medium)
             self.phase = Phase.CHOOSE_GOAL
             return None
         return self._travel(p, self.target)
+
+    def _clear_spent_goals(self, obs: Observation, medium: PheromoneGrid | None) -> None:
+        """``clear_spent_goals``: with no open slot in view (claimed ones included), clear the goal marks
+        over the columns whose every slot the agent sees from here (a mark over no slot: when its cell's
+        centre is in view horizontally)."""
+        if medium is None or not self.params.clear_spent_goals or len(obs.slot_ids):
+            return
+        layer = Layer.TASK.value
+        idx = np.argwhere(medium.values[layer] < 0.0)  # (k, 3) cells with a goal mark
+        if len(idx) == 0:
+            return
+        p = obs.position
+        reach = self.geo.view_range - VIEW_MARGIN
+        norm = str(self.info.extra.get("view_norm", "chebyshev"))
+        slots = self.info.slots
+        seen = view_distance(slots + [0.0, 0.0, self.info.grasp_height] - p, norm) <= reach  # (S,)
+        half = 0.5 * medium.cell + 1e-9
+        cleared = 0
+        for c in medium.centre(idx):
+            under = np.all(np.abs(slots[:, :2] - c[:2]) <= half, axis=1)  # slots in the mark's column
+            if under.any():
+                spent = bool(np.all(seen[under]))
+            else:
+                spent = bool(np.max(np.abs(c[:2] - p[:2])) <= reach)
+            if spent:
+                medium.deposit(layer, c, 0.0, rule=DepositRule.SET, source=self.id)
+                cleared += 1
+        if cleared:
+            medium.tally("goal_marks_cleared", cleared)
 
     def _ignoring_objects(self, obs: Observation) -> bool:
         """True while the agent keeps to its search point whatever it sees (none in 3-D stigmergy)."""
@@ -1226,8 +1291,10 @@ class Stigmergy:
         return False
 
     def _drop_point(self) -> NDArray[np.float64]:
-        """(3,) m, the agent's centre when the box it holds hangs ``clearance`` above its slot."""
-        return self.slot.pos + [0.0, 0.0, self.clearance] - self.offset
+        """(3,) m, the agent's centre when the box it holds hangs its slot's clearance above the slot."""
+        k = self.slot.id
+        c = self.clearances[k] if 0 <= k < len(self.clearances) else self.clearance
+        return self.slot.pos + [0.0, 0.0, c] - self.offset
 
     def _step_to_slot(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
         """TO_SLOT -> DESCEND_SLOT (over it at the flying altitude) | SEEK_GOAL (lost, or a loose box in it)."""

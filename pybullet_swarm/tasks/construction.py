@@ -92,7 +92,9 @@ class ConstructionTask(pydantic.BaseModel):
     # it to the structure) or "free" (a box drops, and rests where friction leaves it: the thesis)
     placement: Literal["guided", "free"] = "guided"
     guide_capture: float = Field(0.3, gt=0.0, le=0.5)  # x box_size, horizontal reach of a slot's guide
-    guide_height: float = Field(0.5, ge=0.0, le=5.0)  # x box_size, height above its slot a box is captured from
+    # x box_size, height above its slot a box is captured from: above the tops of the boxes beside it (a box
+    # set down between placed boxes of its own width is otherwise held against them before the guide takes it)
+    guide_height: float = Field(1.2, ge=0.0, le=5.0)
     guide_force: float = Field(0.5, gt=0.0, le=1000.0)  # N, the guide's pull on a captured box
     bond_force: float = Field(50.0, gt=0.0, le=1e5)  # N, the interlock's hold on a placed box
 
@@ -234,6 +236,8 @@ def layout_info(spec: ConstructionTask, *, agent_half_height: float, agent_radiu
         "attach_threshold": spec.attach_threshold,
         "view_radius": spec.view_radius if spec.view_radius is not None else 2.0 * agent_radius,
         "view_norm": spec.view_norm,
+        # m, how far above its slot a released box is still captured by the guide (0: free placement)
+        "guide_height": spec.guide_height * spec.box_size if spec.placement == "guided" else 0.0,
     }
     return {
         "depot": np.asarray(spec.boxes, dtype=float).reshape(-1, 3),

@@ -688,6 +688,8 @@ def test_check_prints_every_parameter_resolved(capsys: pytest.CaptureFixture[str
             "release_tol": 0.005,
             "retry_slots": True,
             "wait_beside": True,
+            "spaced_descents": True,
+            "release_over_neighbours": True,
         },
     }
 

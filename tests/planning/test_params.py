@@ -38,6 +38,8 @@ THESIS_STIGMERGY = {
     "loose_box_check": False,
     "retake": False,
     "descent_timeout_s": None,
+    "release_over_neighbours": False,
+    "clear_spent_goals": False,
 }
 THESIS_LAYERED = {
     **THESIS_STIGMERGY,
@@ -48,7 +50,13 @@ THESIS_LAYERED = {
     "ahead_cone": False,
     "detour": False,
 }
-THESIS_SHORTEST_PATH = {"altitude_step": 0.0, "retry_slots": False, "wait_beside": False}
+THESIS_SHORTEST_PATH = {
+    "altitude_step": 0.0,
+    "retry_slots": False,
+    "wait_beside": False,
+    "spaced_descents": False,
+    "release_over_neighbours": False,
+}
 
 
 @pytest.mark.parametrize(
@@ -70,7 +78,13 @@ def test_the_thesis_preset_resolves_to_the_documented_values(model, documented):
 
 
 def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
-    assert list(extensions(ShortestPathParams)) == ["altitude_step", "retry_slots", "wait_beside"]
+    assert list(extensions(ShortestPathParams)) == [
+        "altitude_step",
+        "retry_slots",
+        "wait_beside",
+        "spaced_descents",
+        "release_over_neighbours",
+    ]
     assert list(extensions(StigmergyParams)) == [
         "ties",
         "claims",
@@ -81,6 +95,8 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "loose_box_check",
         "retake",
         "descent_timeout_s",
+        "release_over_neighbours",
+        "clear_spent_goals",
     ]
     assert list(extensions(LayeredStigmergyParams)) == [
         *extensions(StigmergyParams),

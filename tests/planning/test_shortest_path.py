@@ -1,5 +1,5 @@
-"""The shortest-path baseline's extension switches, on scripted world views: altitude staggering and
-serving again a slot whose box came to rest off it."""
+"""The shortest-path baseline's extension switches, on scripted world views: altitude staggering,
+serving again a slot whose box came to rest off it, and descents kept apart."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ DEPOT = np.array([[x, y, 0.05] for x in (0.4, 0.6) for y in (0.3, 0.5, 0.7)])
 SLOTS = np.array([[2.7, 0.2, 0.05], [2.7, 0.4, 0.05], [2.7, 0.6, 0.05]])
 
 
-def _planner(n: int, **params) -> ShortestPath:
+def _planner(n: int, slots: np.ndarray = SLOTS, **params) -> ShortestPath:
     sp = ShortestPath(ShortestPathParams(**params))
     info = TaskInfo(
         arena_size=np.array([3.0, 1.0]),
@@ -22,7 +22,7 @@ def _planner(n: int, **params) -> ShortestPath:
         agent_radius=0.106,
         v_max=np.full(3, 0.15),
         depot=DEPOT.copy(),
-        slots=SLOTS.copy(),
+        slots=np.array(slots, dtype=float),
         box_size=0.1,
         grasp_height=GH,
         extra={"search_height": 0.45, "attach_threshold": 0.02},
@@ -31,14 +31,14 @@ def _planner(n: int, **params) -> ShortestPath:
     return sp
 
 
-def _view(positions, *, slot_filled=None) -> WorldView:
+def _view(positions, *, slot_filled=None, carrying=None, n_slots: int = len(SLOTS)) -> WorldView:
     n = len(positions)
-    filled = np.full(len(SLOTS), -1) if slot_filled is None else np.asarray(slot_filled)
+    filled = np.full(n_slots, -1) if slot_filled is None else np.asarray(slot_filled)
     return WorldView(
         0.0,
         np.asarray(positions, dtype=float),
         np.zeros((n, 3)),
-        np.full(n, -1),
+        np.full(n, -1) if carrying is None else np.asarray(carrying),
         DEPOT.copy(),
         np.zeros(len(DEPOT), dtype=np.int64),
         filled,
@@ -62,3 +62,25 @@ def test_retry_slots_serves_again_a_slot_left_behind_empty():
         sp.next_slot = 1
         sp.plan_all(_view([[0.12, 0.5, 0.011]]))
         assert sp.phase[0] == Phase.TO_BOX and sp.slot[0] == sp.order[slot]
+
+
+@pytest.mark.parametrize("pitch, spaced, held", [(0.1, True, True), (0.1, False, False), (0.2, True, False)])
+def test_spaced_descents_holds_a_descent_beside_another_at_a_box_pitch_not_at_the_thesis_pitch(pitch, spaced, held):
+    """Agent 0 sets a box down on slot 0; agent 1, over the next slot at its cruise altitude with its box,
+    waits beside it while that column is within an airframe's width (slots side by side, 10 cm), and starts
+    its descent without ``spaced_descents`` or at the thesis's 20 cm pitch."""
+    slots = np.array([[2.7, 0.4, 0.05], [2.7, 0.4 + pitch, 0.05]])
+    sp = _planner(2, slots, spaced_descents=spaced)
+    sp.home = np.zeros((2, 3))
+    sp.phase[:] = [Phase.DESCEND_SLOT, Phase.TO_SLOT]
+    sp.box[:], sp.slot[:] = [0, 1], [0, 1]
+    sp.columns[0] = slots[0, :2]
+    above = [*slots[1, :2], sp.hs[1]]
+    view = _view([slots[0] + [0.0, 0.0, 0.2], above], carrying=[0, 1], n_slots=2)
+    cmds = sp.plan_all(view)
+    assert sp.phase[1] == (Phase.TO_SLOT if held else Phase.DESCEND_SLOT)
+    if held:  # waits aside from its column, at its cruise altitude
+        aside = cmds[1].vector
+        assert np.hypot(*(aside[:2] - slots[1, :2])) > 2.0 * sp.info.agent_radius and aside[2] == pytest.approx(
+            sp.hs[1]
+        )

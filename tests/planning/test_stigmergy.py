@@ -759,3 +759,35 @@ def test_zone_entry_and_contains_equal_the_slab_arithmetic_on_random_segments() 
             inside = bool(np.any(np.all((a >= zone.lo) & (a <= zone.hi), axis=1)))
             assert zone.contains(a) is inside
         assert entries > 0 or len(zone.lo) == 0
+
+
+@pytest.mark.parametrize("clear", [True, False])
+def test_clear_spent_goals_clears_the_goal_marks_over_columns_seen_whole_with_no_open_slot(clear):
+    """An agent with a box arrives beside the column of slots 0, 4 and 7 and sees no open slot there: with
+    ``clear_spent_goals`` the goal mark over that column is cleared, the one over slot 3's column (60 cm
+    away, out of view) stays; without it both stay. An open slot in view (even one left to another) clears
+    nothing."""
+    med = _medium()
+    near, far = SLOTS[0] + [0, 0, 0.004 + GH], SLOTS[3] + [0, 0, 0.004 + GH]  # where agents let go
+    for q in (near, far):
+        med.deposit(Layer.TASK.value, q, -1.0, rule=DepositRule.SET)
+    med.step(0.1)
+    a = _agent(clear_spent_goals=clear)
+    g = a.geo
+    p = np.array([g.structure.lo[:, 0].min() - g.standoff, 0.2, g.floor_altitude])
+    assert all(_visible(p, SLOTS[k]) for k in (0, 4, 7)) and not _visible(p, SLOTS[3])
+    a.carry, a.phase, a.strategy, a.target = (
+        Carry(3, np.array([0.0, 0.0, -GH])),
+        Phase.SEEK_GOAL,
+        Strategy.PHEROMONE,
+        p[:2],
+    )
+    a.plan(_obs(p, carrying=3, slots=[SLOTS[1]], slot_ids=[1], nb_ids=[1], nb_pos=[SLOTS[1] + [0, 0, 0.1]]), med)
+    med.step(0.1)
+    assert med.sample(Layer.TASK.value, near) == -1.0  # an open slot in view: nothing spent
+    a.phase, a.target = Phase.SEEK_GOAL, p[:2]
+    a.plan(_obs(p, carrying=3), med)
+    med.step(0.1)
+    assert med.sample(Layer.TASK.value, near) == (0.0 if clear else -1.0)
+    assert med.sample(Layer.TASK.value, far) == -1.0
+    assert med.tallies.get("goal_marks_cleared", 0) == (1 if clear else 0)

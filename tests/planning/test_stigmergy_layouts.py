@@ -96,6 +96,20 @@ def test_hidden_columns_are_searched_for_from_above():
     assert view_distance(rel, "chebyshev") <= geo.view_range
 
 
+def test_a_slot_search_point_over_a_deep_structure_goes_to_an_edge_where_its_column_is_in_view():
+    """Over the far column of a 3-deep slab, the edge on the agent's side is out of view of it: the search for a
+    slot goes round to an edge that sees it; a box search, and the thesis's one-deep wall, keep the near edge."""
+    geo, _ = _geometry(SLAB2)
+    far, start = np.array([2.6, 0.5]), np.array([1.0, 0.5])
+    q = geo.outside(far, start, keep_hidden=True)
+    assert not geo.inside(q) and np.max(np.abs(q - far)) <= geo.sight
+    near = geo.outside(far, start)  # boxes: the shortest way, the near edge
+    assert near[0] < 2.4 and np.max(np.abs(near - far)) > geo.sight
+    thesis, _ = _geometry({})
+    column = np.array([2.7, 0.4])
+    assert thesis.outside(column, start, keep_hidden=True) == pytest.approx(thesis.outside(column, start))
+
+
 def test_a_five_box_tower_is_built_with_stigmergy_and_orca():
     res = pybullet_swarm.run(load_scenario("construction", TOWER), planner="stigmergy", avoidance="orca", seed=0)
     m = res.metrics
