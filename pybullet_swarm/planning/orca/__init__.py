@@ -38,6 +38,9 @@ The paper's core and our extension rules are kept apart:
     one below can leave.
   - ``static_obstacles``: boxes (free and placed), the structure and the arena's walls and obstacles
     are velocity obstacles the agent avoids alone, the paper's obstacles (see below).
+  - ``wake_column``: against other agents each agent's box reaches ``wake_depth`` further down
+    (null: 0.5 m where the run models downwash, 0 without): nobody flies in another's rotor wake;
+    a pair apart vertically but for the wake is the upper agent's to resolve.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.
