@@ -25,8 +25,8 @@ class Shape(enum.Enum):
 
 
 #: m, the wake column's depth when ``wake_depth`` is null and the run models downwash. On the thesis task
-#: (stigmergy + orca, seeds 0..9) 0.3 m left contacts in 2 runs and a stall, 0.5 m, 1.0 m and 1.8 m none;
-#: deeper columns only slow the agents that must pass beside each other (README, "Downwash").
+#: (stigmergy + orca, seeds 0..9) 0.3 m left contacts in 2 runs and a stall; 0.5 m, 1.0 m and 1.8 m none, at
+#: medians within 1 s of each other (README, "Downwash"); the model's wake reaches further (1.27 m for quad150).
 DEFAULT_WAKE_DEPTH = 0.5
 
 #: m, safety margin of each shape when ``safety_margin`` is null: two airframes side by side at the
