@@ -276,7 +276,7 @@ def stalled_by(
     """SIDESTEP and MAKE_WAY: who holds up stalled agent i.
 
     Returns the nearest neighbour ahead (reachable at speed ``sp`` m/s over ``tau`` s, shapes grown
-    by ``margin2`` m, and vertically by ``wake`` m below i: ``WAKE_COLUMN``) that is in the way and does
+    by ``margin2`` m, and vertically by ``wake`` m: ``WAKE_COLUMN``) that is in the way and does
     not sit on i's goal (its wake column included), or -1; and, with ``make_way``, True instead
     when, descending straight down, i first meets a neighbour below whose shape itself sits on
     its goal: that one can only leave upwards, through i. A neighbour on the goal is otherwise
@@ -294,10 +294,7 @@ def stalled_by(
             continue
         pj = row(pos, j)
         ci, cj, hi, hj = row(centre, i), row(centre, j), row(half, i), row(half, j)
-        # only i's own wake makes a neighbour below it one in its way: above i, a neighbour kept off by
-        # its own wake is the one to give way (``wake_share``), and i sidestepping it is herded along
-        own = wake if pj[2] + cj[2] < pi[2] + ci[2] else 0.0
-        if not overlap(pi, pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2 + sp * tau, own):
+        if not overlap(pi, pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2 + sp * tau, wake):
             continue
         gi = row(goal, i)
         if has_goal and overlap(gi, pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2, wake):
