@@ -53,10 +53,9 @@ def test_a_rule_is_switched_off_by_name_in_a_scenario():
 
 
 # ----------------------------------------------------------------------------- rules in the kernel
-def _pair(params: OrcaParams, gap: float = 0.6, half: np.ndarray = HALF) -> tuple[np.ndarray, np.ndarray]:
-    """Two box agents (half extents ``half`` m) head-on along x at 1 m, ``gap`` m apart, each at 0.15 m/s."""
-    pos = np.array([[0.0, 0.0, 1.0], [gap, 0.0, 1.0]])
-    vel = np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0]])
+def _moving(params: OrcaParams, pos: np.ndarray, vel: np.ndarray, half: np.ndarray = HALF):
+    """Box agents (half extents ``half`` m) at ``pos`` flying at ``vel``, each preferring its velocity."""
+    n = len(pos)
     return orca_velocities(
         pos,
         vel,
@@ -64,10 +63,16 @@ def _pair(params: OrcaParams, gap: float = 0.6, half: np.ndarray = HALF) -> tupl
         params=params,
         sensing_radius=2.0,
         v_max=VM,
-        boxes=(np.zeros((2, 3)), np.tile(half, (2, 1))),
+        boxes=(np.zeros((n, 3)), np.tile(half, (n, 1))),
         goals=pos + 10.0 * vel,
-        has_goal=np.ones(2, dtype=bool),
+        has_goal=np.ones(n, dtype=bool),
     )
+
+
+def _pair(params: OrcaParams, gap: float = 0.6, half: np.ndarray = HALF) -> tuple[np.ndarray, np.ndarray]:
+    """Two box agents (half extents ``half`` m) head-on along x at 1 m, ``gap`` m apart, each at 0.15 m/s."""
+    pos = np.array([[0.0, 0.0, 1.0], [gap, 0.0, 1.0]])
+    return _moving(params, pos, np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0]]), half)
 
 
 def test_lag_margin_grows_the_shapes_with_the_closing_speed():
@@ -102,18 +107,7 @@ def test_climb_over_gives_the_whole_share_to_the_upper_agent():
 def _over(params: OrcaParams, dz: float, dx: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
     """Agent 0 hovers at 0.4 m; agent 1, ``dz`` m higher and ``dx`` m away along x, flies over it at 0.15 m/s."""
     pos = np.array([[0.0, 0.0, 0.4], [dx, 0.0, 0.4 + dz]])
-    vel = np.array([[0.0, 0.0, 0.0], [-0.15, 0.0, 0.0]])
-    return orca_velocities(
-        pos,
-        vel,
-        vel,
-        params=params,
-        sensing_radius=2.0,
-        v_max=VM,
-        boxes=(np.zeros((2, 3)), np.tile(HALF, (2, 1))),
-        goals=pos + 10.0 * vel,
-        has_goal=np.ones(2, dtype=bool),
-    )
+    return _moving(params, pos, np.array([[0.0, 0.0, 0.0], [-0.15, 0.0, 0.0]]))
 
 
 @pytest.mark.parametrize("downwash", [True, False])
