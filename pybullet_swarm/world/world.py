@@ -334,20 +334,6 @@ class World:
         one value are still the states while it holds it."""
         return self._version
 
-    def read_body_states(self, bodies: Sequence[int], out: NDArray[np.float64]) -> None:
-        """Read the states of ``bodies`` into ``out`` (k, 13), as ``read_agent_states`` does for the agents."""
-        cid = self._cid
-        gp, gv = self._get_pose, self._get_vel
-        flat: list[float] = []
-        for b in bodies:
-            pos, orn = gp(b, cid)
-            vel, ang = gv(b, cid)
-            flat += pos
-            flat += orn
-            flat += vel
-            flat += ang
-        out.reshape(-1)[:] = flat
-
     def read_body_poses(self, bodies: Sequence[int], out: NDArray[np.float64]) -> None:
         """Read the poses of ``bodies`` into ``out`` (k, 7): position m and quaternion (x, y, z, w)."""
         cid, gp = self._cid, self._get_pose
