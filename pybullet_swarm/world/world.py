@@ -13,7 +13,7 @@ import itertools
 import os
 import sys
 from pathlib import Path
-from typing import Any, Iterator, Sequence
+from typing import Any, Iterable, Iterator, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -386,9 +386,12 @@ class World:
                 plan = self._plan_ghosts(g)
             if plan is not None:
                 return self._overlapping(plan)
-        near = g.near_pairs(self._ghost_centres(g))
+        return self._touching(g.near_pairs(self._ghost_centres(g)))
+
+    def _touching(self, pairs: Iterable[tuple[int, int]]) -> list[tuple[int, int]]:
+        """The pairs of ``pairs`` that Bullet's exact closest-points query finds touching or overlapping now."""
         cid, closest = self._cid, self._closest
-        return [(a, b) for a, b in near if closest(a, b, 0.0, physicsClientId=cid)]
+        return [(a, b) for a, b in pairs if closest(a, b, 0.0, physicsClientId=cid)]
 
     def _ghost_centres(self, g: _GhostIndex) -> NDArray[np.float64]:
         """(k, 3) m, base positions of the ghost bodies now, agents first (``g.centres``, filled)."""
@@ -457,14 +460,13 @@ class World:
         """The candidate pairs of a broad phase over a horizon that overlap now (Bullet's exact query; the pairs
         of two agents first tested with their bounding spheres about the agents' positions now, when many)."""
         pairs, test = plan[1], plan[4]
-        cid, closest = self._cid, self._closest
         if test is None or self._states is None:
-            return [(a, b) for a, b in pairs if closest(a, b, 0.0, physicsClientId=cid)]
+            return self._touching(pairs)
         s = self._states
         d = s[test.rows_a, :3] - s[test.rows_b, :3]
         keep = np.ones(test.n_pairs, dtype=bool)
         keep[test.which] = np.einsum("ij,ij->i", d, d) <= test.limit2
-        return [(a, b) for (a, b), k in zip(pairs, keep.tolist()) if k and closest(a, b, 0.0, physicsClientId=cid)]
+        return self._touching(p for p, k in zip(pairs, keep.tolist()) if k)
 
     def set_ghost_pair(self, a: int, b: int, ghost: bool) -> None:
         """Make two bodies ghosts of each other (``ghost``): no contact response between them, but their
