@@ -606,6 +606,7 @@ class Simulation:
                     lv.slots,
                     lv.slot_ids,
                     ranges=pc.ranges[i],
+                    neighbour_carrying=pc.carrying[pc.nb_ids[nb]] >= 0,
                 )
             )
         return out

@@ -122,6 +122,8 @@ class Observation:
         neighbour_ids: (k,) ids of agents within the sensing radius.
         neighbour_positions: (k, 3) m.
         neighbour_velocities: (k, 3) m/s.
+        neighbour_carrying: (k,) True where the neighbour carries a box (a box hanging under a
+            vehicle is seen with it); empty when the perception does not say.
         boxes: (b, 3) m, free boxes within the view radius (not carried, not placed).
         box_ids: (b,) ids of those boxes.
         slots: (s, 3) m, open slots within the view radius (empty and supported).
@@ -143,6 +145,7 @@ class Observation:
     slots: NDArray[np.float64]
     slot_ids: NDArray[np.int64]
     ranges: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(0))
+    neighbour_carrying: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
 
 
 def _empty3() -> NDArray[np.float64]:

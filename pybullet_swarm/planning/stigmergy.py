@@ -50,7 +50,9 @@ extension with its own switch (bold; the table below).
   above, are refused when the scenario is loaded (``StigmergyParams.check_layout``), never mid-run.
 * Grasping and placing (needs). An agent goes above the object, descends straight down, grasps
   within 60 % of the attach threshold, and places its box from ``release_clearance`` above the
-  slot, where the box hangs at the offset it had when grasped (measured from the box it saw then).
+  slot at the lowest (its drop point is ``release_tol`` higher still: the settle test lets it go
+  anywhere within ``release_tol`` of that point; at ``release_clearance`` over the slot exactly,
+  a settled agent could press its box onto the one below), where the box hangs at the offset it had when grasped (measured from the box it saw then).
   **drift_breakoff**: a descent pushed more than ``DRIFT_TOL`` off its column (by a neighbour's
   avoidance, say) is broken off; the agent climbs straight back and comes over the object again,
   rather than sweeping what hangs under it diagonally through a neighbouring stack.
@@ -70,6 +72,8 @@ extension with its own switch (bold; the table below).
   slot opens later gets a fresh mark from the placement that opens it, next to it).
 * **claims**: an agent leaves a box or slot to a neighbour already working over it (lower, or at
   the same height and nearer), so two agents never descend onto one object.
+  **claims_by_load**: only a neighbour that can serve the object claims it (one carrying a box a
+  slot, an empty one a box): an empty agent searching over a slot kept every carrier off it.
 * **wide_view**: an agent notices every object the task shows it (grasp point within the task's
   ``view_radius`` plus the grasp height, max-norm: 27.7 cm per axis for ``quad150``) instead of the
   thesis's window of two agent radii (15 cm: its 15 cm airframe) from its centre to the object's.
@@ -95,6 +99,7 @@ switch                        default     thesis      source of the thesis's val
 ============================  ==========  ==========  =================================================
 ``ties``                      random      first       appendix A: ``[maxval, maxind] = max(pheromones(:))``
 ``claims``                    true        false       neither: a box is skipped only once carried
+``claims_by_load``            true        false       not in the thesis
 ``wide_view``                 true        false       Table 5.1 (2 x agent radius), appendix A (max-norm)
 ``view_window``               0.15 m      0.15 m      Table 3.2: 15 x 15 cm airframe, radius 7.5 cm
 ``layout_altitudes``          true        false       appendix A: one ``search_height``, points as drawn
@@ -348,7 +353,10 @@ class StigmergyParams(Params):
         0.02, ge=0.0, le=1.0, description="m, keep-out zone around the structure beyond one agent radius"
     )
     release_clearance: float = Field(
-        0.004, ge=0.0, le=0.5, description="m, height of the box above its slot when it is let go"
+        0.004,
+        ge=0.0,
+        le=0.5,
+        description="m, least height of the box above its slot when it is let go (its drop point is release_tol higher)",
     )
     release_tol: float = Field(
         0.005, gt=0.0, le=0.5, description="m, per-axis position error within which the box is let go"
@@ -364,6 +372,11 @@ class StigmergyParams(Params):
     )
     # ---- extensions of the thesis's algorithm (thesis value in brackets)
     claims: bool = Field(True, description="leave a box or slot to a neighbour already working over it [false]")
+    claims_by_load: bool = Field(
+        True,
+        description="with claims, only a neighbour that can serve the object claims it: an empty one a box, "
+        "one carrying a box a slot [false: any neighbour over it]",
+    )
     wide_view: bool = Field(
         True,
         description="notice every object the task shows (view_radius + grasp height "
@@ -427,6 +440,7 @@ class StigmergyParams(Params):
             "distance_scale": None,
             "ties": TieBreak.FIRST.value,
             "claims": False,
+            "claims_by_load": False,
             "wide_view": False,
             "view_window": THESIS_VIEW_M,
             "layout_altitudes": False,
@@ -930,7 +944,9 @@ class Stigmergy:
         self.geo = FlightGeometry.from_task(info, self.params)
         self.attach = float(info.extra.get("attach_threshold", 0.02))
         sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agent's own position estimate
-        self.clearance = max(self.params.release_clearance, CLEARANCE_SIGMAS * sigma)  # m
+        # m, height of the drop point's box over its slot: the settle test lets the agent go anywhere
+        # within release_tol of it, so the box's bottom clears the slot by release_clearance at the lowest
+        self.clearance = max(self.params.release_clearance, CLEARANCE_SIGMAS * sigma) + self.params.release_tol
         # (S,) m, release height of each slot's box (over its neighbours' tops with ``release_over_neighbours``)
         self.clearances = release_clearances(info, self.clearance, over_neighbours=self.params.release_over_neighbours)
         dwell = self.params.release_dwell_s
@@ -1169,7 +1185,7 @@ class Stigmergy:
             return -1
         par = self.params
         cols = where[:, :2] - shift[:2]
-        free = np.array([not (par.claims and self._claimed(obs, c)) for c in cols])
+        free = np.array([not (par.claims and self._claimed(obs, c, by_carrier=not boxes)) for c in cols])
         if not par.wide_view:  # the thesis's window: object centre to agent centre, largest horizontal difference
             free &= np.max(np.abs(where[:, :2] - obs.position[:2]), axis=1) <= par.view_window
         if skip is not None:
@@ -1182,9 +1198,12 @@ class Stigmergy:
         d[~free] = np.inf
         return int(np.argmin(d))
 
-    def _claimed(self, obs: Observation, xy: NDArray[np.float64]) -> bool:
+    def _claimed(self, obs: Observation, xy: NDArray[np.float64], *, by_carrier: bool) -> bool:
         """True when a neighbour works over the column at ``xy`` (2,) m: within one agent radius of
-        it and lower than this agent, or level with it and nearer (a tie goes to the lower id)."""
+        it and lower than this agent, or level with it and nearer (a tie goes to the lower id). With
+        ``claims_by_load``, only a neighbour that can serve the object counts: one carrying a box
+        (``by_carrier``: a slot) or an empty one (a box); an empty neighbour hovering over a slot
+        would otherwise keep every carrier off it, and itself be kept off its search point by them."""
         if len(obs.neighbour_ids) == 0:
             return False
         q = obs.neighbour_positions
@@ -1194,7 +1213,10 @@ class Stigmergy:
         lower = q[:, 2] < p[2] - 0.05
         level = np.abs(q[:, 2] - p[2]) <= 0.05
         nearer = (dn < dm - 1e-3) | ((np.abs(dn - dm) <= 1e-3) & (obs.neighbour_ids < self.id))
-        return bool(np.any((dn < self.info.agent_radius) & (lower | (level & nearer))))
+        claim = (dn < self.info.agent_radius) & (lower | (level & nearer))
+        if self.params.claims_by_load and len(obs.neighbour_carrying) == len(obs.neighbour_ids):
+            claim &= obs.neighbour_carrying == by_carrier
+        return bool(np.any(claim))
 
     def _gone(self, p: NDArray[np.float64], obj: NDArray[np.float64]) -> bool:
         """True when an object the agent should see from here (well inside its view range) is not there."""
@@ -1211,7 +1233,7 @@ class Stigmergy:
         if seen.size:
             self.box.pos = obs.boxes[seen[0]].copy()
         if (not seen.size and self._gone(obs.position, self.box.pos)) or (
-            claims and self.params.claims and self._claimed(obs, self.box.pos[:2])
+            claims and self.params.claims and self._claimed(obs, self.box.pos[:2], by_carrier=False)
         ):
             self.phase = Phase.SEEK_BOX  # taken or claimed by another agent: keep looking
             self.box = Sighting(-1, self.box.pos)
@@ -1270,7 +1292,7 @@ class Stigmergy:
         a neighbour works over it."""
         seen = bool(np.any(obs.slot_ids == self.slot.id))
         if (not seen and self._gone(obs.position, self.slot.pos)) or (
-            claims and self.params.claims and self._claimed(obs, self.slot.pos[:2] - self.offset[:2])
+            claims and self.params.claims and self._claimed(obs, self.slot.pos[:2] - self.offset[:2], by_carrier=True)
         ):
             self.phase = Phase.SEEK_GOAL  # filled or claimed by another agent: keep looking
             self.slot = Sighting(-1, self.slot.pos)

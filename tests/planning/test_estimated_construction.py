@@ -78,10 +78,11 @@ def _delivering(sigma: float | None = SIGMA) -> tuple[Stigmergy, np.ndarray]:
 
 def test_clearance_covers_three_standard_deviations_of_the_estimate_and_not_more_on_true_state():
     a, drop = _delivering()
-    assert a.clearance == pytest.approx(CLEARANCE_SIGMAS * SIGMA)
-    assert drop[2] - GH - SLOTS[1][2] >= 3 * SIGMA - 1e-12  # the box hangs clear of the ground
+    tol = a.params.release_tol  # the settle test lets go anywhere within it of the drop point
+    assert a.clearance == pytest.approx(CLEARANCE_SIGMAS * SIGMA + tol)
+    assert drop[2] - tol - GH - SLOTS[1][2] >= 3 * SIGMA - 1e-12  # the box hangs clear of the ground at the lowest
     b, _ = _delivering(None)
-    assert b.clearance == pytest.approx(b.params.release_clearance) and b.dwell == 0.0
+    assert b.clearance == pytest.approx(b.params.release_clearance + tol) and b.dwell == 0.0
 
 
 def test_a_single_lucky_estimate_does_not_release_a_box_on_estimated_state():
@@ -200,3 +201,14 @@ def test_on_estimated_state_boxes_are_seen_relative_to_the_airframe_and_agents_k
         assert np.allclose(obs.slots, c.slots[obs.slot_ids])  # slots: planned coordinates
     with ps.Simulation(ps.load_scenario("construction"), seed=2, planner="stigmergy") as sim:
         assert "position_std" not in sim.info.extra
+
+
+def test_agents_see_which_neighbours_carry_a_box():
+    import pybullet_swarm as ps
+
+    with ps.Simulation(ps.load_scenario("construction"), seed=0, planner="stigmergy") as sim:
+        sim.task_view.carrying[1] = 3  # agent 1 holds box 3
+        obs = sim.observations()
+        for o in obs:
+            assert len(o.neighbour_carrying) == len(o.neighbour_ids) > 0
+            assert np.array_equal(o.neighbour_carrying, o.neighbour_ids == 1)

@@ -75,6 +75,7 @@ def _obs(
     slot_ids=NOI,
     nb_ids=NOI,
     nb_pos=NO3,
+    nb_carrying=None,
     agent=0,
     t=0.0,
 ) -> Observation:
@@ -92,6 +93,7 @@ def _obs(
         np.asarray(box_ids, dtype=np.int64),
         np.asarray(slots, dtype=float).reshape(-1, 3),
         np.asarray(slot_ids, dtype=np.int64),
+        neighbour_carrying=np.zeros(0, dtype=bool) if nb_carrying is None else np.asarray(nb_carrying, dtype=bool),
     )
 
 
@@ -315,7 +317,7 @@ def test_an_open_slot_is_served_from_above_and_marked_with_minus_one():
     assert _visible(p, slot)
     a.plan(_obs(p, carrying=3, slots=[slot], slot_ids=[1]), med)
     assert a.phase == Phase.TO_SLOT and a.slot.id == 1
-    drop = slot + [0, 0, 0.004] - a.offset
+    drop = slot + [0, 0, a.clearance] - a.offset
     above = [drop[0], drop[1], g.cruise_altitude]
     cmd = a.plan(_obs(above, carrying=3), med)  # out of view from up there: keeps it
     assert a.phase == Phase.DESCEND_SLOT and np.allclose(cmd.vector, drop) and cmd.action == Action.NONE
@@ -567,6 +569,33 @@ def test_without_claims_a_box_a_neighbour_descends_onto_is_fetched_all_the_same(
             _medium(),
         )
         assert a.phase == phase
+
+
+def test_only_a_neighbour_that_can_serve_an_object_claims_it():
+    """An empty neighbour searching over a slot leaves it to a carrier (with claims_by_load), a carrying
+    one keeps it; over a box it is the other way round. Without claims_by_load any neighbour claims."""
+    slot = SLOTS[1]
+    for by_load, carrying, claimed in (
+        (True, False, False),
+        (True, True, True),
+        (False, False, True),
+    ):
+        a = _agent(claims_by_load=by_load)
+        g = a.geo
+        a.carry, a.phase = Carry(3, np.array([0.0, 0.0, -GH])), Phase.SEEK_GOAL
+        a.target = np.array([2.6, 0.5])
+        p = np.array([g.structure.lo[:, 0].min() - g.standoff, slot[1], g.floor_altitude])
+        over = [slot[0], slot[1], p[2]]  # level with the agent, nearer to the slot
+        obs = _obs(p, carrying=3, slots=[slot], slot_ids=[1], nb_ids=[1], nb_pos=[over], nb_carrying=[carrying])
+        a.plan(obs, _medium())
+        assert (a.phase == Phase.SEEK_GOAL) == claimed, (by_load, carrying)
+    box = DEPOT[0]
+    below = [box[0] + 0.01, box[1], 0.15]
+    for carrying, phase in ((True, Phase.TO_BOX), (False, Phase.SEEK_BOX)):
+        a = _agent(agent=2)
+        p = [box[0] + 0.15, box[1], a.geo.look_altitude]
+        a.plan(_obs(p, boxes=[box], box_ids=[0], nb_ids=[1], nb_pos=[below], nb_carrying=[carrying]), _medium())
+        assert a.phase == phase, carrying
 
 
 def test_without_layout_altitudes_one_altitude_over_floor_and_depot_and_search_points_as_drawn():
