@@ -33,9 +33,7 @@ The paper's core and our extension rules are kept apart:
     unchanged when the swept box is clear (grasp and release need millimetres);
   - ``sidestep``: a stalled agent adds ``right_bias`` of its preferred speed sideways (right, or
     the side a neighbour nearly straight ahead leaves free): crowds become roundabouts;
-  - ``climb_past``: a stalled agent above the one in its way climbs past it instead (not with
-    the wake column acting: the one below stays in its wake however high it climbs, and with
-    the climb bounded by its command it stood and was herded backwards by the one below);
+  - ``climb_past``: a stalled agent above the one in its way climbs past it instead;
   - ``make_way``: an agent descending onto its goal's occupant rises straight up, the only way the
     one below can leave.
   - ``static_obstacles``: boxes (free and placed), the structure and the arena's walls and obstacles

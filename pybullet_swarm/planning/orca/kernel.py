@@ -252,7 +252,6 @@ def orca_batch(
     max_speed, right_bias, stuck = cs.max_speed, rs.right_bias, rs.stuck_fraction
     side_on = rs.sidestep and right_bias > 0.0
     stall_on = side_on or rs.make_way
-    wake = boxes and rs.wake_column and rs.wake_depth > 0.0  # a climb never leaves a wake below behind
     for i in range(n):
         n_bounds = core.bound_planes(lo, hi, i, N, P)
         n_hard = n_static = n_bounds
@@ -296,8 +295,8 @@ def orca_batch(
                 f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
             elif j >= 0 and side_on:
                 held = True
-                if rs.climb_past and pos[i, 2] > pos[j, 2] and not wake:
-                    side = (0.0, 0.0, 1.0)  # above the one in the way: over it (never over its own wake)
+                if rs.climb_past and pos[i, 2] > pos[j, 2]:
+                    side = (0.0, 0.0, 1.0)  # above the one in the way: over it
                 else:
                     side = rules.sidestep(scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0))
             elif side_on and n_static > n_bounds:

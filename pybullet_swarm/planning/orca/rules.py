@@ -71,7 +71,7 @@ RULE_DOCS: dict[Rule, str] = {
     Rule.SIDESTEP: "an agent stalled by a neighbour in its way adds right_bias of its preferred speed sideways, "
     "to the right or the side left free",
     Rule.CLIMB_PAST: "a stalled agent higher than the neighbour in its way climbs past it instead of stepping "
-    "sideways (acts with sidestep; not over a wake column)",
+    "sideways (acts with sidestep)",
     Rule.MAKE_WAY: "a stalled agent descending onto a neighbour that sits on its goal rises straight up, the only "
     "way that one can leave",
     Rule.STATIC_OBSTACLES: "boxes, structure and arena obstacles are velocity obstacles avoided alone, but those "
