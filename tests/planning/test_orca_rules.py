@@ -142,6 +142,26 @@ def test_wake_column_keeps_agents_out_of_each_others_wake():
     assert v[1, 0] - v[0, 0] > 0.05 and abs(v[1, 2] - v[0, 2]) < 1e-9
 
 
+def test_a_wake_conflict_is_resolved_by_the_agent_moving_into_it():
+    """A lower agent flies towards the column of one hovering 0.3 m above it: with wake_share_by_approach the
+    lower one, which moves into the conflict, gives way and the upper one keeps hovering; without it the upper
+    one must flee the approaching agent (which it would push ahead of it into whoever is beyond)."""
+    base = {**PAPER, "minimal_intervention": True, "safety_margin": 0.0, "wake_column": True, "wake_depth": 0.5}
+    pos = np.array([[0.0, 0.0, 0.4], [0.3, 0.0, 0.7]])
+    vel = np.array([[0.15, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    v, flags = _moving(OrcaParams.model_validate({**base, "wake_share_by_approach": True}), pos, vel)
+    assert not flags[0] & FLAG_FREE and v[0, 0] < 0.15 - 1e-3  # the lower one slows down
+    assert flags[1] & FLAG_FREE and np.array_equal(v[1], [0.0, 0.0, 0.0])  # the upper one keeps hovering
+    v, flags = _moving(OrcaParams.model_validate(base), pos, vel)
+    assert flags[0] & FLAG_FREE and np.array_equal(v[0], [0.15, 0.0, 0.0])
+    assert not flags[1] & FLAG_FREE and np.linalg.norm(v[1]) > 1e-3
+    # both closing in: the share follows their speeds, so both give way
+    v, flags = _moving(
+        OrcaParams.model_validate({**base, "wake_share_by_approach": True}), pos, np.array([[0.15, 0, 0], [-0.1, 0, 0]])
+    )
+    assert not np.any(flags & FLAG_FREE)
+
+
 def _line_of_stalled_agents(params: OrcaParams) -> tuple[np.ndarray, np.ndarray]:
     """Three agents at rest in a line, two heading one way and one the other (see test_orca)."""
     pos = np.array([[1.735, 0.401, 0.215], [1.554, 0.319, 0.215], [1.374, 0.163, 0.215]])

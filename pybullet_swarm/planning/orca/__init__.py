@@ -41,6 +41,9 @@ The paper's core and our extension rules are kept apart:
   - ``wake_column``: against other agents each agent's box reaches ``wake_depth`` further down
     (null: 0.5 m where the run models downwash, 0 without): nobody flies in another's rotor wake;
     a pair apart vertically but for the wake is the upper agent's to resolve.
+  - ``wake_share_by_approach``: such a pair's share goes to whichever agent moves into the
+    conflict, in proportion to their speeds towards each other; the upper one takes it all only
+    when neither does (the upper one fleeing a lower agent closing in was pushed into a third).
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

@@ -146,8 +146,18 @@ def agent_planes(
             u = scale(u, -1.0)
         r, up = rules.climb_share(rs.climb_over, nrm, u, vel[i, 2], vel[j, 2], cs.responsibility)
         if boxes and rs.wake_column and rs.wake_depth > 0.0:
+            d = add(row(pos, j), row(pos, i), -1.0)
+            dn = math.sqrt(dot(d, d))
+            towards = dot(vi, d) / dn if dn > 0.0 else 0.0
+            away = -dot(row(vel, j), d) / dn if dn > 0.0 else 0.0
             r = rules.wake_share(
-                r, pos[j, 2] + centre[j, 2] - pos[i, 2] - centre[i, 2], half[i, 2] + half[j, 2] + m2, cs.responsibility
+                r,
+                pos[j, 2] + centre[j, 2] - pos[i, 2] - centre[i, 2],
+                half[i, 2] + half[j, 2] + m2,
+                cs.responsibility,
+                rs.wake_share_by_approach,
+                towards,
+                away,
             )
         climbs = climbs or up
         set_row(N, k, nrm)

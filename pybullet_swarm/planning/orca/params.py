@@ -149,6 +149,8 @@ class OrcaParams(Params):
         "kept clear of others (null: 0.5 when the run models downwash, 0 without; sphere shapes: no effect)",
     )
 
+    wake_share_by_approach: bool = _switch(Rule.WAKE_SHARE_BY_APPROACH)
+
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 
     @property

@@ -42,6 +42,7 @@ class Rule(str, enum.Enum):
     MAKE_WAY = "make_way"
     STATIC_OBSTACLES = "static_obstacles"
     WAKE_COLUMN = "wake_column"
+    WAKE_SHARE_BY_APPROACH = "wake_share_by_approach"
 
     @property
     def doc(self) -> str:
@@ -78,6 +79,8 @@ RULE_DOCS: dict[Rule, str] = {
     "the agent's target touches",
     Rule.WAKE_COLUMN: "against other agents each agent's box reaches wake_depth further down: nobody flies in "
     "another's rotor wake (downwash)",
+    Rule.WAKE_SHARE_BY_APPROACH: "a wake conflict is resolved by the agent moving into it, in proportion to "
+    "the pair's approach speeds (off: the upper one)",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -97,6 +100,7 @@ RULES = np.dtype(
 )
 
 VERTICAL_COS2 = 0.5  # cos^2(45 deg): a direction (a way out, a descent) within 45 deg of vertical is vertical
+APPROACH_SPEED = 0.02  # m/s, a pair closing in slower than this is at rest (WAKE_SHARE_BY_APPROACH)
 LEVEL_SPEED = 0.02  # m/s, an agent climbing or sinking slower than this is in level flight
 AHEAD_SIN = 0.5  # sin(30 deg): a neighbour within 30 deg of the direction of travel is nearly straight ahead
 SIDE_OFFSET = 0.01  # m, a neighbour ahead further than this to one side has already chosen its side
@@ -128,18 +132,29 @@ def wake_growth(on: bool, wake_depth: float) -> float:
 
 
 @njit
-def wake_share(share: float, dz: float, reach: float, resp: float) -> float:
+def wake_share(
+    share: float, dz: float, reach: float, resp: float, by_approach: bool, towards: float, away: float
+) -> float:
     """WAKE_COLUMN: share of a pair's u this agent takes, when the other's shape is ``dz`` m above its own
     (centres) and the two touch vertically within ``reach`` m (half heights and margins, no wake).
 
-    A pair whose shapes are apart vertically is in conflict only through the upper one's wake, and
-    only the upper one can keep its wake off the other: it takes the whole share, the lower one
-    none. Shared, the lower agent would be pushed ahead of the upper one for as long as their
-    paths agree (a carrier herded back across the arena by an agent flying home above it). Both
-    agents see the same numbers, so the shares still add up.
+    A pair whose shapes are apart vertically is in conflict only through the upper one's wake. Only
+    the upper one can keep its wake off the other: it takes the whole share, the lower one none.
+    Shared, the lower agent would be pushed ahead of the upper one for as long as their paths agree
+    (a carrier herded back across the arena by an agent flying home above it). With ``by_approach``
+    (``WAKE_SHARE_BY_APPROACH``) the pair's share goes to whichever of the two moves into the
+    conflict, in proportion to their speeds towards each other (``towards``: this agent's m/s
+    towards the other, ``away``: the other's towards this one), the upper one's whole share only
+    when neither does: an agent flying into a wake yields as one flying its wake over another does
+    (upper-takes-all, a lower agent closing in pushed the upper one ahead of it, into a third).
+    Both agents see the same numbers, so the shares still add up.
     """
     if abs(dz) < reach:
         return share
+    if by_approach:
+        a, b = max(towards, 0.0), max(away, 0.0)
+        if a + b > APPROACH_SPEED:
+            return 2.0 * resp * a / (a + b)
     return 2.0 * resp if dz < 0.0 else 0.0
 
 
