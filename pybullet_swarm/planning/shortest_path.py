@@ -92,6 +92,18 @@ ASIDE_SPREAD_DEG = 150.0
 """deg: the waiting points of several agents are spread over this arc facing the arena's centre."""
 GOLDEN_FRACTION = 0.6180339887498949
 """Agent i waits at the fraction (i x this mod 1) of the arc: neighbouring indices far apart on it."""
+LANE_TOL = 0.05
+"""m: an agent farther than this from its cruise altitude is climbing or sinking to it (on a vertical leg)."""
+WAKE_CLEARANCE = 0.19
+"""m, per horizontal axis: ``wake_clear`` keeps an agent this far from the column of one below it (two half
+airframes of ``quad150`` and an avoidance layer's margins: its boxes then do not overlap horizontally, and the
+rotor wake, 5 cm wide down to 1.3 m below, pushes with less than 0.1 % of the weight)."""
+WAKE_LOOKAHEAD = 0.6
+"""m: how far ahead along its level flight ``wake_clear`` looks for columns of agents below."""
+WAIT_STEP = 0.1
+"""m: ``wake_clear`` moves a waiting point this much further out until it lies off every column."""
+WAIT_TRIES = 8
+"""How many waiting points further out ``wake_clear`` tries before it keeps the first."""
 DESCENT_SPACING_MARGIN = 0.02
 """m: ``spaced_descents`` keeps two vertical legs an airframe's width and this far apart (per horizontal axis;
 the airframe a square in the agent's enclosing circle: 17 cm for ``quad150``, so a 20 cm pitch is not held up)."""
@@ -116,6 +128,12 @@ class Phase(enum.IntEnum):
     DESCEND_SLOT = 5
     CLIMB = 6
     DONE = 7
+
+
+LOADED_PHASES = (Phase.LIFT, Phase.TO_SLOT, Phase.DESCEND_SLOT)
+"""Phases in which an agent carries (or lifts) its box: the lower lane with ``wake_lanes``."""
+VERTICAL_PHASES = (Phase.DESCEND_BOX, Phase.LIFT, Phase.DESCEND_SLOT, Phase.CLIMB)
+"""Phases of the vertical legs, down to a box or slot and back up."""
 
 
 class ShortestPathParams(Params):
@@ -158,6 +176,23 @@ class ShortestPathParams(Params):
         "takes it [false]",
     )
 
+    wake_lanes: bool = Field(
+        True,
+        description="loaded agents cruise at the cruise base, the others lane_gap higher (altitude_step unused) [false]",
+    )
+    lane_gap: float = Field(
+        0.7,
+        ge=0.0,
+        le=10.0,
+        description="m, with wake_lanes: how far the empty agents' lane lies above the loaded agents' (more than an "
+        "avoidance layer's wake column and two airframes)",
+    )
+    wake_clear: bool = Field(
+        True,
+        description="never fly over an agent on a vertical leg below, nor start a descent under another agent, and "
+        "wait off the columns of boxes, slots and agents [false]",
+    )
+
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
         Preset.THESIS: {
             "altitude_step": 0.0,
@@ -165,6 +200,8 @@ class ShortestPathParams(Params):
             "wait_beside": False,
             "spaced_descents": False,
             "release_over_neighbours": False,
+            "wake_lanes": False,
+            "wake_clear": False,
         }
     }
 
@@ -191,7 +228,9 @@ class ShortestPath:
         """Order the slots bottom layer first and clear the assignments."""
         self.info = info
         self.n = n
-        self.hs = cruise_base(info) + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
+        base = cruise_base(info)
+        self.hs = base + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
+        self.lanes = (base, base + self.params.lane_gap)  # m, the loaded and the empty agents' lane (wake_lanes)
         self.gh = info.grasp_height
         slots = info.slots
         self.order = list(np.lexsort((slots[:, 1], slots[:, 0], np.round(slots[:, 2], 6))))
@@ -257,7 +296,9 @@ class ShortestPath:
         column lies within two agent radii of slot ``s``'s (its way down passes agent ``i`` waiting over ``s``)."""
         busy = (self.phase >= Phase.TO_BOX) & (self.phase <= Phase.DESCEND_SLOT) & (self.slot >= 0)
         busy[i] = False
-        others = np.flatnonzero(busy & (self.hs > self.hs[i]))
+        # with wake_lanes every loaded agent comes down from the one lane: all of them count
+        higher = np.ones(self.n, dtype=bool) if self.params.wake_lanes else self.hs > self.hs[i]
+        others = np.flatnonzero(busy & higher)
         if others.size == 0:
             return False
         d = np.linalg.norm(self.info.slots[self.slot[others], :2] - self.info.slots[s, :2], axis=1)
@@ -278,7 +319,7 @@ class ShortestPath:
         d = np.max(np.abs(self.columns[others] - xy[:2]), axis=1)
         return others[d < width + DESCENT_SPACING_MARGIN]
 
-    def _wait_aside(self, i: int, p: np.ndarray, above: np.ndarray) -> Command:
+    def _wait_aside(self, i: int, view: WorldView, above: np.ndarray) -> Command:
         """Wait at the cruise altitude aside from the column ``above`` (3,) m (``wait_beside``, ``spaced_descents``:
         over it, the waiting agent would block a descent, its wake would push a climbing agent down, or one
         climbing to a higher cruise altitude would pass through it). Agents waiting for one column wait at points
@@ -288,47 +329,109 @@ class ShortestPath:
         base = float(np.arctan2(away[1], away[0])) if np.linalg.norm(away) > 1e-9 else 0.0
         turn = ((i * GOLDEN_FRACTION) % 1.0 - 0.5) * np.radians(ASIDE_SPREAD_DEG)
         r = self.info.agent_radius
-        xy = above[:2] + ASIDE_RADII * r * np.array([np.cos(base + turn), np.sin(base + turn)])
-        xy = np.clip(xy, r, np.asarray(self.info.arena_size, dtype=float)[:2] - r)
-        return self._cruise(i, p, np.array([xy[0], xy[1], above[2]]))
+        way = np.array([np.cos(base + turn), np.sin(base + turn)])
+        size = np.asarray(self.info.arena_size, dtype=float)[:2]  # m
+        columns = self._columns(i, view) if self.params.wake_clear else np.zeros((0, 2))
+        first = xy = np.clip(above[:2] + ASIDE_RADII * r * way, r, size - r)
+        for k in range(WAIT_TRIES if columns.size else 0):  # wake_clear: out along the way until off every column
+            xy = np.clip(above[:2] + (ASIDE_RADII * r + k * WAIT_STEP) * way, r, size - r)
+            if np.min(np.max(np.abs(columns - xy), axis=1)) >= WAKE_CLEARANCE:
+                break
+        else:
+            xy = first
+        return self._cruise(i, view, np.array([xy[0], xy[1], above[2]]))
+
+    def _alt(self, i: int) -> float:
+        """m, the cruise altitude of agent ``i`` in its present phase: ``hs[i]``, or with ``wake_lanes`` the
+        loaded agents' lane (lifting, to and down to its slot) or the empty agents' lane (the others)."""
+        if not self.params.wake_lanes:
+            return float(self.hs[i])
+        return self.lanes[0] if self.phase[i] in LOADED_PHASES else self.lanes[1]
+
+    def _in_column(self, j: int, p: np.ndarray) -> bool:
+        """True when agent ``j`` at ``p`` (3,) m is on a vertical leg: down to or up from a box or slot, or
+        climbing or sinking to its cruise altitude."""
+        return bool(self.phase[j] in VERTICAL_PHASES or abs(p[2] - self._alt(j)) > LANE_TOL)
+
+    def _wake_blocked(self, i: int, view: WorldView, target: np.ndarray) -> bool:
+        """``wake_clear``: True when agent ``i``, flying level towards ``target`` (3,) m, would within
+        ``WAKE_LOOKAHEAD`` come closer than ``WAKE_CLEARANCE`` (per axis) to the column of an agent below it on
+        a vertical leg, and nearer than it is now (its wake would push that agent down onto its box or slot)."""
+        if not self.params.wake_clear:
+            return False
+        p = view.positions[i]
+        step = target[:2] - p[:2]
+        dist = float(np.linalg.norm(step))
+        if dist < 1e-9:
+            return False
+        ahead = p[:2] + np.linspace(0.0, min(dist, WAKE_LOOKAHEAD), 11)[:, None] * (step / dist)  # (11, 2) m
+        for j in range(self.n):
+            q = view.positions[j]
+            if j == i or q[2] > p[2] - LANE_TOL or not self._in_column(j, q):
+                continue
+            now = float(np.max(np.abs(p[:2] - q[:2])))
+            near = float(np.min(np.max(np.abs(ahead - q[:2]), axis=1)))
+            if near < WAKE_CLEARANCE and near < now - 1e-3:
+                return True
+        return False
+
+    def _under_wake(self, i: int, view: WorldView, xy: np.ndarray) -> bool:
+        """``wake_clear``: True when another agent above agent ``i`` is within ``WAKE_CLEARANCE`` (per axis) of
+        the column at ``xy`` (2,) m, where ``i`` would descend (its wake would push ``i`` down)."""
+        if not self.params.wake_clear:
+            return False
+        others = np.arange(self.n) != i
+        above = view.positions[:, 2] > view.positions[i, 2] + LANE_TOL
+        near = np.max(np.abs(view.positions[:, :2] - xy[:2]), axis=1) < WAKE_CLEARANCE
+        return bool(np.any(others & above & near))
+
+    def _columns(self, i: int, view: WorldView) -> np.ndarray:
+        """(k, 2) m: the columns agent ``i`` must not wait over (``wake_clear``): the free boxes', the slots' and
+        those of the other agents below its cruise altitude."""
+        free = view.box_positions[np.asarray(view.box_state) == 0, :2]
+        low = (np.arange(self.n) != i) & (view.positions[:, 2] < self._alt(i) - LANE_TOL)
+        return np.vstack([free, self.info.slots[:, :2], view.positions[low, :2]])
 
     def _near_xy(self, p: np.ndarray, q: np.ndarray) -> bool:
         return bool(np.linalg.norm(p[:2] - q[:2]) <= self.arrive_tol)
 
-    def _cruise(self, i: int, p: np.ndarray, target: np.ndarray) -> Command:
-        """Go to ``target`` at cruise altitude: climb first, then fly straight."""
-        if not self._near_xy(p, target) and abs(p[2] - self.h) > 0.03:
-            return Command.goto([p[0], p[1], self.h])
+    def _cruise(self, i: int, view: WorldView, target: np.ndarray) -> Command:
+        """Go to ``target`` at cruise altitude: climb first, then fly straight (with ``wake_clear``, stop short
+        of the column of an agent on a vertical leg below)."""
+        p = view.positions[i]
+        if not self._near_xy(p, target) and abs(p[2] - self._alt(i)) > 0.03:
+            return Command.goto([p[0], p[1], self._alt(i)])
+        if not self._near_xy(p, target) and self._wake_blocked(i, view, target):
+            return Command.goto([p[0], p[1], self._alt(i)])
         return Command.goto(target)
 
     def _step(self, i: int, view: WorldView) -> Command:
         p = view.positions[i]
-        self.h = float(self.hs[i])
         ph = Phase(self.phase[i])
         if ph == Phase.IDLE:
             self._assign(i, view)
             ph = Phase(self.phase[i])
         if ph == Phase.DONE:  # nothing left to carry: park above the start, out of the others' way
             home = self.home if self.home is not None else view.positions
-            return self._cruise(i, p, np.array([home[i, 0], home[i, 1], self.h]))
+            return self._cruise(i, view, np.array([home[i, 0], home[i, 1], self._alt(i)]))
         b, s = self.box[i], self.slot[i]
         if ph == Phase.TO_BOX:
             if view.box_state[b] != 0:  # someone took or placed it meanwhile: choose again
                 self.phase[i] = Phase.IDLE
                 self.box[i] = -1
-                return Command.goto([p[0], p[1], self.h])
-            above = np.array([*view.box_positions[b, :2], self.h])
+                return Command.goto([p[0], p[1], self._alt(i)])
+            above = np.array([*view.box_positions[b, :2], self._alt(i)])
             if self._descents_near(i, above).size:
-                return self._wait_aside(i, p, above)
-            if self._near_xy(p, above) and abs(p[2] - self.h) < 0.05:
+                return self._wait_aside(i, view, above)
+            if self._near_xy(p, above) and abs(p[2] - self._alt(i)) < 0.05 and not self._under_wake(i, view, above):
                 self.phase[i] = Phase.DESCEND_BOX
                 self.columns[i] = above[:2]
-            return self._cruise(i, p, above)
+            return self._cruise(i, view, above)
         if ph == Phase.DESCEND_BOX:
             grasp = view.box_positions[b] + [0.0, 0.0, self.gh]
             if view.carrying[i] == b:
                 self.phase[i] = Phase.LIFT
-                return Command.goto([p[0], p[1], self.h])
+                return Command.goto([p[0], p[1], self._alt(i)])
             act = Action.GRASP if np.linalg.norm(p - grasp) <= 0.6 * self.attach else Action.NONE
             return Command.goto(grasp, act)
         if ph == Phase.LIFT:
@@ -336,26 +439,31 @@ class ShortestPath:
                 self.phase[i] = Phase.IDLE
                 self.box[i] = -1
                 self.next_slot = min(self.next_slot, self.order.index(s))
-                return Command.goto([p[0], p[1], self.h])
-            if abs(p[2] - self.h) < 0.05 and np.linalg.norm(view.velocities[i]) < 0.02:
+                return Command.goto([p[0], p[1], self._alt(i)])
+            if abs(p[2] - self._alt(i)) < 0.05 and np.linalg.norm(view.velocities[i]) < 0.02:
                 self.phase[i] = Phase.TO_SLOT
                 # where the box hangs under this agent, measured once while hovering steadily
                 # (measuring it in flight would feed the airframe's tilt back into the target)
                 self.offset[i] = view.box_positions[b] - p
-            return Command.goto([p[0], p[1], self.h])
+            return Command.goto([p[0], p[1], self._alt(i)])
         # where the agent must be for the box it holds (at its actual offset) to hang just above the slot
         drop = self.info.slots[s] + [0.0, 0.0, self.clearances[s]]
         slot_top = drop - self.offset[i]
         if ph == Phase.TO_SLOT:
-            above = np.array([slot_top[0], slot_top[1], self.h])
+            above = np.array([slot_top[0], slot_top[1], self._alt(i)])
             if not view.slot_open[s] and (self.estimated or (self.params.wait_beside and self._overflown(i, s))):
                 # wait beside the column, not over it: an agent serving a slot under this one descends
                 # there, and the avoidance layer (on jittering estimates, or a higher agent's way down
                 # through this one's altitude) would hold it up for ever
-                return self._wait_aside(i, p, above)
+                return self._wait_aside(i, view, above)
             if self._descents_near(i, above).size:
-                return self._wait_aside(i, p, above)
-            if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
+                return self._wait_aside(i, view, above)
+            if (
+                self._near_xy(p, above)
+                and view.slot_open[s]
+                and abs(p[2] - self._alt(i)) < 0.05
+                and not self._under_wake(i, view, above)
+            ):
                 self.phase[i] = Phase.DESCEND_SLOT
                 self.columns[i] = above[:2]
                 self.correction[i] = 0.0
@@ -363,11 +471,11 @@ class ShortestPath:
                 self.last_box[i] = np.nan
                 self._targets = getattr(self, "_targets", {})
                 self._targets[(i, s)] = slot_top
-            return self._cruise(i, p, above)
+            return self._cruise(i, view, above)
         if ph == Phase.DESCEND_SLOT:
             if view.carrying[i] != b:
                 self.phase[i] = Phase.CLIMB
-                return Command.goto([p[0], p[1], self.h])
+                return Command.goto([p[0], p[1], self._alt(i)])
             err = view.box_positions[b] - drop
             speed = np.linalg.norm(view.velocities[i])
             ok = bool(np.hypot(err[0], err[1]) <= self.release_tol and abs(err[2]) <= self.release_tol and speed < 0.02)
@@ -379,10 +487,10 @@ class ShortestPath:
                 target, ok = self._servo(i, view, target, err, ok)
             return Command.goto(target, Action.RELEASE if ok else Action.NONE)
         # CLIMB
-        if abs(p[2] - self.h) < 0.05:
+        if abs(p[2] - self._alt(i)) < 0.05:
             self.phase[i] = Phase.IDLE
             self.box[i] = -1
-        return Command.goto([p[0], p[1], self.h])
+        return Command.goto([p[0], p[1], self._alt(i)])
 
     def _servo(self, i: int, view: WorldView, target: np.ndarray, err: np.ndarray, ok: bool) -> tuple[np.ndarray, bool]:
         """On estimated state: the target (3,) m of carrier ``i`` corrected by what is seen of its box
