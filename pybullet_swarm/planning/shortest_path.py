@@ -92,13 +92,21 @@ ASIDE_SPREAD_DEG = 150.0
 """deg: the waiting points of several agents are spread over this arc facing the arena's centre."""
 GOLDEN_FRACTION = 0.6180339887498949
 """Agent i waits at the fraction (i x this mod 1) of the arc: neighbouring indices far apart on it."""
+SWAP_GAIN = 0.05
+"""m: ``swap_boxes`` exchanges two agents' boxes when their summed flights shorten by more than this."""
+PLUMB_TOL = 0.04
+"""m: ``plumb_legs`` brings back over its column an agent descending this far off it."""
 LANE_TOL = 0.05
 """m: an agent farther than this from its cruise altitude is climbing or sinking to it (on a vertical leg)."""
 WAKE_CLEARANCE = 0.19
 """m, per horizontal axis: ``wake_clear`` keeps an agent this far from the column of one below it (two half
 airframes of ``quad150`` and an avoidance layer's margins: its boxes then do not overlap horizontally, and the
 rotor wake, 5 cm wide down to 1.3 m below, pushes with less than 0.1 % of the weight)."""
-WAKE_LOOKAHEAD = 0.6
+LEG_SPACING = 0.3
+"""m, per horizontal axis: with ``wake_clear`` two vertical legs are at least this far apart (neighbouring
+columns 20 cm apart are not served at once: a leg a little higher than its neighbour puts its wake column over
+it, and the avoidance layer pushed both sideways, out of the arena)."""
+WAKE_LOOKAHEAD = 1.0
 """m: how far ahead along its level flight ``wake_clear`` looks for columns of agents below."""
 WAIT_STEP = 0.1
 """m: ``wake_clear`` moves a waiting point this much further out until it lies off every column."""
@@ -181,11 +189,19 @@ class ShortestPathParams(Params):
         description="loaded agents cruise at the cruise base, the others lane_gap higher (altitude_step unused) [false]",
     )
     lane_gap: float = Field(
-        0.7,
+        0.9,
         ge=0.0,
         le=10.0,
         description="m, with wake_lanes: how far the empty agents' lane lies above the loaded agents' (more than an "
         "avoidance layer's wake column and two airframes)",
+    )
+    plumb_legs: bool = Field(
+        True,
+        description="an agent pushed off the column of its descent goes back over it before it sinks further [false]",
+    )
+    swap_boxes: bool = Field(
+        True,
+        description="two agents on their way to boxes exchange them when that shortens their flights [false]",
     )
     wake_clear: bool = Field(
         True,
@@ -201,6 +217,8 @@ class ShortestPathParams(Params):
             "spaced_descents": False,
             "release_over_neighbours": False,
             "wake_lanes": False,
+            "plumb_legs": False,
+            "swap_boxes": False,
             "wake_clear": False,
         }
     }
@@ -316,8 +334,11 @@ class ShortestPath:
         if others.size == 0:
             return others
         width = np.sqrt(2.0) * self.info.agent_radius  # m, a square airframe in the enclosing circle
+        spacing = width + DESCENT_SPACING_MARGIN
+        if self.params.wake_clear:
+            spacing = max(spacing, LEG_SPACING)
         d = np.max(np.abs(self.columns[others] - xy[:2]), axis=1)
-        return others[d < width + DESCENT_SPACING_MARGIN]
+        return others[d < spacing]
 
     def _wait_aside(self, i: int, view: WorldView, above: np.ndarray) -> Command:
         """Wait at the cruise altitude aside from the column ``above`` (3,) m (``wait_beside``, ``spaced_descents``:
@@ -392,6 +413,17 @@ class ShortestPath:
         low = (np.arange(self.n) != i) & (view.positions[:, 2] < self._alt(i) - LANE_TOL)
         return np.vstack([free, self.info.slots[:, :2], view.positions[low, :2]])
 
+    def _plumb(self, p: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """``plumb_legs``: the target (3,) m of an agent at ``p`` (3,) m descending to ``target``: while it is
+        more than ``PLUMB_TOL`` off the column (pushed aside by an avoidance layer) and still above the target,
+        back over the column at the height it is at, not on down (it would reach the box or structure sideways)."""
+        if not self.params.plumb_legs:
+            return target
+        off = float(np.hypot(p[0] - target[0], p[1] - target[1]))
+        if off > PLUMB_TOL and p[2] > target[2] + PLUMB_TOL:
+            return np.array([target[0], target[1], p[2]])
+        return target
+
     def _near_xy(self, p: np.ndarray, q: np.ndarray) -> bool:
         return bool(np.linalg.norm(p[:2] - q[:2]) <= self.arrive_tol)
 
@@ -433,7 +465,7 @@ class ShortestPath:
                 self.phase[i] = Phase.LIFT
                 return Command.goto([p[0], p[1], self._alt(i)])
             act = Action.GRASP if np.linalg.norm(p - grasp) <= 0.6 * self.attach else Action.NONE
-            return Command.goto(grasp, act)
+            return Command.goto(self._plumb(p, grasp), act)
         if ph == Phase.LIFT:
             if view.carrying[i] != b:  # lost the box: start over
                 self.phase[i] = Phase.IDLE
@@ -485,7 +517,7 @@ class ShortestPath:
             target = self._targets.setdefault((i, s), slot_top)
             if self.estimated:
                 target, ok = self._servo(i, view, target, err, ok)
-            return Command.goto(target, Action.RELEASE if ok else Action.NONE)
+            return Command.goto(self._plumb(p, target), Action.RELEASE if ok else Action.NONE)
         # CLIMB
         if abs(p[2] - self._alt(i)) < 0.05:
             self.phase[i] = Phase.IDLE
@@ -527,10 +559,29 @@ class ShortestPath:
             out.append(", ".join(words))
         return out
 
+    def _swap_boxes(self, view: WorldView) -> None:
+        """``swap_boxes``: two agents on their way to boxes exchange them when that shortens their summed
+        (horizontal) flights by more than ``SWAP_GAIN``; boxes lying in a slot stay with their agents."""
+        going = [
+            i
+            for i in np.flatnonzero(self.phase == Phase.TO_BOX)
+            if self.box[i] >= 0 and not any(self._in_slot(view.box_positions[self.box[i]], s) for s in self.slot)
+        ]
+        for a, i in enumerate(going):
+            for j in going[a + 1 :]:
+                pi, pj = view.positions[i, :2], view.positions[j, :2]
+                bi, bj = view.box_positions[self.box[i], :2], view.box_positions[self.box[j], :2]
+                now = np.linalg.norm(pi - bi) + np.linalg.norm(pj - bj)
+                swapped = np.linalg.norm(pi - bj) + np.linalg.norm(pj - bi)
+                if swapped < now - SWAP_GAIN:
+                    self.box[i], self.box[j] = self.box[j], self.box[i]
+
     def plan_all(self, view: WorldView) -> list[Command]:
         """One command per agent."""
         if self.home is None:
             self.home = view.positions.copy()
+        if self.params.swap_boxes:
+            self._swap_boxes(view)
         return [self._step(i, view) for i in range(self.n)]
 
 
