@@ -92,6 +92,10 @@ ASIDE_SPREAD_DEG = 150.0
 """deg: the waiting points of several agents are spread over this arc facing the arena's centre."""
 GOLDEN_FRACTION = 0.6180339887498949
 """Agent i waits at the fraction (i x this mod 1) of the arc: neighbouring indices far apart on it."""
+SETTLE_HEIGHT = 0.05
+"""m: ``soft_landing`` slows a carrier's descent over this last height above its drop point."""
+CREEP_STEP = 0.005
+"""m: ``soft_landing`` sets a carrier's target at most this far below it (per planner tick: 5 cm/s at 10 Hz)."""
 SWAP_GAIN = 0.05
 """m: ``swap_boxes`` exchanges two agents' boxes when their summed flights shorten by more than this."""
 PLUMB_TOL = 0.04
@@ -108,6 +112,9 @@ columns 20 cm apart are not served at once: a leg a little higher than its neigh
 it, and the avoidance layer pushed both sideways, out of the arena)."""
 WAKE_LOOKAHEAD = 1.0
 """m: how far ahead along its level flight ``wake_clear`` looks for columns of agents below."""
+DETOUR_RADIUS = 0.3
+"""m: ``wake_clear`` takes an agent round one below it in level flight by a point this far beside it (more than
+``WAKE_CLEARANCE`` along the diagonal)."""
 WAIT_STEP = 0.1
 """m: ``wake_clear`` moves a waiting point this much further out until it lies off every column."""
 WAIT_TRIES = 8
@@ -199,6 +206,11 @@ class ShortestPathParams(Params):
         True,
         description="an agent pushed off the column of its descent goes back over it before it sinks further [false]",
     )
+    soft_landing: bool = Field(
+        True,
+        description="a box's last few centimetres down to its slot are flown slowly (no overshoot onto the box "
+        "below) [false]",
+    )
     swap_boxes: bool = Field(
         True,
         description="two agents on their way to boxes exchange them when that shortens their flights [false]",
@@ -219,6 +231,7 @@ class ShortestPathParams(Params):
             "wake_lanes": False,
             "plumb_legs": False,
             "swap_boxes": False,
+            "soft_landing": False,
             "wake_clear": False,
         }
     }
@@ -396,6 +409,39 @@ class ShortestPath:
                 return True
         return False
 
+    def _detour(self, i: int, view: WorldView, target: np.ndarray) -> np.ndarray:
+        """``wake_clear``: the target (3,) m of agent ``i`` flying level to ``target``, by a point beside the
+        first agent below it in level flight that its straight path would pass within ``WAKE_CLEARANCE`` (per
+        axis) over (its wake, 5 cm wide, pushes that one down by a quarter of its weight; a loaded agent over the
+        structure strikes it with its box). The point lies ``DETOUR_RADIUS`` from that agent, square to the
+        path, on the side the path already passes."""
+        if not self.params.wake_clear:
+            return target
+        p = view.positions[i]
+        step = target[:2] - p[:2]
+        dist = float(np.linalg.norm(step))
+        if dist < 1e-9:
+            return target
+        u = step / dist
+        ahead = p[:2] + np.linspace(0.0, min(dist, WAKE_LOOKAHEAD), 21)[:, None] * u  # (21, 2) m
+        best, w = np.inf, target
+        for j in range(self.n):
+            q = view.positions[j]
+            if j == i or q[2] > p[2] - LANE_TOL or self._in_column(j, q):
+                continue
+            if np.max(np.abs(target[:2] - q[:2])) < WAKE_CLEARANCE:
+                continue  # its goal is over that agent: nothing to go round
+            gap = np.max(np.abs(ahead - q[:2]), axis=1)
+            if gap.min() >= WAKE_CLEARANCE or float(np.dot(q[:2] - p[:2], u)) < 0.0:
+                continue  # clear of it, or it is already behind
+            along = float(np.dot(q[:2] - p[:2], u))
+            if along < best:
+                side = float(u[0] * (p[1] - q[1]) - u[1] * (p[0] - q[0]))  # >0: the path passes left of q
+                normal = np.array([-u[1], u[0]]) * (1.0 if side >= 0.0 else -1.0)
+                xy = q[:2] + DETOUR_RADIUS * normal
+                best, w = along, np.array([xy[0], xy[1], target[2]])
+        return w
+
     def _under_wake(self, i: int, view: WorldView, xy: np.ndarray) -> bool:
         """``wake_clear``: True when another agent above agent ``i`` is within ``WAKE_CLEARANCE`` (per axis) of
         the column at ``xy`` (2,) m, where ``i`` would descend (its wake would push ``i`` down)."""
@@ -412,6 +458,15 @@ class ShortestPath:
         free = view.box_positions[np.asarray(view.box_state) == 0, :2]
         low = (np.arange(self.n) != i) & (view.positions[:, 2] < self._alt(i) - LANE_TOL)
         return np.vstack([free, self.info.slots[:, :2], view.positions[low, :2]])
+
+    def _soft(self, p: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """``soft_landing``: the target (3,) m of a carrier at ``p`` (3,) m over its last ``SETTLE_HEIGHT`` to
+        ``target``, at most ``CREEP_STEP`` below it (flown at the full vertical speed, the box overshot its drop
+        point by 5 mm onto the box below; the drop point is also ``release_tol`` higher, so that a box settled
+        anywhere within the tolerance clears the one below)."""
+        if not self.params.soft_landing or p[2] - target[2] > SETTLE_HEIGHT:
+            return target
+        return np.array([target[0], target[1], max(float(target[2]), float(p[2]) - CREEP_STEP)])
 
     def _plumb(self, p: np.ndarray, target: np.ndarray) -> np.ndarray:
         """``plumb_legs``: the target (3,) m of an agent at ``p`` (3,) m descending to ``target``: while it is
@@ -435,7 +490,7 @@ class ShortestPath:
             return Command.goto([p[0], p[1], self._alt(i)])
         if not self._near_xy(p, target) and self._wake_blocked(i, view, target):
             return Command.goto([p[0], p[1], self._alt(i)])
-        return Command.goto(target)
+        return Command.goto(self._detour(i, view, target))
 
     def _step(self, i: int, view: WorldView) -> Command:
         p = view.positions[i]
@@ -479,7 +534,11 @@ class ShortestPath:
                 self.offset[i] = view.box_positions[b] - p
             return Command.goto([p[0], p[1], self._alt(i)])
         # where the agent must be for the box it holds (at its actual offset) to hang just above the slot
-        drop = self.info.slots[s] + [0.0, 0.0, self.clearances[s]]
+        drop = self.info.slots[s] + [
+            0.0,
+            0.0,
+            self.clearances[s] + (self.release_tol if self.params.soft_landing else 0.0),
+        ]
         slot_top = drop - self.offset[i]
         if ph == Phase.TO_SLOT:
             above = np.array([slot_top[0], slot_top[1], self._alt(i)])
@@ -517,7 +576,7 @@ class ShortestPath:
             target = self._targets.setdefault((i, s), slot_top)
             if self.estimated:
                 target, ok = self._servo(i, view, target, err, ok)
-            return Command.goto(self._plumb(p, target), Action.RELEASE if ok else Action.NONE)
+            return Command.goto(self._soft(p, self._plumb(p, target)), Action.RELEASE if ok else Action.NONE)
         # CLIMB
         if abs(p[2] - self._alt(i)) < 0.05:
             self.phase[i] = Phase.IDLE
