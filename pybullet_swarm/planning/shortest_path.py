@@ -3,12 +3,12 @@
 Boxes are assigned in structure order (bottom layer first); each agent climbs to its cruise
 altitude, flies in a straight line to its box, descends, grasps, climbs, flies to its slot,
 waits until the slot is open, descends, releases and climbs. Other agents are ignored at run
-time (this baseline collides, as in the thesis). Agent i cruises at
-``search_height + i * altitude_step`` (``search_height`` raised where a carried box would not clear
-the finished structure, ``cruise_base``): with the default step of 0.2 m the loaded airframes
-(about 13 cm tall with a box) do not share a cruise altitude, so the physical simulation
-survives the crossings; ``altitude_step: 0`` gives the thesis's single search height (run it
-with ``collisions: ghost``, as the thesis detected collisions without simulating them).
+time (this baseline collides, as in the thesis). By default (``wake_lanes``) loaded agents cruise
+at ``search_height`` (raised where a carried box would not clear the finished structure,
+``cruise_base``) and the others ``lane_gap`` higher; without it agent i cruises at
+``search_height + i * altitude_step``, and ``altitude_step: 0`` gives the thesis's single search
+height (run it with ``collisions: ghost``, as the thesis detected collisions without simulating
+them).
 Centralised: it reads the whole ``WorldView``.
 
 Flying on estimates (``TaskInfo.extra["position_std"]``: the per-axis standard deviation of the
@@ -28,7 +28,8 @@ switch                       default  thesis  what it does
 ===========================  =======  ======  ==================================================
 ``altitude_step``            0.2 m    0       agent i cruises ``i * altitude_step`` above the
                                               search height, so that loaded airframes do not
-                                              meet at one cruise altitude
+                                              meet at one cruise altitude (unused with
+                                              ``wake_lanes``)
 ``retry_slots``              true     false   a slot whose box came to rest off it is served
                                               again (with the box lying in it first, if any)
 ``wait_beside``              true     false   an agent whose slot is not open yet waits aside
@@ -53,6 +54,38 @@ switch                       default  thesis  what it does
                                               guide takes it (``planning/placing.py``): lowered
                                               into a gap of its own width it catches on their
                                               edges and tips its carrier over
+``wake_lanes``               true     false   two cruise lanes, one direction each: loaded agents
+                                              (lifting, to and down to their slots) cruise at
+                                              the cruise base, the others ``lane_gap`` (0.9 m)
+                                              higher, more than an avoidance layer's wake column
+                                              (0.5 m) and two airframes with its margins apart
+                                              (staggered 0.2 m apart, every pair of cruising
+                                              agents was in each other's wake column and the
+                                              upper ones dodged sideways, out of the arena)
+``plumb_legs``               true     false   an agent pushed more than ``PLUMB_TOL`` off the
+                                              column of its descent goes back over it at the
+                                              height it is at before it sinks further (it
+                                              reached its box sideways, at grasp height)
+``soft_landing``             true     false   the last ``SETTLE_HEIGHT`` down to a slot is flown
+                                              at ``CREEP_STEP`` per tick and the drop point is
+                                              ``release_tol`` higher (at full speed the box
+                                              overshot onto the box below)
+``swap_boxes``               true     false   two agents on their way to boxes exchange them when
+                                              that shortens their summed flights by more than
+                                              ``SWAP_GAIN`` (in one lane, one flying to a box
+                                              beyond the other's met it head-on over the depot,
+                                              both held for ever)
+``wake_clear``               true     false   keeps every agent out of the rotor wake of those
+                                              above it (``vehicle/downwash.py``: 5 cm wide, a
+                                              quarter of the weight down to 1.3 m below): an
+                                              agent in level flight holds ``WAKE_LOOKAHEAD`` short
+                                              of the column of an agent on a vertical leg below
+                                              it and goes round (``DETOUR_RADIUS``) one below it
+                                              in level flight; a descent starts only with no
+                                              agent above within ``WAKE_CLEARANCE`` of the column
+                                              and no other vertical leg within ``LEG_SPACING``;
+                                              waiting points keep ``WAKE_CLEARANCE`` off the
+                                              columns of boxes, slots and lower agents
 ===========================  =======  ======  ==================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
@@ -323,8 +356,9 @@ class ShortestPath:
         return bool(np.all(d < self.info.box_size))
 
     def _overflown(self, i: int, s: int) -> bool:
-        """True when another agent cruising higher than agent ``i`` still has to come down to a slot whose
-        column lies within two agent radii of slot ``s``'s (its way down passes agent ``i`` waiting over ``s``)."""
+        """True when another agent cruising higher than agent ``i`` (with ``wake_lanes``: any other agent) still
+        has to come down to a slot whose column lies within two agent radii of slot ``s``'s (its way down passes
+        agent ``i`` waiting over ``s``)."""
         busy = (self.phase >= Phase.TO_BOX) & (self.phase <= Phase.DESCEND_SLOT) & (self.slot >= 0)
         busy[i] = False
         # with wake_lanes every loaded agent comes down from the one lane: all of them count
@@ -468,15 +502,16 @@ class ShortestPath:
             return target
         return np.array([target[0], target[1], max(float(target[2]), float(p[2]) - CREEP_STEP)])
 
-    def _plumb(self, p: np.ndarray, target: np.ndarray) -> np.ndarray:
-        """``plumb_legs``: the target (3,) m of an agent at ``p`` (3,) m descending to ``target``: while it is
+    def _plumb(self, i: int, p: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """``plumb_legs``: the target (3,) m of agent ``i`` at ``p`` (3,) m descending to ``target``: while it is
         more than ``PLUMB_TOL`` off the column (pushed aside by an avoidance layer) and still above the target,
-        back over the column at the height it is at, not on down (it would reach the box or structure sideways)."""
+        the top of the column at its cruise altitude, not on down (it would reach the box or structure sideways;
+        held at its height, just under the others' lane, the avoidance layer's wake column froze it there)."""
         if not self.params.plumb_legs:
             return target
         off = float(np.hypot(p[0] - target[0], p[1] - target[1]))
         if off > PLUMB_TOL and p[2] > target[2] + PLUMB_TOL:
-            return np.array([target[0], target[1], p[2]])
+            return np.array([target[0], target[1], self._alt(i)])
         return target
 
     def _near_xy(self, p: np.ndarray, q: np.ndarray) -> bool:
@@ -520,7 +555,7 @@ class ShortestPath:
                 self.phase[i] = Phase.LIFT
                 return Command.goto([p[0], p[1], self._alt(i)])
             act = Action.GRASP if np.linalg.norm(p - grasp) <= 0.6 * self.attach else Action.NONE
-            return Command.goto(self._plumb(p, grasp), act)
+            return Command.goto(self._plumb(i, p, grasp), act)
         if ph == Phase.LIFT:
             if view.carrying[i] != b:  # lost the box: start over
                 self.phase[i] = Phase.IDLE
@@ -576,7 +611,7 @@ class ShortestPath:
             target = self._targets.setdefault((i, s), slot_top)
             if self.estimated:
                 target, ok = self._servo(i, view, target, err, ok)
-            return Command.goto(self._soft(p, self._plumb(p, target)), Action.RELEASE if ok else Action.NONE)
+            return Command.goto(self._soft(p, self._plumb(i, p, target)), Action.RELEASE if ok else Action.NONE)
         # CLIMB
         if abs(p[2] - self._alt(i)) < 0.05:
             self.phase[i] = Phase.IDLE
