@@ -136,9 +136,10 @@ PLUMB_TOL = 0.04
 LANE_TOL = 0.05
 """m: an agent farther than this from its cruise altitude is climbing or sinking to it (on a vertical leg)."""
 WAKE_CLEARANCE = 0.19
-"""m, per horizontal axis: ``wake_clear`` keeps an agent this far from the column of one below it (two half
-airframes of ``quad150`` and an avoidance layer's margins: its boxes then do not overlap horizontally, and the
-rotor wake, 5 cm wide down to 1.3 m below, pushes with less than 0.1 % of the weight)."""
+"""m: ``wake_clear`` keeps an agent this far from the column of one below it (per horizontal axis from a vertical
+leg, horizontally from one in level flight: two half airframes of ``quad150`` and an avoidance layer's margins,
+its boxes then do not overlap horizontally; the rotor wake, 5 cm wide down to 1.3 m below, pushes with less than
+0.1 % of the weight there)."""
 LEG_SPACING = 0.3
 """m, per horizontal axis: with ``wake_clear`` two vertical legs are at least this far apart (neighbouring
 columns 20 cm apart are not served at once: a leg a little higher than its neighbour puts its wake column over
@@ -146,8 +147,8 @@ it, and the avoidance layer pushed both sideways, out of the arena)."""
 WAKE_LOOKAHEAD = 1.0
 """m: how far ahead along its level flight ``wake_clear`` looks for columns of agents below."""
 DETOUR_RADIUS = 0.3
-"""m: ``wake_clear`` takes an agent round one below it in level flight by a point this far beside it (more than
-``WAKE_CLEARANCE`` along the diagonal)."""
+"""m: ``wake_clear`` takes an agent round one below it in level flight by a point this far beside it (the
+straight leg to it from farther than this passes more than ``WAKE_CLEARANCE`` from that agent)."""
 WAIT_STEP = 0.1
 """m: ``wake_clear`` moves a waiting point this much further out until it lies off every column."""
 WAIT_TRIES = 8
@@ -445,8 +446,8 @@ class ShortestPath:
 
     def _detour(self, i: int, view: WorldView, target: np.ndarray) -> np.ndarray:
         """``wake_clear``: the target (3,) m of agent ``i`` flying level to ``target``, by a point beside the
-        first agent below it in level flight that its straight path would pass within ``WAKE_CLEARANCE`` (per
-        axis) over (its wake, 5 cm wide, pushes that one down by a quarter of its weight; a loaded agent over the
+        first agent below it in level flight that its straight path would pass within ``WAKE_CLEARANCE``
+        (horizontally) over (its wake, 5 cm wide, pushes that one down by a quarter of its weight; a loaded agent over the
         structure strikes it with its box). The point lies ``DETOUR_RADIUS`` from that agent, square to the
         path, on the side the path already passes."""
         if not self.params.wake_clear:
@@ -463,16 +464,20 @@ class ShortestPath:
             q = view.positions[j]
             if j == i or q[2] > p[2] - LANE_TOL or self._in_column(j, q):
                 continue
-            if np.max(np.abs(target[:2] - q[:2])) < WAKE_CLEARANCE:
+            if np.linalg.norm(target[:2] - q[:2]) < WAKE_CLEARANCE:
                 continue  # its goal is over that agent: nothing to go round
-            gap = np.max(np.abs(ahead - q[:2]), axis=1)
-            if gap.min() >= WAKE_CLEARANCE or float(np.dot(q[:2] - p[:2], u)) < 0.0:
-                continue  # clear of it, or it is already behind
+            gap = np.linalg.norm(ahead - q[:2], axis=1)  # the wake is round
+            if gap.min() >= WAKE_CLEARANCE or gap.min() >= gap[0] - 1e-3:
+                continue  # clear of it, or already leaving it
             along = float(np.dot(q[:2] - p[:2], u))
             if along < best:
                 side = float(u[0] * (p[1] - q[1]) - u[1] * (p[0] - q[0]))  # >0: the path passes left of q
                 normal = np.array([-u[1], u[0]]) * (1.0 if side >= 0.0 else -1.0)
+                r = self.info.agent_radius
+                size = np.asarray(self.info.arena_size, dtype=float)[:2]
                 xy = q[:2] + DETOUR_RADIUS * normal
+                if np.any(xy < r) or np.any(xy > size - r):  # no room on that side: the other one
+                    xy = np.clip(q[:2] - DETOUR_RADIUS * normal, r, size - r)
                 best, w = along, np.array([xy[0], xy[1], target[2]])
         return w
 
@@ -659,7 +664,7 @@ class ShortestPath:
         going = [
             i
             for i in np.flatnonzero(self.phase == Phase.TO_BOX)
-            if self.box[i] >= 0 and not any(self._in_slot(view.box_positions[self.box[i]], s) for s in self.slot)
+            if self.box[i] >= 0 and not any(self._in_slot(view.box_positions[self.box[i]], int(s)) for s in self.slot)
         ]
         for a, i in enumerate(going):
             for j in going[a + 1 :]:
