@@ -61,15 +61,19 @@ switch                       default  thesis  what it does
                                               (0.5 m) and two airframes with its margins apart
                                               (staggered 0.2 m apart, every pair of cruising
                                               agents was in each other's wake column and the
-                                              upper ones dodged sideways, out of the arena)
+                                              upper ones dodged sideways, out of the arena);
+                                              agents with nothing left to carry fly home and
+                                              park ``lane_gap`` higher still
 ``plumb_legs``               true     false   an agent pushed more than ``PLUMB_TOL`` off the
                                               column of its descent goes back over it at the
                                               height it is at before it sinks further (it
                                               reached its box sideways, at grasp height)
-``soft_landing``             true     false   the last ``SETTLE_HEIGHT`` down to a slot is flown
-                                              at ``CREEP_STEP`` per tick and the drop point is
-                                              ``release_tol`` higher (at full speed the box
-                                              overshot onto the box below)
+``soft_landing``             true     false   a descent to a box or slot stops ``SETTLE_HEIGHT``
+                                              above it, then its target creeps down the rest by
+                                              ``CREEP_STEP`` a tick; the drop
+                                              point is ``release_tol`` higher (at full speed the
+                                              box overshot onto the box below, the airframe onto
+                                              its box)
 ``swap_boxes``               true     false   two agents on their way to boxes exchange them when
                                               that shortens their summed flights by more than
                                               ``SWAP_GAIN`` (in one lane, one flying to a box
@@ -84,7 +88,7 @@ switch                       default  thesis  what it does
                                               in level flight; a descent starts only with no
                                               agent above within ``WAKE_CLEARANCE`` of the column
                                               and no other vertical leg within ``LEG_SPACING``;
-                                              waiting points keep ``WAKE_CLEARANCE`` off the
+                                              waiting points keep ``LEG_SPACING`` off the
                                               columns of boxes, slots and lower agents
 ===========================  =======  ======  ==================================================
 
@@ -125,10 +129,14 @@ ASIDE_SPREAD_DEG = 150.0
 """deg: the waiting points of several agents are spread over this arc facing the arena's centre."""
 GOLDEN_FRACTION = 0.6180339887498949
 """Agent i waits at the fraction (i x this mod 1) of the arc: neighbouring indices far apart on it."""
-SETTLE_HEIGHT = 0.05
-"""m: ``soft_landing`` slows a carrier's descent over this last height above its drop point."""
-CREEP_STEP = 0.005
-"""m: ``soft_landing`` sets a carrier's target at most this far below it (per planner tick: 5 cm/s at 10 Hz)."""
+SETTLE_HEIGHT = 0.04
+"""m: ``soft_landing`` stops a descent this far above its grasp or drop point, then creeps down the rest."""
+CREEP_START = 0.01
+"""m: ``soft_landing`` starts creeping when the agent is within this of the point ``SETTLE_HEIGHT`` above."""
+CREEP_STEP = 0.003
+"""m: ``soft_landing`` lowers a creeping target by this much a planner tick (3 cm/s at 10 Hz)."""
+CREEP_SPEED = 0.02
+"""m/s: ``soft_landing`` starts creeping once the agent has come (nearly) to rest above its point."""
 SWAP_GAIN = 0.05
 """m: ``swap_boxes`` exchanges two agents' boxes when their summed flights shorten by more than this."""
 PLUMB_TOL = 0.04
@@ -143,14 +151,19 @@ its boxes then do not overlap horizontally; the rotor wake, 5 cm wide down to 1.
 LEG_SPACING = 0.3
 """m, per horizontal axis: with ``wake_clear`` two vertical legs are at least this far apart (neighbouring
 columns 20 cm apart are not served at once: a leg a little higher than its neighbour puts its wake column over
-it, and the avoidance layer pushed both sideways, out of the arena)."""
+it, and the avoidance layer pushed both sideways, out of the arena), and so far off the columns of boxes,
+slots and lower agents agents wait (19 cm off a box's column, a waiting agent kept the avoidance layer from
+letting another one to it)."""
+WAKE_MIN_DZ = 0.1
+"""m: ``wake_clear`` minds agents at least this much lower (or higher); closer vertically, two agents share an
+altitude and the avoidance layer keeps them apart."""
 WAKE_LOOKAHEAD = 1.0
 """m: how far ahead along its level flight ``wake_clear`` looks for columns of agents below."""
 DETOUR_RADIUS = 0.3
 """m: ``wake_clear`` takes an agent round one below it in level flight by a point this far beside it (the
 straight leg to it from farther than this passes more than ``WAKE_CLEARANCE`` from that agent)."""
 WAIT_STEP = 0.1
-"""m: ``wake_clear`` moves a waiting point this much further out until it lies off every column."""
+"""m: ``wake_clear`` moves a waiting point this much further out until it lies ``LEG_SPACING`` off every column."""
 WAIT_TRIES = 8
 """How many waiting points further out ``wake_clear`` tries before it keeps the first."""
 DESCENT_SPACING_MARGIN = 0.02
@@ -242,7 +255,7 @@ class ShortestPathParams(Params):
     )
     soft_landing: bool = Field(
         True,
-        description="a box's last few centimetres down to its slot are flown slowly (no overshoot onto the box "
+        description="the last few centimetres down to a box or slot are flown slowly (no overshoot onto the box "
         "below) [false]",
     )
     swap_boxes: bool = Field(
@@ -315,6 +328,7 @@ class ShortestPath:
         self.within_since = np.full(n, np.nan)  # s, since when each held box is within release_tol
         self.last_box = np.full((n, 3), np.nan)  # m, held box position at the previous tick
         self.columns = np.zeros((n, 2))  # m, where each agent's current vertical leg is
+        self.creep = np.full(n, np.nan)  # m, soft_landing: each agent's creeping target height (nan: not yet)
 
     def _assign(self, i: int, view: WorldView) -> None:
         taken_boxes = set(self.box[self.box >= 0].tolist())
@@ -404,7 +418,7 @@ class ShortestPath:
         first = xy = np.clip(above[:2] + ASIDE_RADII * r * way, r, size - r)
         for k in range(WAIT_TRIES if columns.size else 0):  # wake_clear: out along the way until off every column
             xy = np.clip(above[:2] + (ASIDE_RADII * r + k * WAIT_STEP) * way, r, size - r)
-            if np.min(np.max(np.abs(columns - xy), axis=1)) >= WAKE_CLEARANCE:
+            if np.min(np.max(np.abs(columns - xy), axis=1)) >= LEG_SPACING:
                 break
         else:
             xy = first
@@ -412,9 +426,13 @@ class ShortestPath:
 
     def _alt(self, i: int) -> float:
         """m, the cruise altitude of agent ``i`` in its present phase: ``hs[i]``, or with ``wake_lanes`` the
-        loaded agents' lane (lifting, to and down to its slot) or the empty agents' lane (the others)."""
+        loaded agents' lane (lifting, to and down to its slot), the empty agents' lane, or for an agent with
+        nothing left to carry the lane above (flying home in the empty agents' lane, it herded an agent waiting
+        at the top of a column there out of the arena)."""
         if not self.params.wake_lanes:
             return float(self.hs[i])
+        if self.phase[i] == Phase.DONE:
+            return self.lanes[1] + self.params.lane_gap
         return self.lanes[0] if self.phase[i] in LOADED_PHASES else self.lanes[1]
 
     def _in_column(self, j: int, p: np.ndarray) -> bool:
@@ -436,7 +454,7 @@ class ShortestPath:
         ahead = p[:2] + np.linspace(0.0, min(dist, WAKE_LOOKAHEAD), 11)[:, None] * (step / dist)  # (11, 2) m
         for j in range(self.n):
             q = view.positions[j]
-            if j == i or q[2] > p[2] - LANE_TOL or not self._in_column(j, q):
+            if j == i or q[2] > p[2] - WAKE_MIN_DZ or not self._in_column(j, q):
                 continue
             now = float(np.max(np.abs(p[:2] - q[:2])))
             near = float(np.min(np.max(np.abs(ahead - q[:2]), axis=1)))
@@ -462,7 +480,7 @@ class ShortestPath:
         best, w = np.inf, target
         for j in range(self.n):
             q = view.positions[j]
-            if j == i or q[2] > p[2] - LANE_TOL or self._in_column(j, q):
+            if j == i or q[2] > p[2] - WAKE_MIN_DZ or self._in_column(j, q):
                 continue
             if np.linalg.norm(target[:2] - q[:2]) < WAKE_CLEARANCE:
                 continue  # its goal is over that agent: nothing to go round
@@ -487,7 +505,7 @@ class ShortestPath:
         if not self.params.wake_clear:
             return False
         others = np.arange(self.n) != i
-        above = view.positions[:, 2] > view.positions[i, 2] + LANE_TOL
+        above = view.positions[:, 2] > view.positions[i, 2] + WAKE_MIN_DZ
         near = np.max(np.abs(view.positions[:, :2] - xy[:2]), axis=1) < WAKE_CLEARANCE
         return bool(np.any(others & above & near))
 
@@ -498,14 +516,22 @@ class ShortestPath:
         low = (np.arange(self.n) != i) & (view.positions[:, 2] < self._alt(i) - LANE_TOL)
         return np.vstack([free, self.info.slots[:, :2], view.positions[low, :2]])
 
-    def _soft(self, p: np.ndarray, target: np.ndarray) -> np.ndarray:
-        """``soft_landing``: the target (3,) m of a carrier at ``p`` (3,) m over its last ``SETTLE_HEIGHT`` to
-        ``target``, at most ``CREEP_STEP`` below it (flown at the full vertical speed, the box overshot its drop
-        point by 5 mm onto the box below; the drop point is also ``release_tol`` higher, so that a box settled
-        anywhere within the tolerance clears the one below)."""
-        if not self.params.soft_landing or p[2] - target[2] > SETTLE_HEIGHT:
+    def _soft(self, i: int, p: np.ndarray, vz: float, target: np.ndarray) -> np.ndarray:
+        """``soft_landing``: the target (3,) m of agent ``i`` at ``p`` (3,) m, climbing at ``vz`` m/s, descending to
+        ``target`` (a grasp or drop point): ``SETTLE_HEIGHT`` above it until the agent is within ``CREEP_START``
+        of that and slower than ``CREEP_SPEED``, then a point
+        that comes down from there by ``CREEP_STEP`` a tick (flown at the full vertical speed, a box overshot
+        its drop point by 5 mm onto the box below, an airframe its grasp point onto its box; the drop point is
+        also ``release_tol`` higher, so that a box settled anywhere within the tolerance clears the one below)."""
+        if not self.params.soft_landing:
             return target
-        return np.array([target[0], target[1], max(float(target[2]), float(p[2]) - CREEP_STEP)])
+        pre = float(target[2]) + SETTLE_HEIGHT  # m
+        if np.isnan(self.creep[i]):
+            if p[2] > pre + CREEP_START or abs(vz) > CREEP_SPEED:
+                return np.array([target[0], target[1], pre])
+            self.creep[i] = pre
+        self.creep[i] = max(float(target[2]), self.creep[i] - CREEP_STEP)
+        return np.array([target[0], target[1], self.creep[i]])
 
     def _plumb(self, i: int, p: np.ndarray, target: np.ndarray) -> np.ndarray:
         """``plumb_legs``: the target (3,) m of agent ``i`` at ``p`` (3,) m descending to ``target``: while it is
@@ -516,6 +542,7 @@ class ShortestPath:
             return target
         off = float(np.hypot(p[0] - target[0], p[1] - target[1]))
         if off > PLUMB_TOL and p[2] > target[2] + PLUMB_TOL:
+            self.creep[i] = np.nan  # a soft landing starts again from the top
             return np.array([target[0], target[1], self._alt(i)])
         return target
 
@@ -553,6 +580,7 @@ class ShortestPath:
             if self._near_xy(p, above) and abs(p[2] - self._alt(i)) < 0.05 and not self._under_wake(i, view, above):
                 self.phase[i] = Phase.DESCEND_BOX
                 self.columns[i] = above[:2]
+                self.creep[i] = np.nan
             return self._cruise(i, view, above)
         if ph == Phase.DESCEND_BOX:
             grasp = view.box_positions[b] + [0.0, 0.0, self.gh]
@@ -560,7 +588,7 @@ class ShortestPath:
                 self.phase[i] = Phase.LIFT
                 return Command.goto([p[0], p[1], self._alt(i)])
             act = Action.GRASP if np.linalg.norm(p - grasp) <= 0.6 * self.attach else Action.NONE
-            return Command.goto(self._plumb(i, p, grasp), act)
+            return Command.goto(self._plumb(i, p, self._soft(i, p, float(view.velocities[i, 2]), grasp)), act)
         if ph == Phase.LIFT:
             if view.carrying[i] != b:  # lost the box: start over
                 self.phase[i] = Phase.IDLE
@@ -597,6 +625,7 @@ class ShortestPath:
             ):
                 self.phase[i] = Phase.DESCEND_SLOT
                 self.columns[i] = above[:2]
+                self.creep[i] = np.nan
                 self.correction[i] = 0.0
                 self.within_since[i] = np.nan
                 self.last_box[i] = np.nan
@@ -616,7 +645,10 @@ class ShortestPath:
             target = self._targets.setdefault((i, s), slot_top)
             if self.estimated:
                 target, ok = self._servo(i, view, target, err, ok)
-            return Command.goto(self._soft(p, self._plumb(i, p, target)), Action.RELEASE if ok else Action.NONE)
+            return Command.goto(
+                self._plumb(i, p, self._soft(i, p, float(view.velocities[i, 2]), target)),
+                Action.RELEASE if ok else Action.NONE,
+            )
         # CLIMB
         if abs(p[2] - self._alt(i)) < 0.05:
             self.phase[i] = Phase.IDLE
