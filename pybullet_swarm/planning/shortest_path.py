@@ -83,9 +83,9 @@ switch                       default  thesis  what it does
                                               above it (``vehicle/downwash.py``: 5 cm wide, a
                                               quarter of the weight down to 1.3 m below): an
                                               agent in level flight holds ``WAKE_LOOKAHEAD`` short
-                                              of the column of an agent on a vertical leg below
-                                              it and goes round (``DETOUR_RADIUS``) one below it
-                                              in level flight; a descent starts only with no
+                                              of the column of an agent at another altitude on a
+                                              vertical leg or over its goal and goes round
+                                              (``DETOUR_RADIUS``) any other at another altitude; a descent starts only with no
                                               agent above within ``WAKE_CLEARANCE`` of the column
                                               and no other vertical leg within ``LEG_SPACING``;
                                               waiting points keep ``LEG_SPACING`` off the
@@ -442,8 +442,10 @@ class ShortestPath:
 
     def _wake_blocked(self, i: int, view: WorldView, target: np.ndarray) -> bool:
         """``wake_clear``: True when agent ``i``, flying level towards ``target`` (3,) m, would within
-        ``WAKE_LOOKAHEAD`` come closer than ``WAKE_CLEARANCE`` (per axis) to the column of an agent below it on
-        a vertical leg, and nearer than it is now (its wake would push that agent down onto its box or slot)."""
+        ``WAKE_LOOKAHEAD`` come closer than ``WAKE_CLEARANCE`` (per axis), and nearer than it is now, to an agent
+        at another altitude that is on a vertical leg (below it, its wake would push that agent down onto its box
+        or slot; above it, that agent's wake would push it down: a carrier reaching the top of its slot's column
+        under an agent climbing from it sank 12 cm onto the structure) or hovers over ``target``."""
         if not self.params.wake_clear:
             return False
         p = view.positions[i]
@@ -454,7 +456,9 @@ class ShortestPath:
         ahead = p[:2] + np.linspace(0.0, min(dist, WAKE_LOOKAHEAD), 11)[:, None] * (step / dist)  # (11, 2) m
         for j in range(self.n):
             q = view.positions[j]
-            if j == i or q[2] > p[2] - WAKE_MIN_DZ or not self._in_column(j, q):
+            if j == i or abs(q[2] - p[2]) < WAKE_MIN_DZ:
+                continue
+            if not (self._in_column(j, q) or np.max(np.abs(target[:2] - q[:2])) < WAKE_CLEARANCE):
                 continue
             now = float(np.max(np.abs(p[:2] - q[:2])))
             near = float(np.min(np.max(np.abs(ahead - q[:2]), axis=1)))
@@ -464,9 +468,10 @@ class ShortestPath:
 
     def _detour(self, i: int, view: WorldView, target: np.ndarray) -> np.ndarray:
         """``wake_clear``: the target (3,) m of agent ``i`` flying level to ``target``, by a point beside the
-        first agent below it in level flight that its straight path would pass within ``WAKE_CLEARANCE``
-        (horizontally) over (its wake, 5 cm wide, pushes that one down by a quarter of its weight; a loaded agent over the
-        structure strikes it with its box). The point lies ``DETOUR_RADIUS`` from that agent, square to the
+        first agent at another altitude (but one on a vertical leg or over its goal, held for) that its straight path would
+        pass within ``WAKE_CLEARANCE`` (horizontally) over or under: a rotor wake, 5 cm wide, pushes the lower
+        one down by a quarter of its weight (a loaded agent flying under one waiting in the empty agents' lane
+        sank 22 cm, its box onto the depot's). The point lies ``DETOUR_RADIUS`` from that agent, square to the
         path, on the side the path already passes."""
         if not self.params.wake_clear:
             return target
@@ -480,10 +485,10 @@ class ShortestPath:
         best, w = np.inf, target
         for j in range(self.n):
             q = view.positions[j]
-            if j == i or q[2] > p[2] - WAKE_MIN_DZ or self._in_column(j, q):
-                continue
-            if np.linalg.norm(target[:2] - q[:2]) < WAKE_CLEARANCE:
-                continue  # its goal is over that agent: nothing to go round
+            if j == i or abs(q[2] - p[2]) < WAKE_MIN_DZ or self._in_column(j, q):
+                continue  # at its altitude (the avoidance layer's), or on a vertical leg (held for)
+            if np.max(np.abs(target[:2] - q[:2])) < WAKE_CLEARANCE:
+                continue  # over or under its goal: held for
             gap = np.linalg.norm(ahead - q[:2], axis=1)  # the wake is round
             if gap.min() >= WAKE_CLEARANCE or gap.min() >= gap[0] - 1e-3:
                 continue  # clear of it, or already leaving it
@@ -516,13 +521,15 @@ class ShortestPath:
         low = (np.arange(self.n) != i) & (view.positions[:, 2] < self._alt(i) - LANE_TOL)
         return np.vstack([free, self.info.slots[:, :2], view.positions[low, :2]])
 
-    def _soft(self, i: int, p: np.ndarray, vz: float, target: np.ndarray) -> np.ndarray:
+    def _soft(self, i: int, p: np.ndarray, vz: float, target: np.ndarray, gap: float) -> np.ndarray:
         """``soft_landing``: the target (3,) m of agent ``i`` at ``p`` (3,) m, climbing at ``vz`` m/s, descending to
-        ``target`` (a grasp or drop point): ``SETTLE_HEIGHT`` above it until the agent is within ``CREEP_START``
-        of that and slower than ``CREEP_SPEED``, then a point
-        that comes down from there by ``CREEP_STEP`` a tick (flown at the full vertical speed, a box overshot
-        its drop point by 5 mm onto the box below, an airframe its grasp point onto its box; the drop point is
-        also ``release_tol`` higher, so that a box settled anywhere within the tolerance clears the one below)."""
+        ``target`` (a grasp or drop point), what it sets down or grasps ``gap`` m above where it must stop:
+        ``SETTLE_HEIGHT`` above ``target`` until the agent is within ``CREEP_START`` of that and slower than
+        ``CREEP_SPEED``, then a point that comes down from there by ``CREEP_STEP`` a tick while ``gap`` exceeds
+        that. Flown at the full vertical speed, a box overshot its drop point by 5 mm onto the box below, an
+        airframe its grasp point onto its box; and a box hung up to 1 cm lower than measured when it was lifted,
+        so it is the box's height that ends the creep. The drop point is also ``release_tol`` higher, so that a
+        box settled anywhere within the tolerance clears the one below."""
         if not self.params.soft_landing:
             return target
         pre = float(target[2]) + SETTLE_HEIGHT  # m
@@ -530,7 +537,8 @@ class ShortestPath:
             if p[2] > pre + CREEP_START or abs(vz) > CREEP_SPEED:
                 return np.array([target[0], target[1], pre])
             self.creep[i] = pre
-        self.creep[i] = max(float(target[2]), self.creep[i] - CREEP_STEP)
+        if gap > CREEP_STEP:  # still above: on down (a little below target, where the box hangs lower than measured)
+            self.creep[i] = max(float(target[2]) - SETTLE_HEIGHT, self.creep[i] - CREEP_STEP)
         return np.array([target[0], target[1], self.creep[i]])
 
     def _plumb(self, i: int, p: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -588,7 +596,9 @@ class ShortestPath:
                 self.phase[i] = Phase.LIFT
                 return Command.goto([p[0], p[1], self._alt(i)])
             act = Action.GRASP if np.linalg.norm(p - grasp) <= 0.6 * self.attach else Action.NONE
-            return Command.goto(self._plumb(i, p, self._soft(i, p, float(view.velocities[i, 2]), grasp)), act)
+            return Command.goto(
+                self._plumb(i, p, self._soft(i, p, float(view.velocities[i, 2]), grasp, float(p[2] - grasp[2]))), act
+            )
         if ph == Phase.LIFT:
             if view.carrying[i] != b:  # lost the box: start over
                 self.phase[i] = Phase.IDLE
@@ -646,7 +656,11 @@ class ShortestPath:
             if self.estimated:
                 target, ok = self._servo(i, view, target, err, ok)
             return Command.goto(
-                self._plumb(i, p, self._soft(i, p, float(view.velocities[i, 2]), target)),
+                self._plumb(
+                    i,
+                    p,
+                    self._soft(i, p, float(view.velocities[i, 2]), target, float(view.box_positions[b, 2] - drop[2])),
+                ),
                 Action.RELEASE if ok else Action.NONE,
             )
         # CLIMB
