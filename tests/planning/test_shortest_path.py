@@ -198,3 +198,21 @@ def test_wake_clear_holds_short_of_a_descent_below_and_goes_round_a_waiting_agen
         assert np.all(p[:2] >= 0.0) and p[1] <= 1.0  # within the arena
     assert min(gaps) >= WAKE_CLEARANCE
     assert np.linalg.norm(p[:2] - DEPOT[0, :2]) < 0.02
+
+
+@pytest.mark.parametrize("clear", [True, False])
+def test_wake_clear_holds_a_carrier_short_of_its_column_while_an_agent_climbs_above_it(clear):
+    """Agent 1 climbs from slot 1 after its release; agent 0, carrying a box to the slot above it, holds in its
+    lane instead of flying in under agent 1's wake."""
+    sp = _planner(2, wake_clear=clear)
+    sp.home = np.zeros((2, 3))
+    sp.phase[:] = [Phase.TO_SLOT, Phase.CLIMB]
+    sp.box[:], sp.slot[:] = [0, 1], [0, 1]
+    sp.offset[0] = [0.0, 0.0, -GH]
+    p0 = np.array([2.2, 0.2, sp._alt(0)])
+    view = _view([p0, [2.7, 0.2, 0.9]], carrying=[0, -1], slot_filled=[-1, 1, -1])
+    cmd = sp.plan_all(view)[0]
+    if clear:
+        assert cmd.vector == pytest.approx(p0)
+    else:
+        assert cmd.vector[:2] == pytest.approx(SLOTS[0, :2])
