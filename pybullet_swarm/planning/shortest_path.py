@@ -462,7 +462,7 @@ class ShortestPath:
                 continue
             now = float(np.max(np.abs(p[:2] - q[:2])))
             near = float(np.min(np.max(np.abs(ahead - q[:2]), axis=1)))
-            if near < WAKE_CLEARANCE and near < now - 1e-3:
+            if near < WAKE_CLEARANCE <= now and near < now - 1e-3:  # from within, on out: held there, it stays
                 return True
         return False
 
