@@ -79,6 +79,13 @@ switch                       default  thesis  what it does
                                               ``SWAP_GAIN`` (in one lane, one flying to a box
                                               beyond the other's met it head-on over the depot,
                                               both held for ever)
+``round_parked``             true     false   an agent in level flight goes round (by a point
+                                              ``PARKED_RADIUS`` beside it) another at rest at its
+                                              altitude that its straight path passes within
+                                              ``PARKED_CLEARANCE`` (a carrier waiting for its slot
+                                              sat on the way of another to a slot below it in the
+                                              same column; the avoidance layer held that one
+                                              behind it for ever)
 ``wake_clear``               true     false   keeps every agent out of the rotor wake of those
                                               above it (``vehicle/downwash.py``: 5 cm wide, a
                                               quarter of the weight down to 1.3 m below): an
@@ -162,6 +169,13 @@ WAKE_LOOKAHEAD = 1.0
 DETOUR_RADIUS = 0.3
 """m: ``wake_clear`` takes an agent round one below it in level flight by a point this far beside it (the
 straight leg to it from farther than this passes more than ``WAKE_CLEARANCE`` from that agent)."""
+PARKED_SPEED = 0.02
+"""m/s: ``round_parked`` counts an agent slower than this as at rest."""
+PARKED_CLEARANCE = 0.3
+"""m: ``round_parked`` goes round an agent at rest that its straight path would pass nearer than this (the
+avoidance layer's boxes, 18 cm per axis for ``quad150``, along the diagonal)."""
+PARKED_RADIUS = 0.4
+"""m: ``round_parked`` passes an agent at rest by a point this far beside it."""
 WAIT_STEP = 0.1
 """m: ``wake_clear`` moves a waiting point this much further out until it lies ``LEG_SPACING`` off every column."""
 WAIT_TRIES = 8
@@ -262,6 +276,10 @@ class ShortestPathParams(Params):
         True,
         description="two agents on their way to boxes exchange them when that shortens their flights [false]",
     )
+    round_parked: bool = Field(
+        True,
+        description="go round an agent at rest at one's altitude on one's way instead of meeting it [false]",
+    )
     wake_clear: bool = Field(
         True,
         description="never fly over an agent on a vertical leg below, nor start a descent under another agent, and "
@@ -279,6 +297,7 @@ class ShortestPathParams(Params):
             "plumb_legs": False,
             "swap_boxes": False,
             "soft_landing": False,
+            "round_parked": False,
             "wake_clear": False,
         }
     }
@@ -467,13 +486,14 @@ class ShortestPath:
         return False
 
     def _detour(self, i: int, view: WorldView, target: np.ndarray) -> np.ndarray:
-        """``wake_clear``: the target (3,) m of agent ``i`` flying level to ``target``, by a point beside the
-        first agent at another altitude (but one on a vertical leg or over its goal, held for) that its straight path would
-        pass within ``WAKE_CLEARANCE`` (horizontally) over or under: a rotor wake, 5 cm wide, pushes the lower
-        one down by a quarter of its weight (a loaded agent flying under one waiting in the empty agents' lane
-        sank 22 cm, its box onto the depot's). The point lies ``DETOUR_RADIUS`` from that agent, square to the
-        path, on the side the path already passes."""
-        if not self.params.wake_clear:
+        """The target (3,) m of agent ``i`` flying level to ``target``, by a point beside the first agent its
+        straight path would pass near: with ``wake_clear`` one at another altitude (but one on a vertical leg or
+        over its goal, held for) within ``WAKE_CLEARANCE`` (horizontally) over or under it, as a rotor wake, 5 cm
+        wide, pushes the lower one down by a quarter of its weight (a loaded agent flying under one waiting in
+        the empty agents' lane sank 22 cm, its box onto the depot's); with ``round_parked`` one at rest at its
+        altitude within ``PARKED_CLEARANCE``. The point lies ``DETOUR_RADIUS`` (``PARKED_RADIUS``) from that
+        agent, square to the path, on the side the path already passes."""
+        if not (self.params.wake_clear or self.params.round_parked):
             return target
         p = view.positions[i]
         step = target[:2] - p[:2]
@@ -485,12 +505,18 @@ class ShortestPath:
         best, w = np.inf, target
         for j in range(self.n):
             q = view.positions[j]
-            if j == i or abs(q[2] - p[2]) < WAKE_MIN_DZ or self._in_column(j, q):
-                continue  # at its altitude (the avoidance layer's), or on a vertical leg (held for)
-            if np.max(np.abs(target[:2] - q[:2])) < WAKE_CLEARANCE:
-                continue  # over or under its goal: held for
+            if j == i or self._in_column(j, q):
+                continue  # on a vertical leg: held for
+            if abs(q[2] - p[2]) >= WAKE_MIN_DZ and self.params.wake_clear:
+                clear, radius = WAKE_CLEARANCE, DETOUR_RADIUS
+            elif abs(q[2] - p[2]) < WAKE_MIN_DZ and self.params.round_parked and self._parked(j, view):
+                clear, radius = PARKED_CLEARANCE, PARKED_RADIUS
+            else:
+                continue  # at its altitude and moving: the avoidance layer's
+            if np.max(np.abs(target[:2] - q[:2])) < clear:
+                continue  # over, under or by its goal: held for, or the avoidance layer's
             gap = np.linalg.norm(ahead - q[:2], axis=1)  # the wake is round
-            if gap.min() >= WAKE_CLEARANCE or gap.min() >= gap[0] - 1e-3:
+            if gap.min() >= clear or gap.min() >= gap[0] - 1e-3:
                 continue  # clear of it, or already leaving it
             along = float(np.dot(q[:2] - p[:2], u))
             if along < best:
@@ -498,11 +524,15 @@ class ShortestPath:
                 normal = np.array([-u[1], u[0]]) * (1.0 if side >= 0.0 else -1.0)
                 r = self.info.agent_radius
                 size = np.asarray(self.info.arena_size, dtype=float)[:2]
-                xy = q[:2] + DETOUR_RADIUS * normal
+                xy = q[:2] + radius * normal
                 if np.any(xy < r) or np.any(xy > size - r):  # no room on that side: the other one
-                    xy = np.clip(q[:2] - DETOUR_RADIUS * normal, r, size - r)
+                    xy = np.clip(q[:2] - radius * normal, r, size - r)
                 best, w = along, np.array([xy[0], xy[1], target[2]])
         return w
+
+    def _parked(self, j: int, view: WorldView) -> bool:
+        """True when agent ``j`` hovers at rest (waiting for its slot or box, held, or done)."""
+        return bool(np.linalg.norm(view.velocities[j]) < PARKED_SPEED)
 
     def _under_wake(self, i: int, view: WorldView, xy: np.ndarray) -> bool:
         """``wake_clear``: True when another agent above agent ``i`` is within ``WAKE_CLEARANCE`` (per axis) of

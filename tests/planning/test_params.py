@@ -61,6 +61,7 @@ THESIS_SHORTEST_PATH = {
     "plumb_legs": False,
     "soft_landing": False,
     "swap_boxes": False,
+    "round_parked": False,
     "wake_clear": False,
 }
 
@@ -94,6 +95,7 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "plumb_legs",
         "soft_landing",
         "swap_boxes",
+        "round_parked",
         "wake_clear",
     ]
     assert list(extensions(StigmergyParams)) == [

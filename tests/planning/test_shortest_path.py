@@ -216,3 +216,32 @@ def test_wake_clear_holds_a_carrier_short_of_its_column_while_an_agent_climbs_ab
         assert cmd.vector == pytest.approx(p0)
     else:
         assert cmd.vector[:2] == pytest.approx(SLOTS[0, :2])
+
+
+@pytest.mark.parametrize("round_parked", [True, False])
+def test_round_parked_takes_a_carrier_round_one_waiting_on_its_way(round_parked):
+    """Agent 1 waits (at rest) in the loaded agents' lane on agent 0's straight way to its slot's column:
+    agent 0 flies by a point beside it, never within ``PARKED_CLEARANCE`` of it."""
+    from pybullet_swarm.planning.shortest_path import PARKED_CLEARANCE
+
+    sp = _planner(2, round_parked=round_parked)
+    sp.home = np.zeros((2, 3))
+    sp.phase[:] = [Phase.TO_SLOT, Phase.TO_SLOT]
+    sp.box[:], sp.slot[:] = [0, 1], [1, 2]
+    sp.offset[:] = [0.0, 0.0, -GH]
+    lane = sp._alt(0)
+    parked = np.array([2.3, 0.42, lane])
+    p = np.array([1.4, 0.4, lane])
+    filled = [-1, -1, 1]  # slot 2 taken: agent 1 waits for nothing here, at rest
+    if not round_parked:
+        cmd = sp.plan_all(_view([p, parked], carrying=[0, 1], slot_filled=filled))[0]
+        assert cmd.vector[:2] == pytest.approx(SLOTS[1, :2])
+        return
+    gaps = []
+    for _ in range(120):
+        target = sp.plan_all(_view([p, parked], carrying=[0, 1], slot_filled=filled))[0].vector
+        step = target[:2] - p[:2]
+        p[:2] += step * min(1.0, 0.02 / max(float(np.linalg.norm(step)), 1e-9))
+        gaps.append(float(np.linalg.norm(p[:2] - parked[:2])))
+    assert min(gaps) >= PARKED_CLEARANCE - 0.02
+    assert np.linalg.norm(p[:2] - SLOTS[1, :2]) < 0.03
