@@ -65,23 +65,23 @@ switch                       default  thesis  what it does
                                               agents with nothing left to carry fly home and
                                               park ``lane_gap`` higher still
 ``plumb_legs``               true     false   an agent pushed more than ``PLUMB_TOL`` off the
-                                              column of its descent goes back over it at the
-                                              height it is at before it sinks further (it
+                                              column of its descent goes back to the top of it
+                                              (its cruise altitude) before it sinks further (it
                                               reached its box sideways, at grasp height)
 ``soft_landing``             true     false   a descent to a box or slot stops ``SETTLE_HEIGHT``
-                                              above it, then its target creeps down the rest by
-                                              ``CREEP_STEP`` a tick; the drop
-                                              point is ``release_tol`` higher (at full speed the
-                                              box overshot onto the box below, the airframe onto
-                                              its box)
+                                              above it, then its target creeps down by
+                                              ``CREEP_STEP`` a tick until the box (or airframe)
+                                              is there; the drop point is ``release_tol`` higher
+                                              (at full speed a box overshot onto the box below,
+                                              an airframe onto its box)
 ``swap_boxes``               true     false   two agents on their way to boxes exchange them when
                                               that shortens their summed flights by more than
                                               ``SWAP_GAIN`` (in one lane, one flying to a box
                                               beyond the other's met it head-on over the depot,
                                               both held for ever)
-``round_parked``             true     false   an agent in level flight goes round (by a point
-                                              ``PARKED_RADIUS`` beside it) another at rest at its
-                                              altitude that its straight path passes within
+``round_parked``             true     false   a carrier on its way to its slot goes round (by a
+                                              point ``PARKED_RADIUS`` beside it) another carrier
+                                              at rest that its straight path passes within
                                               ``PARKED_CLEARANCE`` (a carrier waiting for its slot
                                               sat on the way of another to a slot below it in the
                                               same column; the avoidance layer held that one
@@ -89,14 +89,16 @@ switch                       default  thesis  what it does
 ``wake_clear``               true     false   keeps every agent out of the rotor wake of those
                                               above it (``vehicle/downwash.py``: 5 cm wide, a
                                               quarter of the weight down to 1.3 m below): an
-                                              agent in level flight holds ``WAKE_LOOKAHEAD`` short
-                                              of the column of an agent at another altitude on a
-                                              vertical leg or over its goal and goes round
-                                              (``DETOUR_RADIUS``) any other at another altitude; a descent starts only with no
-                                              agent above within ``WAKE_CLEARANCE`` of the column
-                                              and no other vertical leg within ``LEG_SPACING``;
-                                              waiting points keep ``LEG_SPACING`` off the
-                                              columns of boxes, slots and lower agents
+                                              agent in level flight holds ``WAKE_LOOKAHEAD``
+                                              short of the column of an agent at another
+                                              altitude on a vertical leg or over its goal, and
+                                              goes round (``DETOUR_RADIUS``) any other at
+                                              another altitude; a descent starts only with no
+                                              agent above within ``WAKE_CLEARANCE`` of the
+                                              column and no other vertical leg within
+                                              ``LEG_SPACING``; waiting points keep
+                                              ``LEG_SPACING`` off the columns of boxes, slots
+                                              and lower agents
 ===========================  =======  ======  ==================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
@@ -278,7 +280,7 @@ class ShortestPathParams(Params):
     )
     round_parked: bool = Field(
         True,
-        description="go round an agent at rest at one's altitude on one's way instead of meeting it [false]",
+        description="a carrier goes round another carrier at rest on its way to its slot instead of meeting it [false]",
     )
     wake_clear: bool = Field(
         True,
@@ -490,8 +492,8 @@ class ShortestPath:
         straight path would pass near: with ``wake_clear`` one at another altitude (but one on a vertical leg or
         over its goal, held for) within ``WAKE_CLEARANCE`` (horizontally) over or under it, as a rotor wake, 5 cm
         wide, pushes the lower one down by a quarter of its weight (a loaded agent flying under one waiting in
-        the empty agents' lane sank 22 cm, its box onto the depot's); with ``round_parked`` one at rest at its
-        altitude within ``PARKED_CLEARANCE``. The point lies ``DETOUR_RADIUS`` (``PARKED_RADIUS``) from that
+        the empty agents' lane sank 22 cm, its box onto the depot's); with ``round_parked`` (both carrying)
+        one at rest at its altitude within ``PARKED_CLEARANCE``. The point lies ``DETOUR_RADIUS`` (``PARKED_RADIUS``) from that
         agent, square to the path, on the side the path already passes."""
         if not (self.params.wake_clear or self.params.round_parked):
             return target
@@ -509,7 +511,7 @@ class ShortestPath:
                 continue  # on a vertical leg: held for
             if abs(q[2] - p[2]) >= WAKE_MIN_DZ and self.params.wake_clear:
                 clear, radius = WAKE_CLEARANCE, DETOUR_RADIUS
-            elif abs(q[2] - p[2]) < WAKE_MIN_DZ and self.params.round_parked and self._parked(j, view):
+            elif abs(q[2] - p[2]) < WAKE_MIN_DZ and self._round_parked(i, j, view):
                 clear, radius = PARKED_CLEARANCE, PARKED_RADIUS
             else:
                 continue  # at its altitude and moving: the avoidance layer's
@@ -530,9 +532,16 @@ class ShortestPath:
                 best, w = along, np.array([xy[0], xy[1], target[2]])
         return w
 
-    def _parked(self, j: int, view: WorldView) -> bool:
-        """True when agent ``j`` hovers at rest (waiting for its slot or box, held, or done)."""
-        return bool(np.linalg.norm(view.velocities[j]) < PARKED_SPEED)
+    def _round_parked(self, i: int, j: int, view: WorldView) -> bool:
+        """``round_parked``: True when agent ``i`` carries a box to its slot and agent ``j``, carrying one too,
+        hovers at rest (waiting for its slot, or held). Empty agents are left to the avoidance layer: going round
+        each other over the depot, they strayed beside a descent and the avoidance layer held it there."""
+        return bool(
+            self.params.round_parked
+            and self.phase[i] == Phase.TO_SLOT
+            and self.phase[j] == Phase.TO_SLOT
+            and np.linalg.norm(view.velocities[j]) < PARKED_SPEED
+        )
 
     def _under_wake(self, i: int, view: WorldView, xy: np.ndarray) -> bool:
         """``wake_clear``: True when another agent above agent ``i`` is within ``WAKE_CLEARANCE`` (per axis) of
