@@ -63,7 +63,7 @@ switch                       default  thesis  what it does
                                               agents was in each other's wake column and the
                                               upper ones dodged sideways, out of the arena);
                                               agents with nothing left to carry fly home and
-                                              park ``lane_gap`` higher still
+                                              park ``PARK_GAP`` higher still
 ``plumb_legs``               true     false   an agent pushed more than ``PLUMB_TOL`` off the
                                               column of its descent goes back to the top of it
                                               (its cruise altitude) before it sinks further (it
@@ -150,6 +150,10 @@ SWAP_GAIN = 0.05
 """m: ``swap_boxes`` exchanges two agents' boxes when their summed flights shorten by more than this."""
 PLUMB_TOL = 0.04
 """m: ``plumb_legs`` brings back over its column an agent descending this far off it."""
+PARK_GAP = 0.6
+"""m: with ``wake_lanes`` agents with nothing left to carry park this far above the empty agents' lane (more than
+an avoidance layer's wake column, 0.5 m, and two airframes with its margins; 1.95 m on the thesis task, under the
+2 m top of the learning environments' waypoint range)."""
 LANE_TOL = 0.05
 """m: an agent farther than this from its cruise altitude is climbing or sinking to it (on a vertical leg)."""
 WAKE_CLEARANCE = 0.19
@@ -453,7 +457,7 @@ class ShortestPath:
         if not self.params.wake_lanes:
             return float(self.hs[i])
         if self.phase[i] == Phase.DONE:
-            return self.lanes[1] + self.params.lane_gap
+            return self.lanes[1] + PARK_GAP
         return self.lanes[0] if self.phase[i] in LOADED_PHASES else self.lanes[1]
 
     def _in_column(self, j: int, p: np.ndarray) -> bool:
