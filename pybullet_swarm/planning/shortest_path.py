@@ -55,8 +55,9 @@ switch                       default  thesis  what it does
                                               into a gap of its own width it catches on their
                                               edges and tips its carrier over
 ``wake_lanes``               true     false   two cruise lanes, one direction each: loaded agents
-                                              (lifting, to and down to their slots) cruise at
-                                              the cruise base, the others ``lane_gap`` (0.9 m)
+                                              (lifting, to and down to their slots) cruise
+                                              ``LOADED_LANE_MARGIN`` above the cruise base, the
+                                              others ``lane_gap`` (0.9 m)
                                               higher, more than an avoidance layer's wake column
                                               (0.5 m) and two airframes with its margins apart
                                               (staggered 0.2 m apart, every pair of cruising
@@ -150,6 +151,9 @@ SWAP_GAIN = 0.05
 """m: ``swap_boxes`` exchanges two agents' boxes when their summed flights shorten by more than this."""
 PLUMB_TOL = 0.04
 """m: ``plumb_legs`` brings back over its column an agent descending this far off it."""
+LOADED_LANE_MARGIN = 0.05
+"""m: with ``wake_lanes`` the loaded agents' lane lies this far above the cruise base (3 cm over the finished
+structure with a box, a carrier weaving round another agent dipped its box onto it)."""
 PARK_GAP = 0.6
 """m: with ``wake_lanes`` agents with nothing left to carry park this far above the empty agents' lane (more than
 an avoidance layer's wake column, 0.5 m, and two airframes with its margins; 1.95 m on the thesis task, under the
@@ -333,7 +337,8 @@ class ShortestPath:
         self.n = n
         base = cruise_base(info)
         self.hs = base + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
-        self.lanes = (base, base + self.params.lane_gap)  # m, the loaded and the empty agents' lane (wake_lanes)
+        low = base + LOADED_LANE_MARGIN  # m, the loaded agents' lane (wake_lanes)
+        self.lanes = (low, low + self.params.lane_gap)  # m, the loaded and the empty agents' lane (wake_lanes)
         self.gh = info.grasp_height
         slots = info.slots
         self.order = list(np.lexsort((slots[:, 1], slots[:, 0], np.round(slots[:, 2], 6))))
