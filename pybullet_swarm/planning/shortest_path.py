@@ -57,9 +57,9 @@ switch                       default  thesis  what it does
 ``wake_lanes``               true     false   two cruise lanes, one direction each: loaded agents
                                               (lifting, to and down to their slots) cruise
                                               ``LOADED_LANE_MARGIN`` above the cruise base, the
-                                              others ``lane_gap`` (0.9 m)
-                                              higher, more than an avoidance layer's wake column
-                                              (0.5 m) and two airframes with its margins apart
+                                              others ``lane_gap`` (0.9 m) higher: more than an
+                                              avoidance layer's wake column (0.5 m) and two
+                                              airframes with its margins apart
                                               (staggered 0.2 m apart, every pair of cruising
                                               agents was in each other's wake column and the
                                               upper ones dodged sideways, out of the arena);
