@@ -3,12 +3,12 @@
 Boxes are assigned in structure order (bottom layer first); each agent climbs to its cruise
 altitude, flies in a straight line to its box, descends, grasps, climbs, flies to its slot,
 waits until the slot is open, descends, releases and climbs. Other agents are ignored at run
-time (this baseline collides, as in the thesis). Agent i cruises at
-``search_height + i * altitude_step`` (``search_height`` raised where a carried box would not clear
-the finished structure, ``cruise_base``): with the default step of 0.2 m the loaded airframes
-(about 13 cm tall with a box) do not share a cruise altitude, so the physical simulation
-survives the crossings; ``altitude_step: 0`` gives the thesis's single search height (run it
-with ``collisions: ghost``, as the thesis detected collisions without simulating them).
+time (this baseline collides, as in the thesis). By default (``wake_lanes``) loaded agents cruise
+at ``search_height`` (raised where a carried box would not clear the finished structure,
+``cruise_base``) and the others ``lane_gap`` higher; without it agent i cruises at
+``search_height + i * altitude_step``, and ``altitude_step: 0`` gives the thesis's single search
+height (run it with ``collisions: ghost``, as the thesis detected collisions without simulating
+them).
 Centralised: it reads the whole ``WorldView``.
 
 Flying on estimates (``TaskInfo.extra["position_std"]``: the per-axis standard deviation of the
@@ -28,7 +28,8 @@ switch                       default  thesis  what it does
 ===========================  =======  ======  ==================================================
 ``altitude_step``            0.2 m    0       agent i cruises ``i * altitude_step`` above the
                                               search height, so that loaded airframes do not
-                                              meet at one cruise altitude
+                                              meet at one cruise altitude (unused with
+                                              ``wake_lanes``)
 ``retry_slots``              true     false   a slot whose box came to rest off it is served
                                               again (with the box lying in it first, if any)
 ``wait_beside``              true     false   an agent whose slot is not open yet waits aside
@@ -53,6 +54,52 @@ switch                       default  thesis  what it does
                                               guide takes it (``planning/placing.py``): lowered
                                               into a gap of its own width it catches on their
                                               edges and tips its carrier over
+``wake_lanes``               true     false   two cruise lanes, one direction each: loaded agents
+                                              (lifting, to and down to their slots) cruise
+                                              ``LOADED_LANE_MARGIN`` above the cruise base, the
+                                              others ``lane_gap`` (0.9 m) higher: more than an
+                                              avoidance layer's wake column (0.5 m) and two
+                                              airframes with its margins apart
+                                              (staggered 0.2 m apart, every pair of cruising
+                                              agents was in each other's wake column and the
+                                              upper ones dodged sideways, out of the arena);
+                                              agents with nothing left to carry fly home and
+                                              park ``PARK_GAP`` higher still
+``plumb_legs``               true     false   an agent pushed more than ``PLUMB_TOL`` off the
+                                              column of its descent goes back to the top of it
+                                              (its cruise altitude) before it sinks further (it
+                                              reached its box sideways, at grasp height)
+``soft_landing``             true     false   a descent to a box or slot stops ``SETTLE_HEIGHT``
+                                              above it, then its target creeps down by
+                                              ``CREEP_STEP`` a tick until the box (or airframe)
+                                              is there; the drop point is ``release_tol`` higher
+                                              (at full speed a box overshot onto the box below,
+                                              an airframe onto its box)
+``swap_boxes``               true     false   two agents on their way to boxes exchange them when
+                                              that shortens their summed flights by more than
+                                              ``SWAP_GAIN`` (in one lane, one flying to a box
+                                              beyond the other's met it head-on over the depot,
+                                              both held for ever)
+``round_parked``             true     false   a carrier on its way to its slot goes round (by a
+                                              point ``PARKED_RADIUS`` beside it) another carrier
+                                              at rest that its straight path passes within
+                                              ``PARKED_CLEARANCE`` (a carrier waiting for its slot
+                                              sat on the way of another to a slot below it in the
+                                              same column; the avoidance layer held that one
+                                              behind it for ever)
+``wake_clear``               true     false   keeps every agent out of the rotor wake of those
+                                              above it (``vehicle/downwash.py``: 5 cm wide, a
+                                              quarter of the weight down to 1.3 m below): an
+                                              agent in level flight holds ``WAKE_LOOKAHEAD``
+                                              short of the column of an agent at another
+                                              altitude on a vertical leg or over its goal, and
+                                              goes round (``DETOUR_RADIUS``) any other at
+                                              another altitude; a descent starts only with no
+                                              agent above within ``WAKE_CLEARANCE`` of the
+                                              column and no other vertical leg within
+                                              ``LEG_SPACING``; waiting points keep
+                                              ``LEG_SPACING`` off the columns of boxes, slots
+                                              and lower agents
 ===========================  =======  ======  ==================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
@@ -92,6 +139,57 @@ ASIDE_SPREAD_DEG = 150.0
 """deg: the waiting points of several agents are spread over this arc facing the arena's centre."""
 GOLDEN_FRACTION = 0.6180339887498949
 """Agent i waits at the fraction (i x this mod 1) of the arc: neighbouring indices far apart on it."""
+SETTLE_HEIGHT = 0.04
+"""m: ``soft_landing`` stops a descent this far above its grasp or drop point, then creeps down the rest."""
+CREEP_START = 0.01
+"""m: ``soft_landing`` starts creeping when the agent is within this of the point ``SETTLE_HEIGHT`` above."""
+CREEP_STEP = 0.003
+"""m: ``soft_landing`` lowers a creeping target by this much a planner tick (3 cm/s at 10 Hz)."""
+CREEP_SPEED = 0.02
+"""m/s: ``soft_landing`` starts creeping once the agent has come (nearly) to rest above its point."""
+SWAP_GAIN = 0.05
+"""m: ``swap_boxes`` exchanges two agents' boxes when their summed flights shorten by more than this."""
+PLUMB_TOL = 0.04
+"""m: ``plumb_legs`` brings back over its column an agent descending this far off it."""
+LOADED_LANE_MARGIN = 0.05
+"""m: with ``wake_lanes`` the loaded agents' lane lies this far above the cruise base (3 cm over the finished
+structure with a box, a carrier weaving round another agent dipped its box onto it)."""
+PARK_GAP = 0.6
+"""m: with ``wake_lanes`` agents with nothing left to carry park this far above the empty agents' lane (more than
+an avoidance layer's wake column, 0.5 m, and two airframes with its margins; 1.95 m on the thesis task, under the
+2 m top of the learning environments' waypoint range)."""
+LANE_TOL = 0.05
+"""m: an agent farther than this from its cruise altitude is climbing or sinking to it (on a vertical leg)."""
+WAKE_CLEARANCE = 0.19
+"""m: ``wake_clear`` keeps an agent this far from the column of one below it (per horizontal axis from a vertical
+leg, horizontally from one in level flight: two half airframes of ``quad150`` and an avoidance layer's margins,
+its boxes then do not overlap horizontally; the rotor wake, 5 cm wide down to 1.3 m below, pushes with less than
+0.1 % of the weight there)."""
+LEG_SPACING = 0.3
+"""m, per horizontal axis: with ``wake_clear`` two vertical legs are at least this far apart (neighbouring
+columns 20 cm apart are not served at once: a leg a little higher than its neighbour puts its wake column over
+it, and the avoidance layer pushed both sideways, out of the arena), and so far off the columns of boxes,
+slots and lower agents agents wait (19 cm off a box's column, a waiting agent kept the avoidance layer from
+letting another one to it)."""
+WAKE_MIN_DZ = 0.1
+"""m: ``wake_clear`` minds agents at least this much lower (or higher); closer vertically, two agents share an
+altitude and the avoidance layer keeps them apart."""
+WAKE_LOOKAHEAD = 1.0
+"""m: how far ahead along its level flight ``wake_clear`` looks for columns of agents below."""
+DETOUR_RADIUS = 0.3
+"""m: ``wake_clear`` takes an agent round one below it in level flight by a point this far beside it (the
+straight leg to it from farther than this passes more than ``WAKE_CLEARANCE`` from that agent)."""
+PARKED_SPEED = 0.02
+"""m/s: ``round_parked`` counts an agent slower than this as at rest."""
+PARKED_CLEARANCE = 0.3
+"""m: ``round_parked`` goes round an agent at rest that its straight path would pass nearer than this (the
+avoidance layer's boxes, 18 cm per axis for ``quad150``, along the diagonal)."""
+PARKED_RADIUS = 0.4
+"""m: ``round_parked`` passes an agent at rest by a point this far beside it."""
+WAIT_STEP = 0.1
+"""m: ``wake_clear`` moves a waiting point this much further out until it lies ``LEG_SPACING`` off every column."""
+WAIT_TRIES = 8
+"""How many waiting points further out ``wake_clear`` tries before it keeps the first."""
 DESCENT_SPACING_MARGIN = 0.02
 """m: ``spaced_descents`` keeps two vertical legs an airframe's width and this far apart (per horizontal axis;
 the airframe a square in the agent's enclosing circle: 17 cm for ``quad150``, so a 20 cm pitch is not held up)."""
@@ -116,6 +214,12 @@ class Phase(enum.IntEnum):
     DESCEND_SLOT = 5
     CLIMB = 6
     DONE = 7
+
+
+LOADED_PHASES = (Phase.LIFT, Phase.TO_SLOT, Phase.DESCEND_SLOT)
+"""Phases in which an agent carries (or lifts) its box: the lower lane with ``wake_lanes``."""
+VERTICAL_PHASES = (Phase.DESCEND_BOX, Phase.LIFT, Phase.DESCEND_SLOT, Phase.CLIMB)
+"""Phases of the vertical legs, down to a box or slot and back up."""
 
 
 class ShortestPathParams(Params):
@@ -158,6 +262,40 @@ class ShortestPathParams(Params):
         "takes it [false]",
     )
 
+    wake_lanes: bool = Field(
+        True,
+        description="loaded agents cruise at the cruise base, the others lane_gap higher (altitude_step unused) [false]",
+    )
+    lane_gap: float = Field(
+        0.9,
+        ge=0.0,
+        le=10.0,
+        description="m, with wake_lanes: how far the empty agents' lane lies above the loaded agents' (more than an "
+        "avoidance layer's wake column and two airframes)",
+    )
+    plumb_legs: bool = Field(
+        True,
+        description="an agent pushed off the column of its descent goes back over it before it sinks further [false]",
+    )
+    soft_landing: bool = Field(
+        True,
+        description="the last few centimetres down to a box or slot are flown slowly (no overshoot onto the box "
+        "below) [false]",
+    )
+    swap_boxes: bool = Field(
+        True,
+        description="two agents on their way to boxes exchange them when that shortens their flights [false]",
+    )
+    round_parked: bool = Field(
+        True,
+        description="a carrier goes round another carrier at rest on its way to its slot instead of meeting it [false]",
+    )
+    wake_clear: bool = Field(
+        True,
+        description="never fly over an agent on a vertical leg below, nor start a descent under another agent, and "
+        "wait off the columns of boxes, slots and agents [false]",
+    )
+
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
         Preset.THESIS: {
             "altitude_step": 0.0,
@@ -165,6 +303,12 @@ class ShortestPathParams(Params):
             "wait_beside": False,
             "spaced_descents": False,
             "release_over_neighbours": False,
+            "wake_lanes": False,
+            "plumb_legs": False,
+            "swap_boxes": False,
+            "soft_landing": False,
+            "round_parked": False,
+            "wake_clear": False,
         }
     }
 
@@ -191,7 +335,10 @@ class ShortestPath:
         """Order the slots bottom layer first and clear the assignments."""
         self.info = info
         self.n = n
-        self.hs = cruise_base(info) + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
+        base = cruise_base(info)
+        self.hs = base + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
+        low = base + LOADED_LANE_MARGIN  # m, the loaded agents' lane (wake_lanes)
+        self.lanes = (low, low + self.params.lane_gap)  # m, the loaded and the empty agents' lane (wake_lanes)
         self.gh = info.grasp_height
         slots = info.slots
         self.order = list(np.lexsort((slots[:, 1], slots[:, 0], np.round(slots[:, 2], 6))))
@@ -211,6 +358,7 @@ class ShortestPath:
         self.within_since = np.full(n, np.nan)  # s, since when each held box is within release_tol
         self.last_box = np.full((n, 3), np.nan)  # m, held box position at the previous tick
         self.columns = np.zeros((n, 2))  # m, where each agent's current vertical leg is
+        self.creep = np.full(n, np.nan)  # m, soft_landing: each agent's creeping target height (nan: not yet)
 
     def _assign(self, i: int, view: WorldView) -> None:
         taken_boxes = set(self.box[self.box >= 0].tolist())
@@ -253,11 +401,14 @@ class ShortestPath:
         return bool(np.all(d < self.info.box_size))
 
     def _overflown(self, i: int, s: int) -> bool:
-        """True when another agent cruising higher than agent ``i`` still has to come down to a slot whose
-        column lies within two agent radii of slot ``s``'s (its way down passes agent ``i`` waiting over ``s``)."""
+        """True when another agent cruising higher than agent ``i`` (with ``wake_lanes``: any other agent) still
+        has to come down to a slot whose column lies within two agent radii of slot ``s``'s (its way down passes
+        agent ``i`` waiting over ``s``)."""
         busy = (self.phase >= Phase.TO_BOX) & (self.phase <= Phase.DESCEND_SLOT) & (self.slot >= 0)
         busy[i] = False
-        others = np.flatnonzero(busy & (self.hs > self.hs[i]))
+        # with wake_lanes every loaded agent comes down from the one lane: all of them count
+        higher = np.ones(self.n, dtype=bool) if self.params.wake_lanes else self.hs > self.hs[i]
+        others = np.flatnonzero(busy & higher)
         if others.size == 0:
             return False
         d = np.linalg.norm(self.info.slots[self.slot[others], :2] - self.info.slots[s, :2], axis=1)
@@ -275,10 +426,13 @@ class ShortestPath:
         if others.size == 0:
             return others
         width = np.sqrt(2.0) * self.info.agent_radius  # m, a square airframe in the enclosing circle
+        spacing = width + DESCENT_SPACING_MARGIN
+        if self.params.wake_clear:
+            spacing = max(spacing, LEG_SPACING)
         d = np.max(np.abs(self.columns[others] - xy[:2]), axis=1)
-        return others[d < width + DESCENT_SPACING_MARGIN]
+        return others[d < spacing]
 
-    def _wait_aside(self, i: int, p: np.ndarray, above: np.ndarray) -> Command:
+    def _wait_aside(self, i: int, view: WorldView, above: np.ndarray) -> Command:
         """Wait at the cruise altitude aside from the column ``above`` (3,) m (``wait_beside``, ``spaced_descents``:
         over it, the waiting agent would block a descent, its wake would push a climbing agent down, or one
         climbing to a higher cruise altitude would pass through it). Agents waiting for one column wait at points
@@ -288,86 +442,258 @@ class ShortestPath:
         base = float(np.arctan2(away[1], away[0])) if np.linalg.norm(away) > 1e-9 else 0.0
         turn = ((i * GOLDEN_FRACTION) % 1.0 - 0.5) * np.radians(ASIDE_SPREAD_DEG)
         r = self.info.agent_radius
-        xy = above[:2] + ASIDE_RADII * r * np.array([np.cos(base + turn), np.sin(base + turn)])
-        xy = np.clip(xy, r, np.asarray(self.info.arena_size, dtype=float)[:2] - r)
-        return self._cruise(i, p, np.array([xy[0], xy[1], above[2]]))
+        way = np.array([np.cos(base + turn), np.sin(base + turn)])
+        size = np.asarray(self.info.arena_size, dtype=float)[:2]  # m
+        columns = self._columns(i, view) if self.params.wake_clear else np.zeros((0, 2))
+        first = xy = np.clip(above[:2] + ASIDE_RADII * r * way, r, size - r)
+        for k in range(WAIT_TRIES if columns.size else 0):  # wake_clear: out along the way until off every column
+            xy = np.clip(above[:2] + (ASIDE_RADII * r + k * WAIT_STEP) * way, r, size - r)
+            if np.min(np.max(np.abs(columns - xy), axis=1)) >= LEG_SPACING:
+                break
+        else:
+            xy = first
+        return self._cruise(i, view, np.array([xy[0], xy[1], above[2]]))
+
+    def _alt(self, i: int) -> float:
+        """m, the cruise altitude of agent ``i`` in its present phase: ``hs[i]``, or with ``wake_lanes`` the
+        loaded agents' lane (lifting, to and down to its slot), the empty agents' lane, or for an agent with
+        nothing left to carry the lane above (flying home in the empty agents' lane, it herded an agent waiting
+        at the top of a column there out of the arena)."""
+        if not self.params.wake_lanes:
+            return float(self.hs[i])
+        if self.phase[i] == Phase.DONE:
+            return self.lanes[1] + PARK_GAP
+        return self.lanes[0] if self.phase[i] in LOADED_PHASES else self.lanes[1]
+
+    def _in_column(self, j: int, p: np.ndarray) -> bool:
+        """True when agent ``j`` at ``p`` (3,) m is on a vertical leg: down to or up from a box or slot, or
+        climbing or sinking to its cruise altitude."""
+        return bool(self.phase[j] in VERTICAL_PHASES or abs(p[2] - self._alt(j)) > LANE_TOL)
+
+    def _wake_blocked(self, i: int, view: WorldView, target: np.ndarray) -> bool:
+        """``wake_clear``: True when agent ``i``, flying level towards ``target`` (3,) m, would within
+        ``WAKE_LOOKAHEAD`` come closer than ``WAKE_CLEARANCE`` (per axis), and nearer than it is now, to an agent
+        at another altitude that is on a vertical leg (below it, its wake would push that agent down onto its box
+        or slot; above it, that agent's wake would push it down: a carrier reaching the top of its slot's column
+        under an agent climbing from it sank 12 cm onto the structure) or hovers over ``target``."""
+        if not self.params.wake_clear:
+            return False
+        p = view.positions[i]
+        step = target[:2] - p[:2]
+        dist = float(np.linalg.norm(step))
+        if dist < 1e-9:
+            return False
+        ahead = p[:2] + np.linspace(0.0, min(dist, WAKE_LOOKAHEAD), 11)[:, None] * (step / dist)  # (11, 2) m
+        for j in range(self.n):
+            q = view.positions[j]
+            if j == i or abs(q[2] - p[2]) < WAKE_MIN_DZ:
+                continue
+            if not (self._in_column(j, q) or np.max(np.abs(target[:2] - q[:2])) < WAKE_CLEARANCE):
+                continue
+            now = float(np.max(np.abs(p[:2] - q[:2])))
+            near = float(np.min(np.max(np.abs(ahead - q[:2]), axis=1)))
+            if near < WAKE_CLEARANCE <= now and near < now - 1e-3:  # from within, on out: held there, it stays
+                return True
+        return False
+
+    def _detour(self, i: int, view: WorldView, target: np.ndarray) -> np.ndarray:
+        """The target (3,) m of agent ``i`` flying level to ``target``, by a point beside the first agent its
+        straight path would pass near: with ``wake_clear`` one at another altitude (but one on a vertical leg or
+        over its goal, held for) within ``WAKE_CLEARANCE`` (horizontally) over or under it, as a rotor wake, 5 cm
+        wide, pushes the lower one down by a quarter of its weight (a loaded agent flying under one waiting in
+        the empty agents' lane sank 22 cm, its box onto the depot's); with ``round_parked`` (both carrying)
+        one at rest at its altitude within ``PARKED_CLEARANCE``. The point lies ``DETOUR_RADIUS`` (``PARKED_RADIUS``) from that
+        agent, square to the path, on the side the path already passes."""
+        if not (self.params.wake_clear or self.params.round_parked):
+            return target
+        p = view.positions[i]
+        step = target[:2] - p[:2]
+        dist = float(np.linalg.norm(step))
+        if dist < 1e-9:
+            return target
+        u = step / dist
+        ahead = p[:2] + np.linspace(0.0, min(dist, WAKE_LOOKAHEAD), 21)[:, None] * u  # (21, 2) m
+        best, w = np.inf, target
+        for j in range(self.n):
+            q = view.positions[j]
+            if j == i or self._in_column(j, q):
+                continue  # on a vertical leg: held for
+            if abs(q[2] - p[2]) >= WAKE_MIN_DZ and self.params.wake_clear:
+                clear, radius = WAKE_CLEARANCE, DETOUR_RADIUS
+            elif abs(q[2] - p[2]) < WAKE_MIN_DZ and self._round_parked(i, j, view):
+                clear, radius = PARKED_CLEARANCE, PARKED_RADIUS
+            else:
+                continue  # at its altitude and moving: the avoidance layer's
+            if np.max(np.abs(target[:2] - q[:2])) < clear:
+                continue  # over, under or by its goal: held for, or the avoidance layer's
+            gap = np.linalg.norm(ahead - q[:2], axis=1)  # the wake is round
+            if gap.min() >= clear or gap.min() >= gap[0] - 1e-3:
+                continue  # clear of it, or already leaving it
+            along = float(np.dot(q[:2] - p[:2], u))
+            if along < best:
+                side = float(u[0] * (p[1] - q[1]) - u[1] * (p[0] - q[0]))  # >0: the path passes left of q
+                normal = np.array([-u[1], u[0]]) * (1.0 if side >= 0.0 else -1.0)
+                r = self.info.agent_radius
+                size = np.asarray(self.info.arena_size, dtype=float)[:2]
+                xy = q[:2] + radius * normal
+                if np.any(xy < r) or np.any(xy > size - r):  # no room on that side: the other one
+                    xy = np.clip(q[:2] - radius * normal, r, size - r)
+                best, w = along, np.array([xy[0], xy[1], target[2]])
+        return w
+
+    def _round_parked(self, i: int, j: int, view: WorldView) -> bool:
+        """``round_parked``: True when agent ``i`` carries a box to its slot and agent ``j``, carrying one too,
+        hovers at rest (waiting for its slot, or held). Empty agents are left to the avoidance layer: going round
+        each other over the depot, they strayed beside a descent and the avoidance layer held it there."""
+        return bool(
+            self.params.round_parked
+            and self.phase[i] == Phase.TO_SLOT
+            and self.phase[j] == Phase.TO_SLOT
+            and np.linalg.norm(view.velocities[j]) < PARKED_SPEED
+        )
+
+    def _under_wake(self, i: int, view: WorldView, xy: np.ndarray) -> bool:
+        """``wake_clear``: True when another agent above agent ``i`` is within ``WAKE_CLEARANCE`` (per axis) of
+        the column at ``xy`` (2,) m, where ``i`` would descend (its wake would push ``i`` down)."""
+        if not self.params.wake_clear:
+            return False
+        others = np.arange(self.n) != i
+        above = view.positions[:, 2] > view.positions[i, 2] + WAKE_MIN_DZ
+        near = np.max(np.abs(view.positions[:, :2] - xy[:2]), axis=1) < WAKE_CLEARANCE
+        return bool(np.any(others & above & near))
+
+    def _columns(self, i: int, view: WorldView) -> np.ndarray:
+        """(k, 2) m: the columns agent ``i`` must not wait over (``wake_clear``): the free boxes', the slots' and
+        those of the other agents below its cruise altitude."""
+        free = view.box_positions[np.asarray(view.box_state) == 0, :2]
+        low = (np.arange(self.n) != i) & (view.positions[:, 2] < self._alt(i) - LANE_TOL)
+        return np.vstack([free, self.info.slots[:, :2], view.positions[low, :2]])
+
+    def _soft(self, i: int, p: np.ndarray, vz: float, target: np.ndarray, gap: float) -> np.ndarray:
+        """``soft_landing``: the target (3,) m of agent ``i`` at ``p`` (3,) m, climbing at ``vz`` m/s, descending to
+        ``target`` (a grasp or drop point), what it sets down or grasps ``gap`` m above where it must stop:
+        ``SETTLE_HEIGHT`` above ``target`` until the agent is within ``CREEP_START`` of that and slower than
+        ``CREEP_SPEED``, then a point that comes down from there by ``CREEP_STEP`` a tick while ``gap`` exceeds
+        that. Flown at the full vertical speed, a box overshot its drop point by 5 mm onto the box below, an
+        airframe its grasp point onto its box; and a box hung up to 1 cm lower than measured when it was lifted,
+        so it is the box's height that ends the creep. The drop point is also ``release_tol`` higher, so that a
+        box settled anywhere within the tolerance clears the one below."""
+        if not self.params.soft_landing:
+            return target
+        pre = float(target[2]) + SETTLE_HEIGHT  # m
+        if np.isnan(self.creep[i]):
+            if p[2] > pre + CREEP_START or abs(vz) > CREEP_SPEED:
+                return np.array([target[0], target[1], pre])
+            self.creep[i] = pre
+        if gap > CREEP_STEP:  # still above: on down (a little below target, where the box hangs lower than measured)
+            self.creep[i] = max(float(target[2]) - SETTLE_HEIGHT, self.creep[i] - CREEP_STEP)
+        return np.array([target[0], target[1], self.creep[i]])
+
+    def _plumb(self, i: int, p: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """``plumb_legs``: the target (3,) m of agent ``i`` at ``p`` (3,) m descending to ``target``: while it is
+        more than ``PLUMB_TOL`` off the column (pushed aside by an avoidance layer) and still above the target,
+        the top of the column at its cruise altitude, not on down (it would reach the box or structure sideways;
+        held at its height, just under the others' lane, the avoidance layer's wake column froze it there)."""
+        if not self.params.plumb_legs:
+            return target
+        off = float(np.hypot(p[0] - target[0], p[1] - target[1]))
+        if off > PLUMB_TOL and p[2] > target[2] + PLUMB_TOL:
+            self.creep[i] = np.nan  # a soft landing starts again from the top
+            return np.array([target[0], target[1], self._alt(i)])
+        return target
 
     def _near_xy(self, p: np.ndarray, q: np.ndarray) -> bool:
         return bool(np.linalg.norm(p[:2] - q[:2]) <= self.arrive_tol)
 
-    def _cruise(self, i: int, p: np.ndarray, target: np.ndarray) -> Command:
-        """Go to ``target`` at cruise altitude: climb first, then fly straight."""
-        if not self._near_xy(p, target) and abs(p[2] - self.h) > 0.03:
-            return Command.goto([p[0], p[1], self.h])
-        return Command.goto(target)
+    def _cruise(self, i: int, view: WorldView, target: np.ndarray) -> Command:
+        """Go to ``target`` at cruise altitude: climb first, then fly straight (with ``wake_clear``, stop short
+        of the column of an agent on a vertical leg below)."""
+        p = view.positions[i]
+        if not self._near_xy(p, target) and abs(p[2] - self._alt(i)) > 0.03:
+            return Command.goto([p[0], p[1], self._alt(i)])
+        if not self._near_xy(p, target) and self._wake_blocked(i, view, target):
+            return Command.goto([p[0], p[1], self._alt(i)])
+        return Command.goto(self._detour(i, view, target))
 
     def _step(self, i: int, view: WorldView) -> Command:
         p = view.positions[i]
-        self.h = float(self.hs[i])
         ph = Phase(self.phase[i])
         if ph == Phase.IDLE:
             self._assign(i, view)
             ph = Phase(self.phase[i])
         if ph == Phase.DONE:  # nothing left to carry: park above the start, out of the others' way
             home = self.home if self.home is not None else view.positions
-            return self._cruise(i, p, np.array([home[i, 0], home[i, 1], self.h]))
+            return self._cruise(i, view, np.array([home[i, 0], home[i, 1], self._alt(i)]))
         b, s = self.box[i], self.slot[i]
         if ph == Phase.TO_BOX:
             if view.box_state[b] != 0:  # someone took or placed it meanwhile: choose again
                 self.phase[i] = Phase.IDLE
                 self.box[i] = -1
-                return Command.goto([p[0], p[1], self.h])
-            above = np.array([*view.box_positions[b, :2], self.h])
+                return Command.goto([p[0], p[1], self._alt(i)])
+            above = np.array([*view.box_positions[b, :2], self._alt(i)])
             if self._descents_near(i, above).size:
-                return self._wait_aside(i, p, above)
-            if self._near_xy(p, above) and abs(p[2] - self.h) < 0.05:
+                return self._wait_aside(i, view, above)
+            if self._near_xy(p, above) and abs(p[2] - self._alt(i)) < 0.05 and not self._under_wake(i, view, above):
                 self.phase[i] = Phase.DESCEND_BOX
                 self.columns[i] = above[:2]
-            return self._cruise(i, p, above)
+                self.creep[i] = np.nan
+            return self._cruise(i, view, above)
         if ph == Phase.DESCEND_BOX:
             grasp = view.box_positions[b] + [0.0, 0.0, self.gh]
             if view.carrying[i] == b:
                 self.phase[i] = Phase.LIFT
-                return Command.goto([p[0], p[1], self.h])
+                return Command.goto([p[0], p[1], self._alt(i)])
             act = Action.GRASP if np.linalg.norm(p - grasp) <= 0.6 * self.attach else Action.NONE
-            return Command.goto(grasp, act)
+            return Command.goto(
+                self._plumb(i, p, self._soft(i, p, float(view.velocities[i, 2]), grasp, float(p[2] - grasp[2]))), act
+            )
         if ph == Phase.LIFT:
             if view.carrying[i] != b:  # lost the box: start over
                 self.phase[i] = Phase.IDLE
                 self.box[i] = -1
                 self.next_slot = min(self.next_slot, self.order.index(s))
-                return Command.goto([p[0], p[1], self.h])
-            if abs(p[2] - self.h) < 0.05 and np.linalg.norm(view.velocities[i]) < 0.02:
+                return Command.goto([p[0], p[1], self._alt(i)])
+            if abs(p[2] - self._alt(i)) < 0.05 and np.linalg.norm(view.velocities[i]) < 0.02:
                 self.phase[i] = Phase.TO_SLOT
                 # where the box hangs under this agent, measured once while hovering steadily
                 # (measuring it in flight would feed the airframe's tilt back into the target)
                 self.offset[i] = view.box_positions[b] - p
-            return Command.goto([p[0], p[1], self.h])
+            return Command.goto([p[0], p[1], self._alt(i)])
         # where the agent must be for the box it holds (at its actual offset) to hang just above the slot
-        drop = self.info.slots[s] + [0.0, 0.0, self.clearances[s]]
+        drop = self.info.slots[s] + [
+            0.0,
+            0.0,
+            self.clearances[s] + (self.release_tol if self.params.soft_landing else 0.0),
+        ]
         slot_top = drop - self.offset[i]
         if ph == Phase.TO_SLOT:
-            above = np.array([slot_top[0], slot_top[1], self.h])
+            above = np.array([slot_top[0], slot_top[1], self._alt(i)])
             if not view.slot_open[s] and (self.estimated or (self.params.wait_beside and self._overflown(i, s))):
                 # wait beside the column, not over it: an agent serving a slot under this one descends
                 # there, and the avoidance layer (on jittering estimates, or a higher agent's way down
                 # through this one's altitude) would hold it up for ever
-                return self._wait_aside(i, p, above)
+                return self._wait_aside(i, view, above)
             if self._descents_near(i, above).size:
-                return self._wait_aside(i, p, above)
-            if self._near_xy(p, above) and view.slot_open[s] and abs(p[2] - self.h) < 0.05:
+                return self._wait_aside(i, view, above)
+            if (
+                self._near_xy(p, above)
+                and view.slot_open[s]
+                and abs(p[2] - self._alt(i)) < 0.05
+                and not self._under_wake(i, view, above)
+            ):
                 self.phase[i] = Phase.DESCEND_SLOT
                 self.columns[i] = above[:2]
+                self.creep[i] = np.nan
                 self.correction[i] = 0.0
                 self.within_since[i] = np.nan
                 self.last_box[i] = np.nan
                 self._targets = getattr(self, "_targets", {})
                 self._targets[(i, s)] = slot_top
-            return self._cruise(i, p, above)
+            return self._cruise(i, view, above)
         if ph == Phase.DESCEND_SLOT:
             if view.carrying[i] != b:
                 self.phase[i] = Phase.CLIMB
-                return Command.goto([p[0], p[1], self.h])
+                return Command.goto([p[0], p[1], self._alt(i)])
             err = view.box_positions[b] - drop
             speed = np.linalg.norm(view.velocities[i])
             ok = bool(np.hypot(err[0], err[1]) <= self.release_tol and abs(err[2]) <= self.release_tol and speed < 0.02)
@@ -377,12 +703,19 @@ class ShortestPath:
             target = self._targets.setdefault((i, s), slot_top)
             if self.estimated:
                 target, ok = self._servo(i, view, target, err, ok)
-            return Command.goto(target, Action.RELEASE if ok else Action.NONE)
+            return Command.goto(
+                self._plumb(
+                    i,
+                    p,
+                    self._soft(i, p, float(view.velocities[i, 2]), target, float(view.box_positions[b, 2] - drop[2])),
+                ),
+                Action.RELEASE if ok else Action.NONE,
+            )
         # CLIMB
-        if abs(p[2] - self.h) < 0.05:
+        if abs(p[2] - self._alt(i)) < 0.05:
             self.phase[i] = Phase.IDLE
             self.box[i] = -1
-        return Command.goto([p[0], p[1], self.h])
+        return Command.goto([p[0], p[1], self._alt(i)])
 
     def _servo(self, i: int, view: WorldView, target: np.ndarray, err: np.ndarray, ok: bool) -> tuple[np.ndarray, bool]:
         """On estimated state: the target (3,) m of carrier ``i`` corrected by what is seen of its box
@@ -419,10 +752,29 @@ class ShortestPath:
             out.append(", ".join(words))
         return out
 
+    def _swap_boxes(self, view: WorldView) -> None:
+        """``swap_boxes``: two agents on their way to boxes exchange them when that shortens their summed
+        (horizontal) flights by more than ``SWAP_GAIN``; boxes lying in a slot stay with their agents."""
+        going = [
+            i
+            for i in np.flatnonzero(self.phase == Phase.TO_BOX)
+            if self.box[i] >= 0 and not any(self._in_slot(view.box_positions[self.box[i]], int(s)) for s in self.slot)
+        ]
+        for a, i in enumerate(going):
+            for j in going[a + 1 :]:
+                pi, pj = view.positions[i, :2], view.positions[j, :2]
+                bi, bj = view.box_positions[self.box[i], :2], view.box_positions[self.box[j], :2]
+                now = np.linalg.norm(pi - bi) + np.linalg.norm(pj - bj)
+                swapped = np.linalg.norm(pi - bj) + np.linalg.norm(pj - bi)
+                if swapped < now - SWAP_GAIN:
+                    self.box[i], self.box[j] = self.box[j], self.box[i]
+
     def plan_all(self, view: WorldView) -> list[Command]:
         """One command per agent."""
         if self.home is None:
             self.home = view.positions.copy()
+        if self.params.swap_boxes:
+            self._swap_boxes(view)
         return [self._step(i, view) for i in range(self.n)]
 
 

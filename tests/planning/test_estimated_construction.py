@@ -8,7 +8,7 @@ import pytest
 
 from pybullet_swarm.planning.base import Action, Observation, TaskInfo, WorldView
 from pybullet_swarm.planning.shortest_path import Phase as SPPhase
-from pybullet_swarm.planning.shortest_path import ShortestPath
+from pybullet_swarm.planning.shortest_path import ShortestPath, ShortestPathParams
 from pybullet_swarm.planning.stigmergy import CLEARANCE_SIGMAS, Carry, Phase, Sighting, Stigmergy
 
 GH = 0.065  # m, grasp height of quad150 with 10 cm boxes
@@ -160,7 +160,7 @@ def _view(t, positions, carrying, box_positions, box_state, slot_filled) -> Worl
 
 
 def test_shortest_path_serves_again_a_slot_whose_box_came_to_rest_off_it_with_that_box():
-    sp = ShortestPath()
+    sp = ShortestPath(ShortestPathParams(wake_lanes=False))  # the cruise altitude set below is hs
     sp.reset(2, np.random.default_rng(0), _info())
     boxes = DEPOT.copy()
     state = np.zeros(9, dtype=np.int64)

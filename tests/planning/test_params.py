@@ -57,6 +57,12 @@ THESIS_SHORTEST_PATH = {
     "wait_beside": False,
     "spaced_descents": False,
     "release_over_neighbours": False,
+    "wake_lanes": False,
+    "plumb_legs": False,
+    "soft_landing": False,
+    "swap_boxes": False,
+    "round_parked": False,
+    "wake_clear": False,
 }
 
 
@@ -85,6 +91,12 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "wait_beside",
         "spaced_descents",
         "release_over_neighbours",
+        "wake_lanes",
+        "plumb_legs",
+        "soft_landing",
+        "swap_boxes",
+        "round_parked",
+        "wake_clear",
     ]
     assert list(extensions(StigmergyParams)) == [
         "ties",

@@ -1,5 +1,6 @@
 """The shortest-path baseline's extension switches, on scripted world views: altitude staggering,
-serving again a slot whose box came to rest off it, and descents kept apart."""
+serving again a slot whose box came to rest off it, descents kept apart, the cruise lanes, plumb
+descents, soft landings, swapped boxes and keeping out of each other's rotor wake."""
 
 from __future__ import annotations
 
@@ -48,7 +49,7 @@ def _view(positions, *, slot_filled=None, carrying=None, n_slots: int = len(SLOT
 
 def test_altitude_step_staggers_the_cruise_altitudes_and_the_thesis_flies_one():
     starts = [[0.12, 0.1 + 0.2 * i, 0.011] for i in range(3)]
-    for params, heights in ((dict(), [0.45, 0.65, 0.85]), (dict(preset="thesis"), [0.45, 0.45, 0.45])):
+    for params, heights in ((dict(wake_lanes=False), [0.45, 0.65, 0.85]), (dict(preset="thesis"), [0.45, 0.45, 0.45])):
         sp = _planner(3, **params)
         cmds = sp.plan_all(_view(starts))
         assert [c.vector[2] for c in cmds] == pytest.approx(heights)  # each climbs first, to its altitude
@@ -70,7 +71,7 @@ def test_spaced_descents_holds_a_descent_beside_another_at_a_box_pitch_not_at_th
     waits beside it while that column is within an airframe's width (slots side by side, 10 cm), and starts
     its descent without ``spaced_descents`` or at the thesis's 20 cm pitch."""
     slots = np.array([[2.7, 0.4, 0.05], [2.7, 0.4 + pitch, 0.05]])
-    sp = _planner(2, slots, spaced_descents=spaced)
+    sp = _planner(2, slots, spaced_descents=spaced, wake_lanes=False, wake_clear=False)
     sp.home = np.zeros((2, 3))
     sp.phase[:] = [Phase.DESCEND_SLOT, Phase.TO_SLOT]
     sp.box[:], sp.slot[:] = [0, 1], [0, 1]
@@ -84,3 +85,163 @@ def test_spaced_descents_holds_a_descent_beside_another_at_a_box_pitch_not_at_th
         assert np.hypot(*(aside[:2] - slots[1, :2])) > 2.0 * sp.info.agent_radius and aside[2] == pytest.approx(
             sp.hs[1]
         )
+
+
+WAKE_DEPTH = 0.5  # m, the ORCA layer's wake column with downwash (avoidance_params.wake_depth null)
+AIRFRAME = 0.02  # m, quad150's height
+
+
+def test_wake_lanes_put_loaded_and_empty_agents_further_apart_than_a_wake_column():
+    """Empty agents (climbing to their boxes) share one lane; a loaded agent flies the lower lane, more
+    than a wake column and two airframes below it. Without the switch the altitudes are staggered by
+    ``altitude_step`` (0.2 m: every pair within a wake column)."""
+    starts = [[0.12, 0.1 + 0.2 * i, 0.011] for i in range(3)]
+    for lanes in (True, False):
+        sp = _planner(3, wake_lanes=lanes)
+        empty = [c.vector[2] for c in sp.plan_all(_view(starts))]
+        sp.phase[2], sp.box[2] = Phase.TO_SLOT, 0
+        loaded = sp.plan_all(_view([*starts[:2], [1.5, 0.5, 0.3]], carrying=[-1, -1, 0]))[2].vector[2]
+        if lanes:
+            assert empty == pytest.approx([empty[0]] * 3)
+            assert empty[0] - loaded > WAKE_DEPTH + 2 * AIRFRAME
+        else:
+            assert np.diff(empty) == pytest.approx([0.2, 0.2])
+
+
+@pytest.mark.parametrize("plumb", [True, False])
+def test_plumb_legs_brings_a_descent_pushed_aside_back_over_its_column(plumb):
+    sp = _planner(1, plumb_legs=plumb, soft_landing=False)
+    sp.home = np.zeros((1, 3))
+    sp.phase[0], sp.box[0], sp.slot[0] = Phase.DESCEND_BOX, 1, 0
+    box = DEPOT[1]
+    cmd = sp.plan_all(_view([[box[0] + 0.1, box[1], 0.3]]))[0]
+    assert cmd.vector[:2] == pytest.approx(box[:2])
+    if plumb:  # back up to the top of the column, not on down beside it
+        assert cmd.vector[2] == pytest.approx(sp._alt(0))
+    else:
+        assert cmd.vector[2] == pytest.approx(box[2] + GH)
+
+
+@pytest.mark.parametrize("soft", [True, False])
+def test_soft_landing_creeps_down_the_last_centimetres_to_a_slot(soft):
+    sp = _planner(1, soft_landing=soft)
+    sp.home = np.zeros((1, 3))
+    sp.phase[0], sp.box[0], sp.slot[0] = Phase.DESCEND_SLOT, 0, 0
+    drop = SLOTS[0] + [0.0, 0.0, sp.clearances[0] + GH]  # agent over the drop point, box hanging GH below
+    p = drop + [0.0, 0.0, 0.045]  # at rest 5 mm above the point SETTLE_HEIGHT (4 cm) up
+    view = _view([p], carrying=[0])
+    view.box_positions[0] = p - [0.0, 0.0, GH]
+    z = sp.plan_all(view)[0].vector[2]
+    if soft:  # at rest near the point SETTLE_HEIGHT up: its target creeps down from there, a few mm below it
+        assert 0.0 < p[2] - z <= 0.01
+    else:
+        assert z == pytest.approx(drop[2])
+
+
+@pytest.mark.parametrize("soft", [True, False])
+def test_soft_landing_creeps_down_the_last_centimetres_to_a_box(soft):
+    sp = _planner(1, soft_landing=soft)
+    sp.home = np.zeros((1, 3))
+    sp.phase[0], sp.box[0], sp.slot[0] = Phase.DESCEND_BOX, 1, 0
+    grasp = DEPOT[1] + [0.0, 0.0, GH]
+    p = grasp + [0.0, 0.0, 0.045]  # at rest 5 mm above the point SETTLE_HEIGHT (4 cm) up
+    z = sp.plan_all(_view([p]))[0].vector[2]
+    if soft:  # at rest near the point SETTLE_HEIGHT up: its target creeps down from there, a few mm below it
+        assert 0.0 < p[2] - z <= 0.01
+    else:
+        assert z == pytest.approx(grasp[2])
+
+
+@pytest.mark.parametrize("swap", [True, False])
+def test_swap_boxes_exchanges_the_boxes_of_two_agents_on_one_line(swap):
+    """Agent 0 next to the box at y 0.5 wants it, agent 1 behind it wants the one at y 0.7, beyond agent 0's
+    column: in one lane they held each other for ever; swapped, agent 0 flies on and agent 1 follows."""
+    sp = _planner(2, swap_boxes=swap)
+    sp.home = np.zeros((2, 3))
+    sp.phase[:] = Phase.TO_BOX
+    sp.box[:], sp.slot[:] = [1, 2], [0, 1]  # boxes at y 0.5 and 0.7
+    sp.plan_all(_view([[0.4, 0.54, 1.35], [0.4, 0.36, 1.35]]))
+    assert list(sp.box) == ([2, 1] if swap else [1, 2])
+
+
+@pytest.mark.parametrize("clear", [True, False])
+def test_wake_clear_holds_short_of_a_descent_below_and_goes_round_a_waiting_agent(clear):
+    """Agent 0 (empty lane) flies west over the depot; agent 1 descends to a box on its way: agent 0 holds
+    where it is, farther than ``WAKE_CLEARANCE``. With agent 1 waiting level in the lower lane instead, agent 0
+    flies by a point beside it, never within ``WAKE_CLEARANCE`` of its column."""
+    from pybullet_swarm.planning.shortest_path import WAKE_CLEARANCE
+
+    sp = _planner(2, wake_clear=clear, swap_boxes=False)
+    sp.home = np.zeros((2, 3))
+    high = sp._alt(0)
+    sp.phase[:] = [Phase.TO_BOX, Phase.DESCEND_BOX]
+    sp.box[:], sp.slot[:] = [0, 4], [0, 1]  # agent 0 to (0.4, 0.3), agent 1 to (0.6, 0.5)
+    p0 = np.array([1.2, 0.3, high])
+    cmd = sp.plan_all(_view([p0, [0.6, 0.3, 0.6]]))[0]  # agent 1 pushed over to y 0.3: on agent 0's line
+    if clear:
+        assert cmd.vector == pytest.approx(p0)
+    else:
+        assert cmd.vector[:2] == pytest.approx(DEPOT[0, :2])
+    sp.phase[1], sp.box[1] = Phase.TO_SLOT, 4
+    low = np.array([0.8, 0.3, sp._alt(1)])
+    cmd = sp.plan_all(_view([p0, low], carrying=[-1, 4]))[0]
+    if not clear:
+        assert cmd.vector[:2] == pytest.approx(DEPOT[0, :2])
+        return
+    p = p0.copy()  # fly agent 0 along its commands, 2 cm a tick: it passes, never over agent 1's column
+    gaps = []
+    for _ in range(100):
+        target = sp.plan_all(_view([p, low], carrying=[-1, 4]))[0].vector
+        step = target[:2] - p[:2]
+        p[:2] += step * min(1.0, 0.02 / max(float(np.linalg.norm(step)), 1e-9))
+        gaps.append(float(np.linalg.norm(p[:2] - low[:2])))
+        assert np.all(p[:2] >= 0.0) and p[1] <= 1.0  # within the arena
+    assert min(gaps) >= WAKE_CLEARANCE
+    assert np.linalg.norm(p[:2] - DEPOT[0, :2]) < 0.02
+
+
+@pytest.mark.parametrize("clear", [True, False])
+def test_wake_clear_holds_a_carrier_short_of_its_column_while_an_agent_climbs_above_it(clear):
+    """Agent 1 climbs from slot 1 after its release; agent 0, carrying a box to the slot above it, holds in its
+    lane instead of flying in under agent 1's wake."""
+    sp = _planner(2, wake_clear=clear)
+    sp.home = np.zeros((2, 3))
+    sp.phase[:] = [Phase.TO_SLOT, Phase.CLIMB]
+    sp.box[:], sp.slot[:] = [0, 1], [0, 1]
+    sp.offset[0] = [0.0, 0.0, -GH]
+    p0 = np.array([2.2, 0.2, sp._alt(0)])
+    view = _view([p0, [2.7, 0.2, 0.9]], carrying=[0, -1], slot_filled=[-1, 1, -1])
+    cmd = sp.plan_all(view)[0]
+    if clear:
+        assert cmd.vector == pytest.approx(p0)
+    else:
+        assert cmd.vector[:2] == pytest.approx(SLOTS[0, :2])
+
+
+@pytest.mark.parametrize("round_parked", [True, False])
+def test_round_parked_takes_a_carrier_round_one_waiting_on_its_way(round_parked):
+    """Agent 1 waits (at rest) in the loaded agents' lane on agent 0's straight way to its slot's column:
+    agent 0 flies by a point beside it, never within ``PARKED_CLEARANCE`` of it."""
+    from pybullet_swarm.planning.shortest_path import PARKED_CLEARANCE
+
+    sp = _planner(2, round_parked=round_parked)
+    sp.home = np.zeros((2, 3))
+    sp.phase[:] = [Phase.TO_SLOT, Phase.TO_SLOT]
+    sp.box[:], sp.slot[:] = [0, 1], [1, 2]
+    sp.offset[:] = [0.0, 0.0, -GH]
+    lane = sp._alt(0)
+    parked = np.array([2.3, 0.42, lane])
+    p = np.array([1.4, 0.4, lane])
+    filled = [-1, -1, 1]  # slot 2 taken: agent 1 waits for nothing here, at rest
+    if not round_parked:
+        cmd = sp.plan_all(_view([p, parked], carrying=[0, 1], slot_filled=filled))[0]
+        assert cmd.vector[:2] == pytest.approx(SLOTS[1, :2])
+        return
+    gaps = []
+    for _ in range(120):
+        target = sp.plan_all(_view([p, parked], carrying=[0, 1], slot_filled=filled))[0].vector
+        step = target[:2] - p[:2]
+        p[:2] += step * min(1.0, 0.02 / max(float(np.linalg.norm(step)), 1e-9))
+        gaps.append(float(np.linalg.norm(p[:2] - parked[:2])))
+    assert min(gaps) >= PARKED_CLEARANCE - 0.02
+    assert np.linalg.norm(p[:2] - SLOTS[1, :2]) < 0.03
