@@ -302,6 +302,11 @@ class Simulation:
         extra = dict(kw.pop("extra", {}))
         if sc.sensing.state.value == "estimated":  # what an agent can expect of its own position estimate
             extra["position_std"] = self.position_std
+        extra["downwash"] = bool(sc.sim.downwash)  # whether vehicles' wakes act on each other (rules minding them)
+        from pybullet_swarm.planning.registry import avoidance_layers
+
+        # whether an avoidance layer keeps agents apart (a planner may share a lane only with one)
+        extra["avoidance"] = avoidance_layers()[self.avoidance_name].factory is not None
         return TaskInfo(
             arena_size=np.asarray(sc.arena.size, dtype=float),
             n_agents=self.n,

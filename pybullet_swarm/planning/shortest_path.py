@@ -8,7 +8,11 @@ at ``search_height`` (raised where a carried box would not clear the finished st
 ``cruise_base``) and the others ``lane_gap`` higher; without it agent i cruises at
 ``search_height + i * altitude_step``, and ``altitude_step: 0`` gives the thesis's single search
 height (run it with ``collisions: ghost``, as the thesis detected collisions without simulating
-them).
+them). The wake rules (``wake_lanes``, ``wake_clear``) act only where the run models downwash
+(``TaskInfo.extra["downwash"]``, set by the simulation from ``sim.downwash``): without it the
+baseline flies as with them switched off; and ``wake_lanes`` only with an avoidance layer
+(``TaskInfo.extra["avoidance"]``): agents sharing a lane need one to keep apart (without it,
+lanes gave 99 agent-agent contacts on seeds 0..9 against 30 for the staggered altitudes).
 Centralised: it reads the whole ``WorldView``.
 
 Flying on estimates (``TaskInfo.extra["position_std"]``: the per-axis standard deviation of the
@@ -335,6 +339,11 @@ class ShortestPath:
         """Order the slots bottom layer first and clear the assignments."""
         self.info = info
         self.n = n
+        # the wake rules act where the run models downwash (``TaskInfo.extra["downwash"]``, true when unsaid)
+        wakes = bool(info.extra.get("downwash", True))
+        # a shared lane needs an avoidance layer to keep its agents apart (``extra["avoidance"]``, true when unsaid)
+        self.wake_lanes = self.params.wake_lanes and wakes and bool(info.extra.get("avoidance", True))
+        self.wake_clear = self.params.wake_clear and wakes
         base = cruise_base(info)
         self.hs = base + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
         low = base + LOADED_LANE_MARGIN  # m, the loaded agents' lane (wake_lanes)
@@ -407,7 +416,7 @@ class ShortestPath:
         busy = (self.phase >= Phase.TO_BOX) & (self.phase <= Phase.DESCEND_SLOT) & (self.slot >= 0)
         busy[i] = False
         # with wake_lanes every loaded agent comes down from the one lane: all of them count
-        higher = np.ones(self.n, dtype=bool) if self.params.wake_lanes else self.hs > self.hs[i]
+        higher = np.ones(self.n, dtype=bool) if self.wake_lanes else self.hs > self.hs[i]
         others = np.flatnonzero(busy & higher)
         if others.size == 0:
             return False
@@ -427,7 +436,7 @@ class ShortestPath:
             return others
         width = np.sqrt(2.0) * self.info.agent_radius  # m, a square airframe in the enclosing circle
         spacing = width + DESCENT_SPACING_MARGIN
-        if self.params.wake_clear:
+        if self.wake_clear:
             spacing = max(spacing, LEG_SPACING)
         d = np.max(np.abs(self.columns[others] - xy[:2]), axis=1)
         return others[d < spacing]
@@ -444,7 +453,7 @@ class ShortestPath:
         r = self.info.agent_radius
         way = np.array([np.cos(base + turn), np.sin(base + turn)])
         size = np.asarray(self.info.arena_size, dtype=float)[:2]  # m
-        columns = self._columns(i, view) if self.params.wake_clear else np.zeros((0, 2))
+        columns = self._columns(i, view) if self.wake_clear else np.zeros((0, 2))
         first = xy = np.clip(above[:2] + ASIDE_RADII * r * way, r, size - r)
         for k in range(WAIT_TRIES if columns.size else 0):  # wake_clear: out along the way until off every column
             xy = np.clip(above[:2] + (ASIDE_RADII * r + k * WAIT_STEP) * way, r, size - r)
@@ -459,7 +468,7 @@ class ShortestPath:
         loaded agents' lane (lifting, to and down to its slot), the empty agents' lane, or for an agent with
         nothing left to carry the lane above (flying home in the empty agents' lane, it herded an agent waiting
         at the top of a column there out of the arena)."""
-        if not self.params.wake_lanes:
+        if not self.wake_lanes:
             return float(self.hs[i])
         if self.phase[i] == Phase.DONE:
             return self.lanes[1] + PARK_GAP
@@ -476,7 +485,7 @@ class ShortestPath:
         at another altitude that is on a vertical leg (below it, its wake would push that agent down onto its box
         or slot; above it, that agent's wake would push it down: a carrier reaching the top of its slot's column
         under an agent climbing from it sank 12 cm onto the structure) or hovers over ``target``."""
-        if not self.params.wake_clear:
+        if not self.wake_clear:
             return False
         p = view.positions[i]
         step = target[:2] - p[:2]
@@ -504,7 +513,7 @@ class ShortestPath:
         the empty agents' lane sank 22 cm, its box onto the depot's); with ``round_parked`` (both carrying)
         one at rest at its altitude within ``PARKED_CLEARANCE``. The point lies ``DETOUR_RADIUS`` (``PARKED_RADIUS``) from that
         agent, square to the path, on the side the path already passes."""
-        if not (self.params.wake_clear or self.params.round_parked):
+        if not (self.wake_clear or self.params.round_parked):
             return target
         p = view.positions[i]
         step = target[:2] - p[:2]
@@ -518,7 +527,7 @@ class ShortestPath:
             q = view.positions[j]
             if j == i or self._in_column(j, q):
                 continue  # on a vertical leg: held for
-            if abs(q[2] - p[2]) >= WAKE_MIN_DZ and self.params.wake_clear:
+            if abs(q[2] - p[2]) >= WAKE_MIN_DZ and self.wake_clear:
                 clear, radius = WAKE_CLEARANCE, DETOUR_RADIUS
             elif abs(q[2] - p[2]) < WAKE_MIN_DZ and self._round_parked(i, j, view):
                 clear, radius = PARKED_CLEARANCE, PARKED_RADIUS
@@ -555,7 +564,7 @@ class ShortestPath:
     def _under_wake(self, i: int, view: WorldView, xy: np.ndarray) -> bool:
         """``wake_clear``: True when another agent above agent ``i`` is within ``WAKE_CLEARANCE`` (per axis) of
         the column at ``xy`` (2,) m, where ``i`` would descend (its wake would push ``i`` down)."""
-        if not self.params.wake_clear:
+        if not self.wake_clear:
             return False
         others = np.arange(self.n) != i
         above = view.positions[:, 2] > view.positions[i, 2] + WAKE_MIN_DZ

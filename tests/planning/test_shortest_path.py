@@ -15,8 +15,15 @@ DEPOT = np.array([[x, y, 0.05] for x in (0.4, 0.6) for y in (0.3, 0.5, 0.7)])
 SLOTS = np.array([[2.7, 0.2, 0.05], [2.7, 0.4, 0.05], [2.7, 0.6, 0.05]])
 
 
-def _planner(n: int, slots: np.ndarray = SLOTS, **params) -> ShortestPath:
+def _planner(
+    n: int, slots: np.ndarray = SLOTS, downwash: bool | None = None, avoidance: bool | None = None, **params
+) -> ShortestPath:
     sp = ShortestPath(ShortestPathParams(**params))
+    extra: dict[str, object] = {"search_height": 0.45, "attach_threshold": 0.02}
+    if downwash is not None:
+        extra["downwash"] = downwash
+    if avoidance is not None:
+        extra["avoidance"] = avoidance
     info = TaskInfo(
         arena_size=np.array([3.0, 1.0]),
         n_agents=n,
@@ -26,7 +33,7 @@ def _planner(n: int, slots: np.ndarray = SLOTS, **params) -> ShortestPath:
         slots=np.array(slots, dtype=float),
         box_size=0.1,
         grasp_height=GH,
-        extra={"search_height": 0.45, "attach_threshold": 0.02},
+        extra=extra,
     )
     sp.reset(n, np.random.default_rng(0), info)
     return sp
@@ -106,6 +113,22 @@ def test_wake_lanes_put_loaded_and_empty_agents_further_apart_than_a_wake_column
             assert empty[0] - loaded > WAKE_DEPTH + 2 * AIRFRAME
         else:
             assert np.diff(empty) == pytest.approx([0.2, 0.2])
+
+
+def test_the_wake_rules_act_only_where_the_run_models_downwash_and_lanes_only_with_avoidance():
+    """Without downwash there are no wakes to keep out of, and without an avoidance layer agents sharing a lane
+    would fly into each other: the staggered altitudes of the switch-off case."""
+    starts = [[0.12, 0.1 + 0.2 * i, 0.011] for i in range(3)]
+    for downwash, avoidance, lanes, clear in (
+        (True, True, True, True),
+        (None, None, True, True),
+        (False, True, False, False),
+        (True, False, False, True),
+    ):
+        sp = _planner(3, downwash=downwash, avoidance=avoidance)
+        assert (sp.wake_lanes, sp.wake_clear) == (lanes, clear)
+        empty = [c.vector[2] for c in sp.plan_all(_view(starts))]
+        assert (np.diff(empty) == pytest.approx([0.2, 0.2])) is not lanes
 
 
 @pytest.mark.parametrize("plumb", [True, False])
