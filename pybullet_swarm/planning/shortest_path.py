@@ -317,6 +317,17 @@ class ShortestPathParams(Params):
     }
 
 
+def _lookahead(p: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Level flight from ``p`` (3,) m towards ``target`` (3,) m: the unit direction (2,) and ``k`` points (k, 2) m
+    along the way up to ``WAKE_LOOKAHEAD`` ahead; None when ``target`` is right above or below."""
+    step = target[:2] - p[:2]
+    dist = float(np.linalg.norm(step))
+    if dist < 1e-9:
+        return None
+    u = step / dist
+    return u, p[:2] + np.linspace(0.0, min(dist, WAKE_LOOKAHEAD), k)[:, None] * u
+
+
 class ShortestPath:
     """Centralised straight-line delivery in structure order.
 
@@ -488,11 +499,10 @@ class ShortestPath:
         if not self.wake_clear:
             return False
         p = view.positions[i]
-        step = target[:2] - p[:2]
-        dist = float(np.linalg.norm(step))
-        if dist < 1e-9:
+        way = _lookahead(p, target, 11)
+        if way is None:
             return False
-        ahead = p[:2] + np.linspace(0.0, min(dist, WAKE_LOOKAHEAD), 11)[:, None] * (step / dist)  # (11, 2) m
+        _, ahead = way
         for j in range(self.n):
             q = view.positions[j]
             if j == i or abs(q[2] - p[2]) < WAKE_MIN_DZ:
@@ -516,12 +526,10 @@ class ShortestPath:
         if not (self.wake_clear or self.params.round_parked):
             return target
         p = view.positions[i]
-        step = target[:2] - p[:2]
-        dist = float(np.linalg.norm(step))
-        if dist < 1e-9:
+        way = _lookahead(p, target, 21)
+        if way is None:
             return target
-        u = step / dist
-        ahead = p[:2] + np.linspace(0.0, min(dist, WAKE_LOOKAHEAD), 21)[:, None] * u  # (21, 2) m
+        u, ahead = way
         best, w = np.inf, target
         for j in range(self.n):
             q = view.positions[j]

@@ -146,33 +146,26 @@ def test_plumb_legs_brings_a_descent_pushed_aside_back_over_its_column(plumb):
 
 
 @pytest.mark.parametrize("soft", [True, False])
-def test_soft_landing_creeps_down_the_last_centimetres_to_a_slot(soft):
+@pytest.mark.parametrize("to_slot", [True, False])
+def test_soft_landing_creeps_down_the_last_centimetres(soft, to_slot):
+    """A descent to a slot (carrying its box) or to a box, at rest just above the point SETTLE_HEIGHT (4 cm) up."""
     sp = _planner(1, soft_landing=soft)
     sp.home = np.zeros((1, 3))
-    sp.phase[0], sp.box[0], sp.slot[0] = Phase.DESCEND_SLOT, 0, 0
-    drop = SLOTS[0] + [0.0, 0.0, sp.clearances[0] + GH]  # agent over the drop point, box hanging GH below
-    p = drop + [0.0, 0.0, 0.045]  # at rest 5 mm above the point SETTLE_HEIGHT (4 cm) up
-    view = _view([p], carrying=[0])
-    view.box_positions[0] = p - [0.0, 0.0, GH]
+    if to_slot:
+        sp.phase[0], sp.box[0], sp.slot[0] = Phase.DESCEND_SLOT, 0, 0
+        point = SLOTS[0] + [0.0, 0.0, sp.clearances[0] + GH]  # agent over the drop point, box hanging GH below
+    else:
+        sp.phase[0], sp.box[0], sp.slot[0] = Phase.DESCEND_BOX, 1, 0
+        point = DEPOT[1] + [0.0, 0.0, GH]
+    p = point + [0.0, 0.0, 0.045]  # at rest 5 mm above the point SETTLE_HEIGHT (4 cm) up
+    view = _view([p], carrying=[0] if to_slot else None)
+    if to_slot:
+        view.box_positions[0] = p - [0.0, 0.0, GH]
     z = sp.plan_all(view)[0].vector[2]
     if soft:  # at rest near the point SETTLE_HEIGHT up: its target creeps down from there, a few mm below it
         assert 0.0 < p[2] - z <= 0.01
     else:
-        assert z == pytest.approx(drop[2])
-
-
-@pytest.mark.parametrize("soft", [True, False])
-def test_soft_landing_creeps_down_the_last_centimetres_to_a_box(soft):
-    sp = _planner(1, soft_landing=soft)
-    sp.home = np.zeros((1, 3))
-    sp.phase[0], sp.box[0], sp.slot[0] = Phase.DESCEND_BOX, 1, 0
-    grasp = DEPOT[1] + [0.0, 0.0, GH]
-    p = grasp + [0.0, 0.0, 0.045]  # at rest 5 mm above the point SETTLE_HEIGHT (4 cm) up
-    z = sp.plan_all(_view([p]))[0].vector[2]
-    if soft:  # at rest near the point SETTLE_HEIGHT up: its target creeps down from there, a few mm below it
-        assert 0.0 < p[2] - z <= 0.01
-    else:
-        assert z == pytest.approx(grasp[2])
+        assert z == pytest.approx(point[2])
 
 
 @pytest.mark.parametrize("swap", [True, False])
