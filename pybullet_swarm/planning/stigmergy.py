@@ -50,7 +50,7 @@ extension with its own switch (bold; the table below).
   above, are refused when the scenario is loaded (``StigmergyParams.check_layout``), never mid-run.
 * Grasping and placing (needs). An agent goes above the object, descends straight down, grasps
   within 60 % of the attach threshold, and places its box from ``release_clearance`` above the
-  slot at the lowest (its drop point is ``release_tol`` higher still: the settle test lets it go
+  slot at the lowest (**raise_drop_point**: its drop point is ``release_tol`` higher still: the settle test lets it go
   anywhere within ``release_tol`` of that point; at ``release_clearance`` over the slot exactly,
   a settled agent could press its box onto the one below), where the box hangs at the offset it had when grasped (measured from the box it saw then).
   **drift_breakoff**: a descent pushed more than ``DRIFT_TOL`` off its column (by a neighbour's
@@ -110,6 +110,7 @@ switch                        default     thesis      source of the thesis's val
 ``descent_timeout_s``         20 s        null        not in the thesis
 ``release_over_neighbours``   true        false       not in the thesis (its boxes passed through each other)
 ``clear_spent_goals``         true        false       appendix A: goal marks never change (fatigue 0)
+``raise_drop_point``          true        false       not in the thesis
 ``lookahead``                 0.2 m       0.1 m       appendix B: the cells next to the agent's own
 ``footprint``                 true        false       appendix B: the agent marks its own cell only
 ``ahead_cone``                true        false       chapter 6.0.4: "any area they move into"
@@ -420,6 +421,11 @@ class StigmergyParams(Params):
         description="let a box for a slot with boxes beside it go above their tops, where the task's guide "
         "takes it [false]",
     )
+    raise_drop_point: bool = Field(
+        True,
+        description="the drop point release_tol above the least release height, so a settled agent never "
+        "presses its box onto the one below [false: release_clearance over the slot]",
+    )
     clear_spent_goals: bool = Field(
         True,
         description="at a search point with no open slot in view, clear the goal marks over the columns "
@@ -451,6 +457,7 @@ class StigmergyParams(Params):
             "descent_timeout_s": None,
             "release_over_neighbours": False,
             "clear_spent_goals": False,
+            "raise_drop_point": False,
         }
     }
 
@@ -946,7 +953,9 @@ class Stigmergy:
         sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agent's own position estimate
         # m, height of the drop point's box over its slot: the settle test lets the agent go anywhere
         # within release_tol of it, so the box's bottom clears the slot by release_clearance at the lowest
-        self.clearance = max(self.params.release_clearance, CLEARANCE_SIGMAS * sigma) + self.params.release_tol
+        self.clearance = max(self.params.release_clearance, CLEARANCE_SIGMAS * sigma) + (
+            self.params.release_tol if self.params.raise_drop_point else 0.0
+        )
         # (S,) m, release height of each slot's box (over its neighbours' tops with ``release_over_neighbours``)
         self.clearances = release_clearances(info, self.clearance, over_neighbours=self.params.release_over_neighbours)
         dwell = self.params.release_dwell_s

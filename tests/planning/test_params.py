@@ -41,6 +41,7 @@ THESIS_STIGMERGY = {
     "descent_timeout_s": None,
     "release_over_neighbours": False,
     "clear_spent_goals": False,
+    "raise_drop_point": False,
 }
 THESIS_LAYERED = {
     **THESIS_STIGMERGY,
@@ -110,6 +111,7 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "retake",
         "descent_timeout_s",
         "release_over_neighbours",
+        "raise_drop_point",
         "clear_spent_goals",
     ]
     assert list(extensions(LayeredStigmergyParams)) == [

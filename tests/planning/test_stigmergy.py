@@ -820,3 +820,12 @@ def test_clear_spent_goals_clears_the_goal_marks_over_columns_seen_whole_with_no
     assert med.sample(Layer.TASK.value, near) == (0.0 if clear else -1.0)
     assert med.sample(Layer.TASK.value, far) == -1.0
     assert med.tallies.get("goal_marks_cleared", 0) == (1 if clear else 0)
+
+
+def test_the_drop_point_is_release_tol_higher_unless_switched_off():
+    """The settle test lets an agent go anywhere within release_tol of its drop point: raised by that, the box
+    clears its slot by release_clearance at the lowest; switched off (the thesis preset), release_clearance over it."""
+    on, off = _agent(), _agent(raise_drop_point=False)
+    assert on.clearance == pytest.approx(on.params.release_clearance + on.params.release_tol)
+    assert off.clearance == pytest.approx(off.params.release_clearance)
+    assert _agent(preset="thesis").clearance == pytest.approx(off.clearance)
