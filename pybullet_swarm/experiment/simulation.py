@@ -182,8 +182,8 @@ class Simulation:
         self.ranges = np.zeros((n, 0))  # (n, r) m, range readings of the last planner tick
         from pybullet_swarm.planning.registry import avoidance_layers
 
-        av_factory = avoidance_layers()[self.avoidance_name][0]
-        if sc.sensing.range.enabled or getattr(av_factory, "needs_range_sensors", False):
+        self.avoidance_factory = avoidance_layers()[self.avoidance_name].factory  # None: no avoidance layer
+        if sc.sensing.range.enabled or getattr(self.avoidance_factory, "needs_range_sensors", False):
             self.enable_range_sensors()
         self.position_std = self._expected_position_std()
         self.task: TaskRuntime = task_runtimes()[sc.task.kind](
@@ -303,10 +303,8 @@ class Simulation:
         if sc.sensing.state.value == "estimated":  # what an agent can expect of its own position estimate
             extra["position_std"] = self.position_std
         extra["downwash"] = bool(sc.sim.downwash)  # whether vehicles' wakes act on each other (rules minding them)
-        from pybullet_swarm.planning.registry import avoidance_layers
-
         # whether an avoidance layer keeps agents apart (a planner may share a lane only with one)
-        extra["avoidance"] = avoidance_layers()[self.avoidance_name].factory is not None
+        extra["avoidance"] = self.avoidance_factory is not None
         return TaskInfo(
             arena_size=np.asarray(sc.arena.size, dtype=float),
             n_agents=self.n,
@@ -338,14 +336,14 @@ class Simulation:
         )
 
     def _make_planner(self) -> None:
-        from pybullet_swarm.planning.registry import avoidance_layers, planners
+        from pybullet_swarm.planning.registry import planners
 
         factory = planners()[self.planner_name].factory
         params = self.scenario.planner_params  # validated when the scenario was loaded
         # A planner may bring a shared medium (e.g. a pheromone grid): ``make_medium(params, info) -> medium``.
         make_medium = getattr(factory, "make_medium", None)
         self.medium = make_medium(params, self.info) if callable(make_medium) else None
-        av_factory = avoidance_layers()[self.avoidance_name].factory
+        av_factory = self.avoidance_factory
         self.avoidance_layer = (
             av_factory(self._avoidance_setup(), self.scenario.avoidance_params) if av_factory is not None else None
         )
