@@ -25,7 +25,7 @@ from pybullet_swarm.planning.orca import (
     velocity_bounds,
 )
 from pybullet_swarm.planning.orca import layer as orca_layer
-from pybullet_swarm.planning.orca.rules import reference_velocities, uncertainty_growth
+from pybullet_swarm.planning.orca.rules import obstacles_beside, reference_velocities, uncertainty_growth
 from pybullet_swarm.types import ExitStatus
 
 HALF = np.array([0.075, 0.075, 0.01])  # m, quad150 half extents (level)
@@ -238,6 +238,34 @@ def test_floor_and_column_rules_narrow_the_bounds_only_when_on():
     assert np.array_equal(lo, np.tile(-VM, (2, 1))) and np.array_equal(hi, np.tile(VM, (2, 1)))
 
 
+def test_the_column_rule_holds_only_beside_an_obstacle():
+    """With ``column_reach`` the column rule's premise is checked: an agent low on a vertical leg is held
+    (no sideways dodge) only with a box within reach of its shape and not wholly above it."""
+    pos = np.array([[0.0, 0.0, 0.3], [1.0, 0.0, 0.3], [2.0, 0.0, 0.3], [3.0, 0.0, 0.3]])
+    centres, halves = np.zeros((4, 3)), np.tile(HALF, (4, 1))
+    box = np.array([0.05, 0.05, 0.05])
+    obstacles = np.array(
+        [
+            [0.0, 0.0, 0.05],  # under agent 0
+            [1.0 + 0.075 + 0.05 + 0.04, 0.0, 0.05],  # 4 cm beside agent 1's airframe
+            [2.0 + 0.075 + 0.05 + 0.06, 0.0, 0.05],  # 6 cm beside agent 2's: out of reach
+            [3.0, 0.0, 0.6],  # over agent 3 (wholly above it)
+        ]
+    )
+    beside = obstacles_beside(pos, centres, halves, obstacles, np.tile(box, (4, 1)), 0.05)
+    assert beside.tolist() == [True, True, False, False]
+    assert not obstacles_beside(pos, centres, halves, np.zeros((0, 3)), np.zeros((0, 3)), 0.05).any()
+    intended = np.tile([0.0, 0.0, 0.15], (4, 1))  # all climbing straight up from their targets
+    common = dict(floor_height=0.5, time_horizon=2.0, goals=pos + [0.0, 0.0, 0.2], has_goal=np.ones(4, dtype=bool))
+    lo, hi = velocity_bounds(pos, intended, VM, column=0.03, beside=beside, **common)
+    held = np.all(lo[:, :2] == 0.0, axis=1) & np.all(hi[:, :2] == 0.0, axis=1)
+    assert held.tolist() == [True, True, False, False]
+    free = np.all(lo[:, :2] == -VM[:2], axis=1) & np.all(hi[:, :2] == VM[:2], axis=1)
+    assert free.tolist() == [False, False, True, True]
+    lo, hi = velocity_bounds(pos, intended, VM, column=0.03, **common)  # no premise given: every leg is held
+    assert np.all(lo[:, :2] == 0.0) and np.all(hi[:, :2] == 0.0)
+
+
 def test_clipped_reference_and_uncertainty_margin():
     vel = np.array([[0.3, -0.2, 0.0]])
     assert np.array_equal(reference_velocities(vel, VM, True), [[0.15, -0.15, 0.0]])
@@ -285,6 +313,8 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
             kw = seen["velocity_bounds"][1]
             assert kw["floor"] is (off is not Rule.FLOOR_RULE)
             assert (kw["column"] > 0.0) is (off is not Rule.COLUMN_RULE)
+            # the column rule's premise (column_reach) is tested against the static obstacles it knows
+            assert (kw["beside"] is None) is (off in (Rule.COLUMN_RULE, Rule.STATIC_OBSTACLES))
             assert seen["reference"][0][2] is (off is not Rule.CLIPPED_REFERENCE)
             assert ("clear_paths" in seen) is (off is not Rule.PASSTHROUGH)  # agent 0 is 1 cm from its target
             if "clear_paths" in seen:  # the swept boxes reach the wake depth down unless the wake column is off

@@ -27,7 +27,9 @@ The paper's core and our extension rules are kept apart:
     one flies level: an empty agent hops over a carrier and its box;
   - ``floor_rule``: below ``floor_height`` avoidance never pushes an agent down;
   - ``column_rule``: low on a vertical leg (within ``column_radius`` of its target) an agent is
-    only slowed or lifted: a sideways dodge there tilts it into the box under it;
+    only slowed or lifted: a sideways dodge there tilts it into the box under it (with
+    ``static_obstacles``, only where a box, the structure or an obstacle lies within ``column_reach``
+    of its airframe or load: a leg in the open, such as a climb at the structure's edge, dodges);
   - ``minimal_intervention``: a command that violates no half-space is kept unchanged;
   - ``passthrough``: within ``capture_radius`` of a POSITION/HOLD target the command passes
     unchanged when the swept box is clear (grasp and release need millimetres);

@@ -24,7 +24,7 @@ from pybullet_swarm.planning.orca.kernel import (
     union_boxes,
 )
 from pybullet_swarm.planning.orca.params import OrcaParams, Shape
-from pybullet_swarm.planning.orca.rules import clear_paths, velocity_bounds
+from pybullet_swarm.planning.orca.rules import clear_paths, obstacles_beside, velocity_bounds
 from pybullet_swarm.types import Perception
 
 NO_OBSTACLES = Obstacles()
@@ -146,6 +146,9 @@ class OrcaLayer:
         obstacles = self.arena_obstacles + task.obstacles if p.static_obstacles else NO_OBSTACLES
         oc = np.ascontiguousarray(obstacles.centres, dtype=float)
         oh = np.ascontiguousarray(obstacles.half_extents, dtype=float)
+        beside = None
+        if p.column_rule and p.column_reach is not None and p.static_obstacles:
+            beside = obstacles_beside(pos, centre, half, oc, oh, p.column_reach)
         # bounds around what the command itself asks for (per axis it covers the preferred velocity)
         bounds = velocity_bounds(
             pos,
@@ -157,6 +160,7 @@ class OrcaLayer:
             has_goal=has_goal,
             column=p.column_radius if p.column_rule else 0.0,
             floor=p.floor_rule,
+            beside=beside,
         )
         safe, flags = orca_velocities(
             pos,

@@ -104,6 +104,13 @@ class OrcaParams(Params):
         description="m, below floor_height an agent this close to its target (horizontally) "
         "is never moved sideways (0: off)",
     )
+    column_reach: float | None = Field(
+        0.05,
+        ge=0.0,
+        le=10.0,
+        description="m, the column rule holds an agent only with a box, the structure or an obstacle this close to "
+        "its airframe or load horizontally and not wholly above it (null: wherever it is; needs static_obstacles)",
+    )
     minimal_intervention: bool = _switch(Rule.MINIMAL_INTERVENTION)
     passthrough: bool = _switch(Rule.PASSTHROUGH)
     capture_radius: float = Field(

@@ -210,6 +210,7 @@ def velocity_bounds(
     has_goal: NDArray[np.bool_] | None = None,
     column: float = 0.0,
     floor: bool = True,
+    beside: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """FLOOR_RULE and COLUMN_RULE: hard per-axis bounds (lower (n, 3), upper (n, 3)) m/s of each agent's velocity.
 
@@ -219,7 +220,8 @@ def velocity_bounds(
     down on a vertical leg to or from its target (horizontally within ``column`` of it: descending
     to grasp or place, climbing away) is over a box or the structure, where a sideways dodge tilts
     the airframe into it: avoidance may only slow it down or lift it, not move it sideways. The
-    velocity limits bound everything.
+    velocity limits bound everything. ``beside`` (n,) limits the column rule to the agents it marks
+    (``obstacles_beside``: a box or the structure within reach); None: every agent on a leg.
 
     Args:
         positions: (n, 3) m, sensed.
@@ -230,6 +232,7 @@ def velocity_bounds(
         goals: (n, 3) m, position targets; ``has_goal`` (n,) says which hold one.
         column: m, horizontal radius of a vertical leg (0: no column rule).
         floor: the floor rule on.
+        beside: (n,) bool, the agents the column rule may hold, or None (all).
     """
     n = len(positions)
     vm = np.full(3, np.inf) if v_max is None else np.broadcast_to(np.asarray(v_max, dtype=float), (3,)).copy()
@@ -240,9 +243,36 @@ def velocity_bounds(
     if goals is not None and has_goal is not None and column > 0.0:
         e = goals - positions
         leg = has_goal & (np.hypot(e[:, 0], e[:, 1]) <= column) & (positions[:, 2] < floor_height)
+        if beside is not None:
+            leg &= beside
         lo[leg, :2] = np.minimum(intended[leg, :2], 0.0)
         hi[leg, :2] = np.maximum(intended[leg, :2], 0.0)
     return lo, hi
+
+
+def obstacles_beside(
+    positions: NDArray[np.float64],
+    centres: NDArray[np.float64],
+    halves: NDArray[np.float64],
+    obstacle_centres: NDArray[np.float64],
+    obstacle_halves: NDArray[np.float64],
+    reach: float,
+) -> NDArray[np.bool_]:
+    """(n,) bool: agents with a static obstacle within ``reach`` m of their shape horizontally, not wholly above it.
+
+    The column rule's premise: a sideways dodge tilts the airframe (or swings its load) into a box or the
+    structure beside or under it. Each agent's shape is its union box (``centres`` offsets (n, 3) m from
+    ``positions``, ``halves`` (n, 3) m); obstacles are axis-aligned boxes (m, 3) / (m, 3) m.
+    """
+    n = len(positions)
+    if len(obstacle_centres) == 0 or n == 0:
+        return np.zeros(n, dtype=np.bool_)
+    c = positions + centres
+    d = np.abs(c[:, None, :2] - obstacle_centres[None, :, :2])
+    near = np.all(d < halves[:, None, :2] + obstacle_halves[None, :, :2] + reach, axis=2)
+    top = c[:, 2] + halves[:, 2]
+    near &= (obstacle_centres[None, :, 2] - obstacle_halves[None, :, 2]) < top[:, None]
+    return np.asarray(near.any(axis=1))
 
 
 # ----------------------------------------------------------------------------- stalls
