@@ -42,6 +42,7 @@ THESIS_STIGMERGY = {
     "release_over_neighbours": False,
     "clear_spent_goals": False,
     "raise_drop_point": False,
+    "mark_seen_slots": False,
 }
 THESIS_LAYERED = {
     **THESIS_STIGMERGY,
@@ -113,6 +114,7 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "release_over_neighbours",
         "raise_drop_point",
         "clear_spent_goals",
+        "mark_seen_slots",
     ]
     assert list(extensions(LayeredStigmergyParams)) == [
         *extensions(StigmergyParams),

@@ -829,3 +829,37 @@ def test_the_drop_point_is_release_tol_higher_unless_switched_off():
     assert on.clearance == pytest.approx(on.params.release_clearance + on.params.release_tol)
     assert off.clearance == pytest.approx(off.params.release_clearance)
     assert _agent(preset="thesis").clearance == pytest.approx(off.clearance)
+
+
+@pytest.mark.parametrize("mark", [True, False])
+def test_an_empty_agent_that_sees_an_open_slot_marks_its_cell_as_a_goal(mark):
+    """``mark_seen_slots``: an empty agent beside the structure that sees slot 3 open leaves -1 in its own
+    cell (where a carrier sees the slot again), over a trail but never over a box mark; a carrier's next
+    pheromone search point is that cell. Without the switch (the thesis) only a placement marks a goal."""
+    med = _medium()
+    a = _agent(mark_seen_slots=mark)
+    g = a.geo
+    p = np.array([g.structure.lo[:, 0].min() - g.standoff, 0.8, g.floor_altitude])
+    assert _visible(p, SLOTS[3])
+    med.deposit(Layer.TASK.value, p, 0.2, rule=DepositRule.SET)  # a trail was laid here
+    med.step(0.1)
+    a.plan(_obs(p, slots=[SLOTS[3]], slot_ids=[3]), med)
+    med.step(0.1)
+    assert med.sample(Layer.TASK.value, p) == (-1.0 if mark else 0.2)
+    assert med.tallies.get("goals_seen", 0) == (1 if mark else 0)
+    # the carrier: random search point first, then the strongest goal mark, which is this one
+    c = _agent(agent=1, mark_seen_slots=mark)
+    c.carry, c.phase = Carry(4, np.array([0.0, 0.0, -GH])), Phase.CHOOSE_GOAL
+    c.strategy = Strategy.RANDOM
+    c.plan(_obs([1.0, 0.5, g.floor_altitude], carrying=4, agent=1), med)
+    if mark:
+        assert c.strategy is Strategy.PHEROMONE and np.max(np.abs(c.target - p[:2])) <= 0.1
+    else:
+        assert c.strategy is Strategy.RANDOM  # no goal mark anywhere: a random point again
+    # no mark over a box mark
+    q = p + [0.0, -0.1, 0.0]
+    med.deposit(Layer.TASK.value, q, 1.0, rule=DepositRule.SET)
+    med.step(0.1)
+    a.plan(_obs(q, slots=[SLOTS[3]], slot_ids=[3]), med)
+    med.step(0.1)
+    assert med.sample(Layer.TASK.value, q) == 1.0
