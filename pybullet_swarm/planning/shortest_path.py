@@ -193,7 +193,9 @@ PARKED_RADIUS = 0.4
 WAIT_STEP = 0.1
 """m: ``wake_clear`` moves a waiting point this much further out until it lies ``LEG_SPACING`` off every column."""
 WAIT_TRIES = 8
-"""How many waiting points further out ``wake_clear`` tries before it keeps the first."""
+"""How many waiting points further out ``wake_clear`` tries; when none lies ``LEG_SPACING`` off every column (a
+depot grid at a 20 cm pitch), it keeps the one farthest off them (the first one, a column's width from another
+box's column, blocked that box's agent for good: ``tower5`` of the construction suite stalled)."""
 DESCENT_SPACING_MARGIN = 0.02
 """m: ``spaced_descents`` keeps two vertical legs an airframe's width and this far apart (per horizontal axis;
 the airframe a square in the agent's enclosing circle: 17 cm for ``quad150``, so a 20 cm pitch is not held up)."""
@@ -465,13 +467,15 @@ class ShortestPath:
         way = np.array([np.cos(base + turn), np.sin(base + turn)])
         size = np.asarray(self.info.arena_size, dtype=float)[:2]  # m
         columns = self._columns(i, view) if self.wake_clear else np.zeros((0, 2))
-        first = xy = np.clip(above[:2] + ASIDE_RADII * r * way, r, size - r)
+        xy = np.clip(above[:2] + ASIDE_RADII * r * way, r, size - r)
+        best = -np.inf
         for k in range(WAIT_TRIES if columns.size else 0):  # wake_clear: out along the way until off every column
-            xy = np.clip(above[:2] + (ASIDE_RADII * r + k * WAIT_STEP) * way, r, size - r)
-            if np.min(np.max(np.abs(columns - xy), axis=1)) >= LEG_SPACING:
+            cand = np.clip(above[:2] + (ASIDE_RADII * r + k * WAIT_STEP) * way, r, size - r)
+            off = float(np.min(np.max(np.abs(columns - cand), axis=1)))
+            if off > best + 1e-9:  # none off every column (a dense depot): the one farthest off them
+                best, xy = off, cand
+            if off >= LEG_SPACING:
                 break
-        else:
-            xy = first
         return self._cruise(i, view, np.array([xy[0], xy[1], above[2]]))
 
     def _alt(self, i: int) -> float:

@@ -261,3 +261,36 @@ def test_round_parked_takes_a_carrier_round_one_waiting_on_its_way(round_parked)
         gaps.append(float(np.linalg.norm(p[:2] - parked[:2])))
     assert min(gaps) >= PARKED_CLEARANCE - 0.02
     assert np.linalg.norm(p[:2] - SLOTS[1, :2]) < 0.03
+
+
+def test_wake_clear_waits_farthest_off_the_columns_when_no_point_is_clear_of_them(monkeypatch: pytest.MonkeyPatch):
+    """A waiting point out along the way from a column must lie ``LEG_SPACING`` off every column of boxes and
+    slots; in a dense depot no point tried does, and the agent waits at the one farthest off them, not at the
+    first (a column's width from another box's column, where it blocked that box's agent for good)."""
+    from pybullet_swarm.planning import shortest_path as sp_module
+
+    xs = np.round(np.arange(0.15, 2.5, 0.25), 3)  # a depot over the arena, columns 25 cm apart
+    dense = np.array([[x, y, 0.05] for x in xs for y in (0.15, 0.4, 0.65, 0.9)])
+    sp = _planner(1, wake_clear=True)
+    sp.home = np.zeros((1, 3))
+    view = WorldView(
+        0.0,
+        np.array([[1.0, 0.9, sp._alt(0)]]),  # at its cruise altitude: the command is the waiting point
+        np.zeros((1, 3)),
+        np.full(1, -1),
+        dense,
+        np.zeros(len(dense), dtype=np.int64),
+        np.full(len(SLOTS), -1),
+        np.ones(len(SLOTS), dtype=bool),
+    )
+    columns = sp._columns(0, view)
+    above = np.array([0.4, 0.4, sp._alt(0)])
+
+    def off(q: np.ndarray) -> float:
+        return float(np.min(np.max(np.abs(columns - q), axis=1)))
+
+    chosen = sp._wait_aside(0, view, above).vector[:2]
+    monkeypatch.setattr(sp_module, "WAIT_TRIES", 1)  # only the first point out
+    first = sp._wait_aside(0, view, above).vector[:2]
+    assert off(chosen) < sp_module.LEG_SPACING  # none of the points tried is clear of every column
+    assert off(chosen) > off(first) + 0.005  # the farthest off them, not the first
