@@ -236,6 +236,11 @@ def test_floor_and_column_rules_narrow_the_bounds_only_when_on():
     assert np.all(lo[0, :2] == 0.0) and np.all(hi[0, :2] == 0.0)  # 0 may not move sideways
     lo, hi = velocity_bounds(pos, intended, VM, column=0.0, floor=False, **common)
     assert np.array_equal(lo, np.tile(-VM, (2, 1))) and np.array_equal(hi, np.tile(VM, (2, 1)))
+    # floor_preferred: 3 cm over its target, the preferred approach (-0.06 m/s) bounds the descent, not the
+    # shaped command (-0.1 m/s); above floor_height the preferred velocity changes nothing
+    pref = np.array([[0.0, 0.0, -0.06], [0.1, 0.0, -0.15]])
+    lo, _ = velocity_bounds(pos, intended, VM, column=0.0, preferred=pref, **common)
+    assert lo[0, 2] == pytest.approx(-0.06) and lo[1, 2] == pytest.approx(-0.15)
 
 
 def test_the_column_rule_holds_only_beside_an_obstacle():
@@ -315,6 +320,7 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
             assert (kw["column"] > 0.0) is (off is not Rule.COLUMN_RULE)
             # the column rule's premise (column_reach) is tested against the static obstacles it knows
             assert (kw["beside"] is None) is (off in (Rule.COLUMN_RULE, Rule.STATIC_OBSTACLES))
+            assert kw["preferred"] is not None  # floor_preferred (on by default) hands the bounds the preferences
             assert seen["reference"][0][2] is (off is not Rule.CLIPPED_REFERENCE)
             assert ("clear_paths" in seen) is (off is not Rule.PASSTHROUGH)  # agent 0 is 1 cm from its target
             if "clear_paths" in seen:  # the swept boxes reach the wake depth down unless the wake column is off

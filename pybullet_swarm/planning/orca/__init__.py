@@ -25,7 +25,8 @@ The paper's core and our extension rules are kept apart:
     above it, where a sideways dodge needs two airframe widths);
   - ``climb_over``: the upper agent of a pair takes the whole of a vertical way out when the lower
     one flies level: an empty agent hops over a carrier and its box;
-  - ``floor_rule``: below ``floor_height`` avoidance never pushes an agent down;
+  - ``floor_rule``: below ``floor_height`` avoidance never pushes an agent down faster than it means
+    to go (``floor_preferred``: no faster than its preferred approach to its own target either);
   - ``column_rule``: low on a vertical leg (within ``column_radius`` of its target) an agent is
     only slowed or lifted: a sideways dodge there tilts it into the box under it (with
     ``static_obstacles``, only where a box, the structure or an obstacle lies within ``column_reach``

@@ -161,6 +161,7 @@ class OrcaLayer:
             column=p.column_radius if p.column_rule else 0.0,
             floor=p.floor_rule,
             beside=beside,
+            preferred=pref if p.floor_preferred else None,
         )
         safe, flags = orca_velocities(
             pos,

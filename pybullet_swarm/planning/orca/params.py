@@ -96,6 +96,12 @@ class OrcaParams(Params):
     climb_over: bool = _switch(Rule.CLIMB_OVER)
     floor_rule: bool = _switch(Rule.FLOOR_RULE)
     floor_height: float = Field(0.5, ge=0.0, le=100.0, description="m, below this avoidance never pushes an agent down")
+    floor_preferred: bool = Field(
+        True,
+        description="with floor_rule, below floor_height an agent is never pushed down faster than its preferred "
+        "velocity either (its target over arrive_time: slowing onto its own box), not only its shaped command "
+        "[false: the shaped command alone, up to the velocity limit a few centimetres above the target]",
+    )
     column_rule: bool = _switch(Rule.COLUMN_RULE)
     column_radius: float = Field(
         0.03,

@@ -211,6 +211,7 @@ def velocity_bounds(
     column: float = 0.0,
     floor: bool = True,
     beside: NDArray[np.bool_] | None = None,
+    preferred: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """FLOOR_RULE and COLUMN_RULE: hard per-axis bounds (lower (n, 3), upper (n, 3)) m/s of each agent's velocity.
 
@@ -233,13 +234,17 @@ def velocity_bounds(
         column: m, horizontal radius of a vertical leg (0: no column rule).
         floor: the floor rule on.
         beside: (n,) bool, the agents the column rule may hold, or None (all).
+        preferred: (n, 3) m/s, the preferred velocities; given, below ``floor_height`` an agent is not pushed
+            down faster than the slower of it and ``intended`` (a POSITION target a few centimetres below is
+            approached slowly, while the shaped command may still ask for the velocity limit).
     """
     n = len(positions)
     vm = np.full(3, np.inf) if v_max is None else np.broadcast_to(np.asarray(v_max, dtype=float), (3,)).copy()
     lo, hi = np.tile(-vm, (n, 1)), np.tile(vm, (n, 1))
     if floor:
         sink = np.maximum(positions[:, 2] - floor_height, 0.0) / time_horizon
-        lo[:, 2] = np.maximum(lo[:, 2], np.minimum(intended[:, 2], -sink))
+        down = intended[:, 2] if preferred is None else np.maximum(intended[:, 2], preferred[:, 2])
+        lo[:, 2] = np.maximum(lo[:, 2], np.minimum(down, -sink))
     if goals is not None and has_goal is not None and column > 0.0:
         e = goals - positions
         leg = has_goal & (np.hypot(e[:, 0], e[:, 1]) <= column) & (positions[:, 2] < floor_height)
