@@ -1068,16 +1068,12 @@ class Stigmergy:
         carrier's random search only (the last open slot of a build, in a corner, for minutes)."""
         if self.holding:
             return  # a carrier goes for an open slot it sees, and marks it when it places its box there
-        if not self.params.wide_view:
-            window = np.max(np.abs(obs.slots[:, :2] - obs.position[:2]), axis=1) <= self.params.view_window
-            if not window.any():
-                return
-        layer = Layer.TASK.value
-        v = medium.sample(layer, obs.position)
+        if not self._in_window(obs, obs.slots).any():
+            return
+        v = medium.sample(Layer.TASK.value, obs.position)
         if v <= self.params.goal_pheromone or v >= self.params.box_pheromone:
             return
-        medium.deposit(layer, obs.position, self.params.goal_pheromone, rule=DepositRule.SET, source=self.id)
-        medium.tally("goals_seen")
+        self._mark(medium, obs.position, self.params.goal_pheromone, "goals_seen")
 
     def _mark(self, medium: PheromoneGrid | None, p: NDArray[np.float64], value: float, tally: str) -> None:
         if medium is not None:
@@ -1227,8 +1223,7 @@ class Stigmergy:
         par = self.params
         cols = where[:, :2] - shift[:2]
         free = np.array([not (par.claims and self._claimed(obs, c, by_carrier=not boxes)) for c in cols])
-        if not par.wide_view:  # the thesis's window: object centre to agent centre, largest horizontal difference
-            free &= np.max(np.abs(where[:, :2] - obs.position[:2]), axis=1) <= par.view_window
+        free &= self._in_window(obs, where)
         if skip is not None:
             free &= ~skip
         if boxes and par.leave_boxes_by_structure:
@@ -1238,6 +1233,14 @@ class Stigmergy:
         d = np.hypot(*(cols - obs.position[:2]).T)
         d[~free] = np.inf
         return int(np.argmin(d))
+
+    def _in_window(self, obs: Observation, where: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """(k,) bool: which objects at ``where`` (k, 3) m the agent notices: every one the task shows it with
+        ``wide_view``, else those in the thesis's window (object centre to agent centre, largest horizontal
+        difference within ``view_window``)."""
+        if self.params.wide_view:
+            return np.ones(len(where), dtype=np.bool_)
+        return np.asarray(np.max(np.abs(where[:, :2] - obs.position[:2]), axis=1) <= self.params.view_window)
 
     def _claimed(self, obs: Observation, xy: NDArray[np.float64], *, by_carrier: bool) -> bool:
         """True when a neighbour works over the column at ``xy`` (2,) m: within one agent radius of
