@@ -554,7 +554,9 @@ def test_a_stalled_agent_above_the_one_in_its_way_climbs_past_it():
             pos,
             vel,
             pref,
-            params=OrcaParams(climb_past=climb, vertical_cost=0.75),
+            # headway off: it grows the pair's boxes along x by the carrier's speed, and the empty agent
+            # then climbs over it (CLIMB_OVER) before it ever stalls
+            params=OrcaParams(climb_past=climb, vertical_cost=0.75, headway=False),
             sensing_radius=1.0,
             v_max=vm,
             radii=np.array([R_AGENT, R_CARRY]),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -25,7 +26,13 @@ from pybullet_swarm.planning.orca import (
     velocity_bounds,
 )
 from pybullet_swarm.planning.orca import layer as orca_layer
-from pybullet_swarm.planning.orca.rules import obstacles_beside, reference_velocities, uncertainty_growth
+from pybullet_swarm.planning.orca.core import box_u
+from pybullet_swarm.planning.orca.rules import (
+    approach_speed,
+    obstacles_beside,
+    reference_velocities,
+    uncertainty_growth,
+)
 from pybullet_swarm.types import ExitStatus
 
 HALF = np.array([0.075, 0.075, 0.01])  # m, quad150 half extents (level)
@@ -83,6 +90,77 @@ def test_lag_margin_grows_the_shapes_with_the_closing_speed():
     assert np.all(flags & FLAG_FREE)
     _, flags = _pair(OrcaParams.model_validate({**base, "lag_margin": True, "lag_margin_s": 1.0}), gap=0.8)
     assert not np.any(flags & FLAG_FREE)
+
+
+def test_headway_keeps_a_follower_off_the_tail_of_the_one_ahead():
+    # Traced in stigmergy + orca on construction.yaml (seed 88): a follower flew 3 cm behind a leader
+    # at its speed (relative velocity 0: nothing to avoid), the leader stopped over its box, and the
+    # follower touched it a lag later. Here a follower at 0.15 m/s gains on a leader at 0.12 m/s,
+    # 10 cm behind it (bare boxes): 0.03 m/s closing grows the pair's boxes by 1.2 cm and the
+    # collision is 2.9 s away, past the horizon; with headway the follower's own 0.15 m/s grows
+    # them by 6 cm, 1.3 s away: it must slow down now, not once the leader stops.
+    vm = np.full(3, 0.15)
+    pos = np.array([[0.0, 0.0, 0.8], [-0.25, 0.0, 0.8]])  # 0 ahead, 1 following
+    vel = np.array([[0.12, 0.0, 0.0], [0.15, 0.0, 0.0]])
+    centre, half = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.zeros(2, dtype=bool), 0.1, 0.065)
+    for on in (False, True):
+        v, flags = orca_velocities(
+            pos, vel, vel, params=OrcaParams(headway=on), sensing_radius=1.0, v_max=vm, boxes=(centre, half)
+        )
+        assert bool(flags[1] & FLAG_FREE) is not on
+        assert bool(v[1, 2] > 0.05 or v[1, 0] < 0.14) is on  # the follower passes over or slows down
+    # the growth itself: the faster own speed towards the other, never less than the closing speed
+    assert approach_speed(False, 1.0, 0.15, 0.15) == 0.0
+    assert approach_speed(True, 1.0, 0.15, 0.15) == 0.15  # following: its own speed
+    assert approach_speed(True, -1.0, 0.15, 0.15) == 0.15  # leading: the one behind comes on
+    assert approach_speed(True, 1.0, -0.1, -0.1) == 0.1  # the one ahead flies back towards it
+    assert approach_speed(True, 1.0, 0.1, -0.2) == pytest.approx(0.3)  # head-on: the closing speed
+
+
+def test_margin_overlap_keeps_a_pair_from_closing_on_the_axis_that_keeps_it_apart():
+    # Traced in stigmergy + orca on construction.yaml (seed 59): a carrier (1) passing an empty agent
+    # (0) at its target, 3 cm apart along x and 1 cm into each other along y (bare shapes), closed
+    # in along x at 0.12 m/s. Within their margins and lag growth they overlapped on every axis;
+    # the recovery opened the gap along y, the least overlap, x was left free and they touched.
+    c, g = (0.181, -0.139, -0.051), (0.4 * 0.121, 0.4 * 0.007, 0.4 * 0.018)
+    H = (0.18 + g[0], 0.18 + g[1], 0.6025 + g[2])  # half extents, margins, lag and wake growth
+    bare = (0.15, 0.15, 0.0725)
+    v = (0.121, -0.007, -0.018)  # 0's velocity relative to 1's
+    n, u = box_u(c, H, v, 1 / 1.5, 2.0, 0.75, (-1.0, -1.0, -1.0))
+    assert abs(n[1]) == 1.0  # the recovery: sideways
+    n, u = box_u(c, H, v, 1 / 1.5, 2.0, 0.75, bare)
+    assert n[0] < -0.99 and u[0] <= -0.12  # x alone keeps them apart: at least stop closing along it
+    # bare shapes apart along x and y, head-on along x with 1 mm of margin overlap along y (seed 29):
+    # the least change is to keep the y gap, not to brake from 0.3 m/s
+    n, u = box_u((-0.215, 0.185, -0.054), (0.3, 0.186, 0.6), (-0.3, 0.007, 0.0), 1 / 1.5, 2.0, 0.75, bare)
+    assert abs(u[0]) < 0.05 and math.hypot(*u) < 0.05
+    n, u = box_u((-0.215, 0.185, -0.054), (0.3, 0.186, 0.6), (-0.3, 0.007, 0.0), 1 / 1.5, 2.0, 0.75, (-1.0,) * 3)
+    assert n == (0.0, -1.0, 0.0) or abs(n[1]) == 1.0  # the recovery: along y too, here
+    # bare shapes overlapping: the recovery either way
+    assert box_u((0.1, 0.0, 0.0), H, v, 1 / 1.5, 2.0, 0.75, bare) == box_u(
+        (0.1, 0.0, 0.0), H, v, 1 / 1.5, 2.0, 0.75, (-1.0, -1.0, -1.0)
+    )
+    vm = np.full(3, 0.15)
+    centre, half = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([False, True]), 0.1, 0.065)
+    d = np.array(c) + centre[0] - centre[1]
+    pos = np.array([[0.58, 0.51, 0.253], [0.58 + d[0], 0.51 + d[1], 0.253 + d[2]]])
+    vel = np.array([[0.029, -0.006, -0.003], [-0.092, 0.001, 0.015]])
+    pref = np.array([[0.04, -0.021, 0.001], [-0.15, 0.011, 0.001]])
+    for on in (False, True):
+        out, _ = orca_velocities(
+            pos,
+            vel,
+            pref,
+            params=OrcaParams(margin_overlap=on, headway=False, wake_depth=0.5),
+            sensing_radius=1.0,
+            v_max=vm,
+            boxes=(centre, half),
+            bounds=(np.array([[0.0, -0.144, 0.0], [-0.15, -0.15, 0.0]]), np.array([[0.15, 0.0, 0.15], [0.15] * 3])),
+            commanded=np.array([[0.15, -0.144, 0.031], [-0.15, 0.103, 0.017]]),
+        )
+        # without: the carrier keeps closing at full speed; with: it takes its half of stopping the
+        # closing (the empty agent, held by its column rule, cannot take the other half)
+        assert bool(out[0, 0] - out[1, 0] < 0.05) is on
 
 
 TALL = np.array([0.075, 0.075, 0.1])  # m, half extents of a tall shape (airframe and hanging load)

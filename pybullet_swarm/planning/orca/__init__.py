@@ -47,6 +47,15 @@ The paper's core and our extension rules are kept apart:
   - ``wake_share_by_approach``: such a pair's share goes to whichever agent moves into the
     conflict, in proportion to their speeds towards each other; the upper one takes it all only
     when neither does (the upper one fleeing a lower agent closing in was pushed into a third).
+  - ``headway``: with ``lag_margin``, shapes grow by ``lag_margin_s`` x the faster speed at which
+    either agent of a pair flies towards the other, not only their closing speed: ORCA takes a
+    neighbour's velocity as constant, but the one ahead stops for its target without warning,
+    and a follower at its speed then closes in at full speed, a lag late.
+  - ``margin_overlap``: boxes that overlap only within their margins and growths (the bare shapes
+    apart) are not in collision: instead of the recovery (open the gap along the axis of least
+    overlap, which leaves the other axes free), they keep the VO of the largest shape that does
+    not overlap now, cut back to the present gap along one axis on which they are apart (the one
+    needing the least change).
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

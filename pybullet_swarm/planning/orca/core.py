@@ -51,6 +51,7 @@ SPEED_SPHERE_SLACK = 1e-9  # relative: the default speed sphere encloses the vel
 DEFAULT_SPEED_SPHERE = 1.0  # m/s, speed sphere when there are no velocity limits and no max_speed
 BOX_ROWS = 7  # rows of a box VO in s = 1/t: a lower and an upper face per axis, then s >= 1/tau
 BOX_PLANES = 24  # at most this many planes bound a box VO (pairs of those rows)
+MARGIN_TOUCH = 1e-4  # m, MARGIN_OVERLAP cuts a grown shape back to this short of the present gap
 
 #: the core's settings as the kernels read them (one record)
 SETTINGS = np.dtype(
@@ -128,21 +129,18 @@ def sphere_u(p: Vec, v: Vec, R: float, inv_tau: float, inv_rec: float) -> tuple[
 
 
 @njit
-def box_u(c: Vec, H: Vec, v: Vec, inv_tau: float, inv_rec: float, wz: float) -> tuple[Vec, Vec]:
+def box_u(c: Vec, H: Vec, v: Vec, inv_tau: float, inv_rec: float, wz: float, bare: Vec) -> tuple[Vec, Vec]:
     """Outward normal n and change u of relative velocity ``v`` for two axis-aligned boxes.
 
     ``c`` m is the centre of the second box relative to the first, ``H`` m the half extents of
     their Minkowski sum, ``v`` m/s the first's velocity relative to the second's.
 
-    The VO is {v : t v in B for some 0 < t <= tau}, B = [c - H, c + H]. With s = 1 / t it reads
-    "some s >= 1/tau satisfies s (c_k - H_k) <= v_k <= s (c_k + H_k) for every axis k": each row
-    ``a s <= g . v + h`` bounds s from above (a > 0) or below (a < 0), and s exists iff every lower
-    bound is below every upper bound. Each (lower, upper) pair is one linear inequality
-    F(v) = n . v + d >= 0; the VO is their intersection, and the outer side of each of these planes
-    is free of the VO. Inside the VO, u leads to the plane nearest v, with vertical changes
-    measured ``wz`` times horizontal ones (1: the paper's nearest point); outside, to the VO's
-    nearest point. Overlapping boxes open the gap along the axis of least overlap over the
-    recovery time.
+    The VO is {v : t v in B for some 0 < t <= tau}, B = [c - H, c + H] (see ``box_vo``). Overlapping
+    boxes open the gap along the axis of least overlap over the recovery time. ``bare`` m: the half
+    extents of the Minkowski sum without margins and growths (``MARGIN_OVERLAP``; negative: off).
+    Where only the margins overlap (the bare shapes are apart), the pair is not in collision and
+    there is still a VO: that of the largest shape that does not overlap now, cut back along one
+    axis on which the bare shapes are apart to the present gap, whichever needs the least change u.
     """
     pen = -FAR
     k_pen = 0
@@ -153,15 +151,47 @@ def box_u(c: Vec, H: Vec, v: Vec, inv_tau: float, inv_rec: float, wz: float) -> 
         # separation still needed along k; not weighted: when two shapes overlap only a little
         # vertically (one just above the other) a sideways way out leaves them free to close
         # vertically, so the least overlap wins whatever its axis
-        ck = -g
-        if ck < cost:
-            cost = ck
+        if -g < cost:
+            cost = -g
             k_pen = k
-    if pen <= 0.0:
-        # overlapping now: open the gap along the axis of least overlap over the recovery time
-        s = axis(k_pen, 1.0 if c[k_pen] >= 0.0 else -1.0)
-        gap = abs(c[k_pen]) - H[k_pen]
-        return scale(s, -1.0), scale(s, gap * inv_rec - dot(v, s))
+    if pen > 0.0:
+        return box_vo(c, H, v, inv_tau, wz)
+    if bare[0] >= 0.0:
+        best = FAR
+        bn = (0.0, 0.0, 0.0)
+        bu = (0.0, 0.0, 0.0)
+        for k in range(3):
+            if abs(c[k]) - bare[k] <= MARGIN_TOUCH:
+                continue
+            Hk = (
+                abs(c[0]) - MARGIN_TOUCH if k == 0 else H[0],
+                abs(c[1]) - MARGIN_TOUCH if k == 1 else H[1],
+                abs(c[2]) - MARGIN_TOUCH if k == 2 else H[2],
+            )
+            n, u = box_vo(c, Hk, v, inv_tau, wz)
+            du = math.sqrt(u[0] * u[0] + u[1] * u[1] + (wz * u[2]) ** 2)
+            if du < best:
+                best, bn, bu = du, n, u
+        if best < FAR:
+            return bn, bu
+    # overlapping now: open the gap along the axis of least overlap over the recovery time
+    s = axis(k_pen, 1.0 if c[k_pen] >= 0.0 else -1.0)
+    gap = abs(c[k_pen]) - H[k_pen]
+    return scale(s, -1.0), scale(s, gap * inv_rec - dot(v, s))
+
+
+@njit
+def box_vo(c: Vec, H: Vec, v: Vec, inv_tau: float, wz: float) -> tuple[Vec, Vec]:
+    """(n, u) of the box VO of two boxes that do not overlap (``box_u``'s arguments).
+
+    With s = 1 / t the VO reads "some s >= 1/tau satisfies s (c_k - H_k) <= v_k <= s (c_k + H_k)
+    for every axis k": each row ``a s <= g . v + h`` bounds s from above (a > 0) or below (a < 0),
+    and s exists iff every lower bound is below every upper bound. Each (lower, upper) pair is one
+    linear inequality F(v) = n . v + d >= 0; the VO is their intersection, and the outer side of
+    each of these planes is free of the VO. Inside the VO, u leads to the plane nearest v, with
+    vertical changes measured ``wz`` times horizontal ones (1: the paper's nearest point); outside,
+    to the VO's nearest point.
+    """
     # rows a s <= g . v + h: lower and upper faces of each axis, then s >= 1/tau
     ra = np.empty(BOX_ROWS)
     rg = np.zeros((BOX_ROWS, 3))
@@ -495,7 +525,9 @@ def orca_plane(
     if combined_radius is not None:
         n, u = sphere_u(p, v, float(combined_radius), 1.0 / time_horizon, 1.0 / recovery_time)
     else:
-        n, u = box_u(p, vec3(half_extents), v, 1.0 / time_horizon, 1.0 / recovery_time, float(vertical_cost))
+        n, u = box_u(
+            p, vec3(half_extents), v, 1.0 / time_horizon, 1.0 / recovery_time, float(vertical_cost), (-1.0, -1.0, -1.0)
+        )
     return np.array(n), np.asarray(velocity, dtype=float).reshape(3) + responsibility * np.array(u)
 
 

@@ -37,6 +37,7 @@ FLAG_CLIMB = 8  # took a pair's whole share of a vertical way out (CLIMB_OVER)
 FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach (STATIC_OBSTACLES)
 
 HARD_PLANES = 6  # at most two velocity bounds per axis
+NO_BARE = (-1.0, -1.0, -1.0)  # box_u without MARGIN_OVERLAP
 
 
 def core_settings(params: OrcaParams, v_max: NDArray[np.float64] | None) -> NDArray[np.void]:
@@ -89,22 +90,29 @@ def pair_u(
     """(n, u) of agent a against agent b; agent b uses (-n, -u)."""
     v = add(row(vel, a), row(vel, b), -1.0)
     m2 = 2.0 * cs.margin
-    on, lag = rs.lag_margin, rs.lag_margin_s
+    on, lag, hw = rs.lag_margin, rs.lag_margin_s, rs.headway
     if boxes:
         c = add(add(row(pos, b), row(centre, b), 1.0), add(row(pos, a), row(centre, a), 1.0), -1.0)
+        g = (
+            rules.lag_growth(on, lag, rules.approach_speed(hw, c[0], vel[a, 0], vel[b, 0])),
+            rules.lag_growth(on, lag, rules.approach_speed(hw, c[1], vel[a, 1], vel[b, 1])),
+            rules.lag_growth(on, lag, rules.approach_speed(hw, c[2], vel[a, 2], vel[b, 2])),
+        )
         H = (
-            half[a, 0] + half[b, 0] + m2 + rules.lag_growth(on, lag, abs(v[0])),
-            half[a, 1] + half[b, 1] + m2 + rules.lag_growth(on, lag, abs(v[1])),
-            half[a, 2]
-            + half[b, 2]
-            + m2
-            + rules.lag_growth(on, lag, abs(v[2]))
-            + rules.wake_growth(rs.wake_column, rs.wake_depth),
+            half[a, 0] + half[b, 0] + m2 + g[0],
+            half[a, 1] + half[b, 1] + m2 + g[1],
+            half[a, 2] + half[b, 2] + m2 + g[2] + rules.wake_growth(rs.wake_column, rs.wake_depth),
         )
         wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
-        return core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz)
+        bare = (half[a, 0] + half[b, 0], half[a, 1] + half[b, 1], half[a, 2] + half[b, 2])
+        return core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz, bare if rs.margin_overlap else NO_BARE)
     p = add(row(pos, b), row(pos, a), -1.0)
-    R = radius[a] + radius[b] + m2 + rules.lag_growth(on, lag, math.sqrt(dot(v, v)))
+    speed = math.sqrt(dot(v, v))
+    if hw:
+        d = math.sqrt(dot(p, p))
+        if d > 0.0:
+            speed = max(speed, dot(row(vel, a), p) / d, -dot(row(vel, b), p) / d)
+    R = radius[a] + radius[b] + m2 + rules.lag_growth(on, lag, speed)
     return core.sphere_u(p, v, R, cs.inv_tau, cs.inv_rec)
 
 
@@ -217,7 +225,7 @@ def obstacle_planes(
                 continue
             if has_goal[i] and rules.own_target(i, o, pos, goal, parts, oc, oh, cs.margin + rs.goal_reach):
                 continue
-            nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, wz)
+            nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, wz, H0 if rs.margin_overlap else NO_BARE)
             set_row(N, k, nrm)
             set_row(P, k, add(vi, u, 1.0))
             k += 1

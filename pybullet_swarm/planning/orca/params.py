@@ -163,6 +163,8 @@ class OrcaParams(Params):
     )
 
     wake_share_by_approach: bool = _switch(Rule.WAKE_SHARE_BY_APPROACH)
+    headway: bool = _switch(Rule.HEADWAY)
+    margin_overlap: bool = _switch(Rule.MARGIN_OVERLAP)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

@@ -43,6 +43,8 @@ class Rule(str, enum.Enum):
     STATIC_OBSTACLES = "static_obstacles"
     WAKE_COLUMN = "wake_column"
     WAKE_SHARE_BY_APPROACH = "wake_share_by_approach"
+    HEADWAY = "headway"
+    MARGIN_OVERLAP = "margin_overlap"
 
     @property
     def doc(self) -> str:
@@ -81,6 +83,10 @@ RULE_DOCS: dict[Rule, str] = {
     "another's rotor wake (downwash)",
     Rule.WAKE_SHARE_BY_APPROACH: "a wake conflict is resolved by the agent moving into it, in proportion to "
     "the pair's approach speeds (off: the upper one)",
+    Rule.HEADWAY: "lag_margin also counts either agent's own speed towards the other: the one ahead may stop "
+    "without warning",
+    Rule.MARGIN_OVERLAP: "boxes overlapping only within margins and growths keep a VO (the largest shape apart now), "
+    "not the recovery",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -115,6 +121,20 @@ GOAL_OVERLAP = 0.005  # m, a part of an agent at its target reaching deeper into
 def lag_growth(on: bool, lag_margin_s: float, closing_speed: float) -> float:
     """LAG_MARGIN: m a pair's shapes grow by at ``closing_speed`` m/s (per axis for boxes, radially for spheres)."""
     return lag_margin_s * closing_speed if on else 0.0
+
+
+@njit
+def approach_speed(headway: bool, d: float, v_self: float, v_other: float) -> float:
+    """LAG_MARGIN's speed along one direction: the closing speed |v_self - v_other|, and with ``HEADWAY``
+    also either agent's own speed towards the other (``d``: the other's side of this one, its sign
+    alone counts). ORCA assumes neighbours keep their velocity; a follower at the same speed closes
+    in at its own speed the moment the one ahead stops for its target, and answers a lag later.
+    """
+    s = abs(v_self - v_other)
+    if headway:
+        sign = 1.0 if d >= 0.0 else -1.0
+        s = max(s, v_self * sign, -v_other * sign)
+    return s
 
 
 @njit
