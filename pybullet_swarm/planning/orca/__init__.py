@@ -51,11 +51,9 @@ The paper's core and our extension rules are kept apart:
     either agent of a pair flies towards the other, not only their closing speed: ORCA takes a
     neighbour's velocity as constant, but the one ahead stops for its target without warning,
     and a follower at its speed then closes in at full speed, a lag late.
-  - ``margin_overlap``: boxes that overlap only within their margins and growths (the bare shapes
-    apart) are not in collision: instead of the recovery (open the gap along the axis of least
-    overlap, which leaves the other axes free), they keep the VO of the largest shape that does
-    not overlap now, cut back to the present gap along one axis on which they are apart (the one
-    needing the least change).
+  - ``margin_overlap``: boxes that overlap within their margins and growths open the gap along
+    the least overlap of the axes on which the bare shapes are still apart (when there are
+    any): the recovery leaves the other axes free, and only those axes keep the pair apart.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

@@ -51,7 +51,6 @@ SPEED_SPHERE_SLACK = 1e-9  # relative: the default speed sphere encloses the vel
 DEFAULT_SPEED_SPHERE = 1.0  # m/s, speed sphere when there are no velocity limits and no max_speed
 BOX_ROWS = 7  # rows of a box VO in s = 1/t: a lower and an upper face per axis, then s >= 1/tau
 BOX_PLANES = 24  # at most this many planes bound a box VO (pairs of those rows)
-MARGIN_TOUCH = 1e-4  # m, MARGIN_OVERLAP cuts a grown shape back to this short of the present gap
 
 #: the core's settings as the kernels read them (one record)
 SETTINGS = np.dtype(
@@ -135,45 +134,30 @@ def box_u(c: Vec, H: Vec, v: Vec, inv_tau: float, inv_rec: float, wz: float, bar
     ``c`` m is the centre of the second box relative to the first, ``H`` m the half extents of
     their Minkowski sum, ``v`` m/s the first's velocity relative to the second's.
 
-    The VO is {v : t v in B for some 0 < t <= tau}, B = [c - H, c + H] (see ``box_vo``). Overlapping
-    boxes open the gap along the axis of least overlap over the recovery time. ``bare`` m: the half
-    extents of the Minkowski sum without margins and growths (``MARGIN_OVERLAP``; negative: off).
-    Where only the margins overlap (the bare shapes are apart), the pair is not in collision and
-    there is still a VO: that of the largest shape that does not overlap now, cut back along one
-    axis on which the bare shapes are apart to the present gap, whichever needs the least change u.
+    Boxes apart have the VO {v : t v in B for some 0 < t <= tau}, B = [c - H, c + H] (``box_vo``).
+    Overlapping boxes open the gap over the recovery time along the axis of least overlap; with
+    ``bare`` m (the half extents of the Minkowski sum without margins and growths; negative: off,
+    ``MARGIN_OVERLAP``) along the least overlap of the axes on which the bare shapes are apart, when
+    there are any: the recovery leaves the other axes free, and only those axes keep the pair apart.
     """
     pen = -FAR
     k_pen = 0
     cost = FAR
+    apart = False
+    if bare[0] >= 0.0:
+        for k in range(3):
+            apart = apart or abs(c[k]) > bare[k]
     for k in range(3):
         g = abs(c[k]) - H[k]
         pen = max(pen, g)
         # separation still needed along k; not weighted: when two shapes overlap only a little
         # vertically (one just above the other) a sideways way out leaves them free to close
         # vertically, so the least overlap wins whatever its axis
-        if -g < cost:
+        if -g < cost and (not apart or abs(c[k]) > bare[k]):
             cost = -g
             k_pen = k
     if pen > 0.0:
         return box_vo(c, H, v, inv_tau, wz)
-    if bare[0] >= 0.0:
-        best = FAR
-        bn = (0.0, 0.0, 0.0)
-        bu = (0.0, 0.0, 0.0)
-        for k in range(3):
-            if abs(c[k]) - bare[k] <= MARGIN_TOUCH:
-                continue
-            Hk = (
-                abs(c[0]) - MARGIN_TOUCH if k == 0 else H[0],
-                abs(c[1]) - MARGIN_TOUCH if k == 1 else H[1],
-                abs(c[2]) - MARGIN_TOUCH if k == 2 else H[2],
-            )
-            n, u = box_vo(c, Hk, v, inv_tau, wz)
-            du = math.sqrt(u[0] * u[0] + u[1] * u[1] + (wz * u[2]) ** 2)
-            if du < best:
-                best, bn, bu = du, n, u
-        if best < FAR:
-            return bn, bu
     # overlapping now: open the gap along the axis of least overlap over the recovery time
     s = axis(k_pen, 1.0 if c[k_pen] >= 0.0 else -1.0)
     gap = abs(c[k_pen]) - H[k_pen]

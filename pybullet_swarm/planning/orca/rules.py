@@ -85,8 +85,8 @@ RULE_DOCS: dict[Rule, str] = {
     "the pair's approach speeds (off: the upper one)",
     Rule.HEADWAY: "lag_margin also counts either agent's own speed towards the other: the one ahead may stop "
     "without warning",
-    Rule.MARGIN_OVERLAP: "boxes overlapping only within margins and growths keep a VO (the largest shape apart now), "
-    "not the recovery",
+    Rule.MARGIN_OVERLAP: "overlapping boxes recover along the least overlap of the axes on which the bare shapes "
+    "are apart",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
