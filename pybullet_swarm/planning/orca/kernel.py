@@ -98,13 +98,16 @@ def pair_u(
             rules.lag_growth(on, lag, rules.approach_speed(hw, c[1], vel[a, 1], vel[b, 1])),
             rules.lag_growth(on, lag, rules.approach_speed(hw, c[2], vel[a, 2], vel[b, 2])),
         )
-        H = (
-            half[a, 0] + half[b, 0] + m2 + g[0],
-            half[a, 1] + half[b, 1] + m2 + g[1],
-            half[a, 2] + half[b, 2] + m2 + g[2] + rules.wake_growth(rs.wake_column, rs.wake_depth),
+        # the shapes that must not overlap: airframes, loads and the wake column (MARGIN_OVERLAP's bare
+        # shapes: a pair in another's wake gets out sideways, not by a vertical half metre), then margins
+        # and growths
+        bare = (
+            half[a, 0] + half[b, 0],
+            half[a, 1] + half[b, 1],
+            half[a, 2] + half[b, 2] + rules.wake_growth(rs.wake_column, rs.wake_depth),
         )
+        H = (bare[0] + m2 + g[0], bare[1] + m2 + g[1], bare[2] + m2 + g[2])
         wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
-        bare = (half[a, 0] + half[b, 0], half[a, 1] + half[b, 1], half[a, 2] + half[b, 2])
         return core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz, bare if rs.margin_overlap else NO_BARE)
     p = add(row(pos, b), row(pos, a), -1.0)
     speed = math.sqrt(dot(v, v))
