@@ -104,6 +104,14 @@ switch                       default  thesis  what it does
                                               ``LEG_SPACING``; waiting points keep
                                               ``LEG_SPACING`` off the columns of boxes, slots
                                               and lower agents
+``wait_away``                true     false   agents waiting aside from a column (``_wait_aside``)
+                                              wait on the side of it away from where the agent
+                                              whose turn it is comes: a slot's away from the
+                                              depot, a box's away from the structure (facing the
+                                              arena's centre, those waiting for a tower at the
+                                              far end stood in the loaded lane between the depot
+                                              and the tower, and the carrier whose turn it was
+                                              could not pass them)
 ===========================  =======  ======  ==================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
@@ -301,6 +309,11 @@ class ShortestPathParams(Params):
         description="never fly over an agent on a vertical leg below, nor start a descent under another agent, and "
         "wait off the columns of boxes, slots and agents [false]",
     )
+    wait_away: bool = Field(
+        True,
+        description="wait aside from a slot's column on the side away from the depot, from a box's on the side away "
+        "from the structure, not facing the arena's centre [false]",
+    )
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
         Preset.THESIS: {
@@ -315,6 +328,7 @@ class ShortestPathParams(Params):
             "soft_landing": False,
             "round_parked": False,
             "wake_clear": False,
+            "wait_away": False,
         }
     }
 
@@ -380,6 +394,9 @@ class ShortestPath:
         self.within_since = np.full(n, np.nan)  # s, since when each held box is within release_tol
         self.last_box = np.full((n, 3), np.nan)  # m, held box position at the previous tick
         self.columns = np.zeros((n, 2))  # m, where each agent's current vertical leg is
+        # m, where the agents served at a slot's column come from (the depot) and at a box's (the structure)
+        self.depot_xy = np.mean(info.depot[:, :2], axis=0) if len(info.depot) else None
+        self.structure_xy = np.mean(info.slots[:, :2], axis=0) if len(info.slots) else None
         self.creep = np.full(n, np.nan)  # m, soft_landing: each agent's creeping target height (nan: not yet)
 
     def _assign(self, i: int, view: WorldView) -> None:
@@ -454,13 +471,17 @@ class ShortestPath:
         d = np.max(np.abs(self.columns[others] - xy[:2]), axis=1)
         return others[d < spacing]
 
-    def _wait_aside(self, i: int, view: WorldView, above: np.ndarray) -> Command:
+    def _wait_aside(self, i: int, view: WorldView, above: np.ndarray, source: np.ndarray | None = None) -> Command:
         """Wait at the cruise altitude aside from the column ``above`` (3,) m (``wait_beside``, ``spaced_descents``:
         over it, the waiting agent would block a descent, its wake would push a climbing agent down, or one
         climbing to a higher cruise altitude would pass through it). Agents waiting for one column wait at points
         ``ASIDE_RADII`` agent radii from it, spread by their index over an arc facing the arena's centre (at
-        one point, one over another, the upper one's wake pushed the lower one down)."""
-        away = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
+        one point, one over another, the upper one's wake pushed the lower one down); with ``wait_away`` and a
+        ``source`` (2,) m, where the agents served at that column come from, facing away from it."""
+        if self.params.wait_away and source is not None and np.linalg.norm(above[:2] - source[:2]) > 1e-9:
+            away = above[:2] - source[:2]
+        else:
+            away = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
         base = float(np.arctan2(away[1], away[0])) if np.linalg.norm(away) > 1e-9 else 0.0
         turn = ((i * GOLDEN_FRACTION) % 1.0 - 0.5) * np.radians(ASIDE_SPREAD_DEG)
         r = self.info.agent_radius
@@ -653,7 +674,7 @@ class ShortestPath:
                 return Command.goto([p[0], p[1], self._alt(i)])
             above = np.array([*view.box_positions[b, :2], self._alt(i)])
             if self._descents_near(i, above).size:
-                return self._wait_aside(i, view, above)
+                return self._wait_aside(i, view, above, self.structure_xy)
             if self._near_xy(p, above) and abs(p[2] - self._alt(i)) < 0.05 and not self._under_wake(i, view, above):
                 self.phase[i] = Phase.DESCEND_BOX
                 self.columns[i] = above[:2]
@@ -693,9 +714,9 @@ class ShortestPath:
                 # wait beside the column, not over it: an agent serving a slot under this one descends
                 # there, and the avoidance layer (on jittering estimates, or a higher agent's way down
                 # through this one's altitude) would hold it up for ever
-                return self._wait_aside(i, view, above)
+                return self._wait_aside(i, view, above, self.depot_xy)
             if self._descents_near(i, above).size:
-                return self._wait_aside(i, view, above)
+                return self._wait_aside(i, view, above, self.depot_xy)
             if (
                 self._near_xy(p, above)
                 and view.slot_open[s]

@@ -253,6 +253,30 @@ def _line_of_stalled_agents(params: OrcaParams) -> tuple[np.ndarray, np.ndarray]
     )
 
 
+def test_off_a_collision_course_a_wake_pair_shares_its_freedom():
+    # Traced in shortest_path + orca on the suite's tower5 (seed 0): a carrier descending to the tower's
+    # column 0.4 m from two carriers waiting 0.45 m higher drifted 2 cm/s away from them; its plane against
+    # each (the upper agent's whole share: none for it) ran through its own velocity, so it could never
+    # turn back towards its column, and it drifted 0.3 m off until it flipped on the ground.
+    pos = np.array([[2.58, 0.477, 0.25], [2.71, 0.86, 0.69]])
+    vel = np.array([[-0.019, -0.021, -0.15], [0.0, 0.0, 0.0]])
+    pref = np.array([[0.043, 0.046, -0.142], [0.0, 0.0, 0.0]])  # back over its column
+    centre, half = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([True, True]), 0.1, 0.065)
+    for on in (False, True):
+        v, flags = orca_velocities(
+            pos,
+            vel,
+            pref,
+            params=OrcaParams(wake_share_on_course=on, wake_depth=0.5),
+            sensing_radius=1.0,
+            v_max=VM,
+            boxes=(centre, half),
+        )
+        assert np.allclose(v[0], pref[0]) is on  # free to turn back (nothing to avoid: minimal intervention)
+        assert bool(flags[0] & FLAG_FREE) is on
+        assert on or v[0, 1] <= vel[0, 1] + 1e-9  # off: held to its drift
+
+
 def test_sidestep_biases_stalled_agents_and_only_when_on():
     v, flags = _line_of_stalled_agents(OrcaParams())
     assert np.all(flags & FLAG_BIASED) and abs(v[1, 1]) > 0.1

@@ -65,6 +65,7 @@ THESIS_SHORTEST_PATH = {
     "swap_boxes": False,
     "round_parked": False,
     "wake_clear": False,
+    "wait_away": False,
 }
 
 
@@ -99,6 +100,7 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "swap_boxes",
         "round_parked",
         "wake_clear",
+        "wait_away",
     ]
     assert list(extensions(StigmergyParams)) == [
         "ties",

@@ -47,6 +47,9 @@ The paper's core and our extension rules are kept apart:
   - ``wake_share_by_approach``: such a pair's share goes to whichever agent moves into the
     conflict, in proportion to their speeds towards each other; the upper one takes it all only
     when neither does (the upper one fleeing a lower agent closing in was pushed into a third).
+  - ``wake_share_on_course``: those unequal shares apply on a collision course only; off it (the
+    relative velocity outside the VO, u the freedom left) each agent keeps half: the lower one,
+    left none, was frozen along the pair's normal.
   - ``headway``: with ``lag_margin``, shapes grow by ``lag_margin_s`` x the faster speed at which
     either agent of a pair flies towards the other, not only their closing speed: ORCA takes a
     neighbour's velocity as constant, but the one ahead stops for its target without warning,

@@ -169,6 +169,7 @@ def agent_planes(
                 rs.wake_share_by_approach,
                 towards,
                 away,
+                not rs.wake_share_on_course or dot(nrm, u) > 0.0,
             )
         climbs = climbs or up
         set_row(N, k, nrm)

@@ -164,6 +164,7 @@ class OrcaParams(Params):
 
     wake_share_by_approach: bool = _switch(Rule.WAKE_SHARE_BY_APPROACH)
     headway: bool = _switch(Rule.HEADWAY)
+    wake_share_on_course: bool = _switch(Rule.WAKE_SHARE_ON_COURSE)
     margin_overlap: bool = _switch(Rule.MARGIN_OVERLAP)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}

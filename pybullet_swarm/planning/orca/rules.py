@@ -44,6 +44,7 @@ class Rule(str, enum.Enum):
     WAKE_COLUMN = "wake_column"
     WAKE_SHARE_BY_APPROACH = "wake_share_by_approach"
     HEADWAY = "headway"
+    WAKE_SHARE_ON_COURSE = "wake_share_on_course"
     MARGIN_OVERLAP = "margin_overlap"
 
     @property
@@ -85,6 +86,8 @@ RULE_DOCS: dict[Rule, str] = {
     "the pair's approach speeds (off: the upper one)",
     Rule.HEADWAY: "lag_margin also counts either agent's own speed towards the other: the one ahead may stop "
     "without warning",
+    Rule.WAKE_SHARE_ON_COURSE: "a wake pair's unequal shares apply on a collision course only; off it each keeps half "
+    "the freedom",
     Rule.MARGIN_OVERLAP: "overlapping boxes recover along the least overlap of the axes on which the bare shapes "
     "are apart",
 }
@@ -153,7 +156,14 @@ def wake_growth(on: bool, wake_depth: float) -> float:
 
 @njit
 def wake_share(
-    share: float, dz: float, reach: float, resp: float, by_approach: bool, towards: float, away: float
+    share: float,
+    dz: float,
+    reach: float,
+    resp: float,
+    by_approach: bool,
+    towards: float,
+    away: float,
+    on_course: bool = True,
 ) -> float:
     """WAKE_COLUMN: share of a pair's u this agent takes, when the other's shape is ``dz`` m above its own
     (centres) and the two touch vertically within ``reach`` m (half heights and margins, no wake).
@@ -167,9 +177,13 @@ def wake_share(
     towards the other, ``away``: the other's towards this one), the upper one's whole share only
     when neither does: an agent flying into a wake yields as one flying its wake over another does
     (upper-takes-all, a lower agent closing in pushed the upper one ahead of it, into a third).
-    Both agents see the same numbers, so the shares still add up.
+    Both agents see the same numbers, so the shares still add up. ``on_course`` False
+    (``WAKE_SHARE_ON_COURSE``: the relative velocity lies outside the VO, u leads into it): u is then
+    the freedom the pair has left, not avoidance to do, and each keeps ``share`` of it; the upper one
+    taking all of it froze the lower one along the pair's normal (it could neither climb away from
+    a release nor undo a drift that ORCA's own plane kept going).
     """
-    if abs(dz) < reach:
+    if abs(dz) < reach or not on_course:
         return share
     if by_approach:
         a, b = max(towards, 0.0), max(away, 0.0)
