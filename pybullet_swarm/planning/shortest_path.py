@@ -104,14 +104,17 @@ switch                       default  thesis  what it does
                                               ``LEG_SPACING``; waiting points keep
                                               ``LEG_SPACING`` off the columns of boxes, slots
                                               and lower agents
-``wait_away``                true     false   agents waiting aside from a column (``_wait_aside``)
-                                              wait on the side of it away from where the agent
-                                              whose turn it is comes: a slot's away from the
-                                              depot, a box's away from the structure (facing the
-                                              arena's centre, those waiting for a tower at the
-                                              far end stood in the loaded lane between the depot
-                                              and the tower, and the carrier whose turn it was
-                                              could not pass them)
+``wait_away``                true     false   an agent waiting aside from a column may also
+                                              wait on the arc facing away from where the served
+                                              agents come (a slot's: the depot; a box's: the
+                                              structure); it takes the arc whose point keeps
+                                              farther off the columns and the way from there to
+                                              the column (facing the arena's centre, those
+                                              waiting for a tower at the far end stood in the
+                                              loaded lane between the depot and the tower, and
+                                              the carrier whose turn it was could not pass them;
+                                              facing away always, those waiting for a wall stood
+                                              among its slots' columns beyond it)
 ===========================  =======  ======  ==================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
@@ -311,8 +314,9 @@ class ShortestPathParams(Params):
     )
     wait_away: bool = Field(
         True,
-        description="wait aside from a slot's column on the side away from the depot, from a box's on the side away "
-        "from the structure, not facing the arena's centre [false]",
+        description="wait aside from a column on the arc facing away from where the served agents come (the depot, "
+        "the structure) when its point keeps farther off the columns and their way than the arc facing the "
+        "arena's centre [false]",
     )
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
@@ -331,6 +335,13 @@ class ShortestPathParams(Params):
             "wait_away": False,
         }
     }
+
+
+def _to_segment(q: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """m, the distance of point ``q`` (2,) from the segment from ``a`` to ``b`` (2,)."""
+    ab = b - a
+    t = float(np.clip(np.dot(q - a, ab) / max(float(np.dot(ab, ab)), 1e-12), 0.0, 1.0))
+    return float(np.linalg.norm(q - (a + t * ab)))
 
 
 def _lookahead(p: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray] | None:
@@ -476,28 +487,43 @@ class ShortestPath:
         over it, the waiting agent would block a descent, its wake would push a climbing agent down, or one
         climbing to a higher cruise altitude would pass through it). Agents waiting for one column wait at points
         ``ASIDE_RADII`` agent radii from it, spread by their index over an arc facing the arena's centre (at
-        one point, one over another, the upper one's wake pushed the lower one down); with ``wait_away`` and a
-        ``source`` (2,) m, where the agents served at that column come from, facing away from it."""
+        one point, one over another, the upper one's wake pushed the lower one down). With ``wait_away`` and a
+        ``source`` (2,) m, where the agents served at that column come from, the arc facing away from it is the
+        other choice, and the agent waits on the arc whose point stays farther off both the columns and the way
+        from ``source`` to the column (``LEG_SPACING`` suffices; a tie keeps the arena's centre)."""
+        centre = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
+        columns = self._columns(i, view) if self.wake_clear else np.zeros((0, 2))
+        xy, off = self._wait_point(i, above, centre, columns)
         if self.params.wait_away and source is not None and np.linalg.norm(above[:2] - source[:2]) > 1e-9:
-            away = above[:2] - source[:2]
-        else:
-            away = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - above[:2]
-        base = float(np.arctan2(away[1], away[0])) if np.linalg.norm(away) > 1e-9 else 0.0
+            xy2, off2 = self._wait_point(i, above, above[:2] - source[:2], columns)
+            lane = (np.asarray(source[:2], dtype=float), above[:2])
+            clear = min(off, _to_segment(xy, *lane), LEG_SPACING)
+            clear2 = min(off2, _to_segment(xy2, *lane), LEG_SPACING)
+            if clear2 > clear + 1e-9:
+                xy = xy2
+        return self._cruise(i, view, np.array([xy[0], xy[1], above[2]]))
+
+    def _wait_point(
+        self, i: int, above: np.ndarray, facing: np.ndarray, columns: np.ndarray
+    ) -> tuple[np.ndarray, float]:
+        """Agent ``i``'s waiting point (2,) m on the arc round the column ``above`` facing ``facing`` (2,), and how
+        far (per axis) it keeps off ``columns`` (k, 2) m (inf without any). With columns (``wake_clear``) it goes
+        out along its way until off every column, or to the point farthest off them (a dense depot)."""
+        base = float(np.arctan2(facing[1], facing[0])) if np.linalg.norm(facing) > 1e-9 else 0.0
         turn = ((i * GOLDEN_FRACTION) % 1.0 - 0.5) * np.radians(ASIDE_SPREAD_DEG)
         r = self.info.agent_radius
         way = np.array([np.cos(base + turn), np.sin(base + turn)])
         size = np.asarray(self.info.arena_size, dtype=float)[:2]  # m
-        columns = self._columns(i, view) if self.wake_clear else np.zeros((0, 2))
         xy = np.clip(above[:2] + ASIDE_RADII * r * way, r, size - r)
-        best = -np.inf
-        for k in range(WAIT_TRIES if columns.size else 0):  # wake_clear: out along the way until off every column
+        best = np.inf if not columns.size else -np.inf
+        for k in range(WAIT_TRIES if columns.size else 0):
             cand = np.clip(above[:2] + (ASIDE_RADII * r + k * WAIT_STEP) * way, r, size - r)
             off = float(np.min(np.max(np.abs(columns - cand), axis=1)))
-            if off > best + 1e-9:  # none off every column (a dense depot): the one farthest off them
+            if off > best + 1e-9:  # none off every column: the one farthest off them
                 best, xy = off, cand
             if off >= LEG_SPACING:
                 break
-        return self._cruise(i, view, np.array([xy[0], xy[1], above[2]]))
+        return xy, best
 
     def _alt(self, i: int) -> float:
         """m, the cruise altitude of agent ``i`` in its present phase: ``hs[i]``, or with ``wake_lanes`` the

@@ -297,21 +297,24 @@ def test_wake_clear_waits_farthest_off_the_columns_when_no_point_is_clear_of_the
 
 
 @pytest.mark.parametrize("away", [True, False])
-def test_wait_away_waits_on_the_far_side_of_a_slot_from_the_depot(away: bool):
+def test_wait_away_keeps_waiting_carriers_off_the_way_from_the_depot(away: bool):
     """Waiting for a tower's column at the far end of the arena, carriers waited on the side facing the
     arena's centre: between the depot and the tower, in the loaded agents' lane, where the carrier whose turn
-    it was came through (the suite's tower5 stalled). With ``wait_away`` they wait beyond the column, away
-    from the depot; for a box's column, away from the structure."""
+    it was came through (the suite's tower5 stalled). With ``wait_away`` an agent whose point on that arc lies
+    nearer the way from the depot (or the columns) than the point on the arc facing away waits there."""
+    from pybullet_swarm.planning import shortest_path as sp_module
+
     tower = np.array([[2.6, 0.5, 0.05 + 0.1 * k] for k in range(5)])
     sp = _planner(5, slots=tower, wait_away=away)
     above = np.array([2.6, 0.5, sp._alt(0)])
     view = _view(np.array([[1.0, 0.1 + 0.2 * i, above[2]] for i in range(5)]), n_slots=len(tower))  # at altitude
     depot = DEPOT[:, :2].mean(axis=0)
+    gaps = []
     for i in range(5):
         xy = sp._wait_aside(i, view, above, sp.depot_xy).vector[:2]
-        beyond = float(np.dot(xy - above[:2], above[:2] - depot)) > 0.0
-        assert beyond is away  # off: all on the depot's side (facing the arena's centre)
         assert np.linalg.norm(xy - above[:2]) > 0.2  # aside from the column either way
-    box = np.array([0.4, 0.5, sp._alt(0)])
-    out = np.mean([sp._wait_aside(i, view, box, sp.structure_xy).vector[0] - box[0] for i in range(5)])
-    assert bool(out < 0.0) is away  # a box's column: on average away from the structure (off: towards the centre)
+        gaps.append(sp_module._to_segment(xy, depot, above[:2]))
+    if away:
+        assert min(gaps) > 0.25  # every one off the carriers' way (a wall clips one to 0.29 m)
+    else:
+        assert min(gaps) < 0.1  # one right in it
