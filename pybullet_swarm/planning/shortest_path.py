@@ -90,7 +90,10 @@ switch                       default  thesis  what it does
                                               ``PARKED_CLEARANCE`` (a carrier waiting for its slot
                                               sat on the way of another to a slot below it in the
                                               same column; the avoidance layer held that one
-                                              behind it for ever)
+                                              behind it for ever), and round an agent at its
+                                              altitude at the top of a vertical leg (flying
+                                              through, one pushed an agent starting its descent
+                                              1 m along ahead of it)
 ``wake_clear``               true     false   keeps every agent out of the rotor wake of those
                                               above it (``vehicle/downwash.py``: 5 cm wide, a
                                               quarter of the weight down to 1.3 m below): an
@@ -584,8 +587,8 @@ class ShortestPath:
         best, w = np.inf, target
         for j in range(self.n):
             q = view.positions[j]
-            if j == i or self._in_column(j, q):
-                continue  # on a vertical leg: held for
+            if j == i or (self._in_column(j, q) and abs(q[2] - p[2]) >= WAKE_MIN_DZ):
+                continue  # on a vertical leg at another altitude: held for
             if abs(q[2] - p[2]) >= WAKE_MIN_DZ and self.wake_clear:
                 clear, radius = WAKE_CLEARANCE, DETOUR_RADIUS
             elif abs(q[2] - p[2]) < WAKE_MIN_DZ and self._round_parked(i, j, view):
@@ -611,14 +614,15 @@ class ShortestPath:
 
     def _round_parked(self, i: int, j: int, view: WorldView) -> bool:
         """``round_parked``: True when agent ``i`` carries a box to its slot and agent ``j``, carrying one too,
-        hovers at rest (waiting for its slot, or held). Empty agents are left to the avoidance layer: going round
-        each other over the depot, they strayed beside a descent and the avoidance layer held it there."""
-        return bool(
-            self.params.round_parked
-            and self.phase[i] == Phase.TO_SLOT
-            and self.phase[j] == Phase.TO_SLOT
-            and np.linalg.norm(view.velocities[j]) < PARKED_SPEED
-        )
+        hovers at rest (waiting for its slot, or held), or (at ``i``'s altitude) is at the top of a vertical leg.
+        Empty agents are left to the avoidance layer: going round each other over the depot, they strayed beside
+        a descent and the avoidance layer held it there. A carrier flying to its waiting point beyond a ring
+        pushed one starting its descent 1 m along ahead of it, then stood between it and its column."""
+        if not (self.params.round_parked and self.phase[i] == Phase.TO_SLOT):
+            return False
+        if self._in_column(j, view.positions[j]):
+            return True
+        return bool(self.phase[j] == Phase.TO_SLOT and np.linalg.norm(view.velocities[j]) < PARKED_SPEED)
 
     def _under_wake(self, i: int, view: WorldView, xy: np.ndarray) -> bool:
         """``wake_clear``: True when another agent above agent ``i`` is within ``WAKE_CLEARANCE`` (per axis) of

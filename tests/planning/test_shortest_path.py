@@ -318,3 +318,30 @@ def test_wait_away_keeps_waiting_carriers_off_the_way_from_the_depot(away: bool)
         assert min(gaps) > 0.25  # every one off the carriers' way (a wall clips one to 0.29 m)
     else:
         assert min(gaps) < 0.1  # one right in it
+
+
+@pytest.mark.parametrize("round_parked", [True, False])
+def test_round_parked_takes_a_carrier_round_the_top_of_a_descent_at_its_altitude(round_parked):
+    """Agent 1 has just started its descent to slot 0 (at the top of the leg, in the loaded agents' lane) on
+    agent 0's straight way to its slot's column: agent 0 goes round it, not through it (flying through, a
+    carrier pushed one starting its descent 1 m along ahead of it on the suite's ring, and then stood
+    between it and its column)."""
+    from pybullet_swarm.planning.shortest_path import PARKED_CLEARANCE
+
+    sp = _planner(2, round_parked=round_parked)
+    sp.home = np.zeros((2, 3))
+    sp.phase[:] = [Phase.TO_SLOT, Phase.DESCEND_SLOT]
+    sp.box[:], sp.slot[:] = [0, 1], [2, 1]
+    sp.offset[:] = [0.0, 0.0, -GH]
+    lane = sp._alt(0)
+    top = np.array([2.4, 0.3, lane])  # agent 1 at the top of its leg, on agent 0's way
+    p = np.array([1.4, 0.27, lane])
+    sp.columns[1] = top[:2]
+    gaps = []
+    for _ in range(120):
+        view = _view([p, top], carrying=[0, 1])
+        target = sp._cruise(0, view, np.array([*SLOTS[2, :2], lane])).vector
+        step = target[:2] - p[:2]
+        p[:2] += step * min(1.0, 0.02 / max(float(np.linalg.norm(step)), 1e-9))
+        gaps.append(float(np.linalg.norm(p[:2] - top[:2])))
+    assert (min(gaps) >= PARKED_CLEARANCE - 0.02) is round_parked
