@@ -95,6 +95,14 @@ class ReferenceShaper:
             self.target[mask] = velocities[mask]
             self.velocity_mode[mask] = True
 
+    def leash(self, positions: NDArray[np.float64], lead: float) -> None:
+        """Keep the position references of agents on velocity targets within ``lead`` m (per axis) of their
+        ``positions`` (n, 3) m: the reference of an agent held back would run ahead of it, and the agent
+        would later fly faster than commanded to catch up."""
+        vm = self.velocity_mode
+        if vm.any():
+            self.p[vm] = np.clip(self.p[vm], positions[vm] - lead, positions[vm] + lead)
+
     def step(self) -> Reference:
         """Advance the references by one tick and return them (views, valid until the next step)."""
         if self.v_max is None:

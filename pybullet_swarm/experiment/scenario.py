@@ -61,6 +61,10 @@ class SimSection(_Strict):
     downwash: bool = True  # a vehicle's rotor wake pushes vehicles below it down (pybullet_swarm.vehicle.downwash)
     max_tilt_deg: float = Field(35.0, gt=0.0, lt=80.0)  # deg, largest commanded tilt
     crash_speed: float = Field(2.0, gt=0.0, le=100.0)  # m/s, ground impact counted as a crash
+    # m, velocity commands: the position reference is kept within this of the agent's position per axis (None:
+    # it integrates the command whatever the agent does; held back by a wake or a contact, an agent then
+    # flew twice the commanded speed to catch up, into what the avoidance layer had planned round)
+    reference_leash: float | None = Field(None, gt=0.0, le=10.0)
 
 
 class ObstacleShape(str, enum.Enum):

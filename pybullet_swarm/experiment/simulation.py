@@ -669,6 +669,7 @@ class Simulation:
         sensed = self.sensed_state_array
         running = ExitStatus.RUNNING
         closed = not self.open_loop
+        leash = self.scenario.sim.reference_leash
         k = self.step_count
         end = k + steps
         while k < end and self.exit_status is running:
@@ -679,6 +680,8 @@ class Simulation:
                 if self.exit_status is not running:
                     break
             if closed and k % ce == 0:
+                if leash is not None:
+                    shaper.leash(sensed[:, :3], leash)
                 ctrl.position_update(sensed, shaper.step())
             worst = tick(*args)
             if interact is not None:
