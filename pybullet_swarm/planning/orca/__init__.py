@@ -57,6 +57,14 @@ The paper's core and our extension rules are kept apart:
   - ``margin_overlap``: boxes that overlap within their margins and growths open the gap along
     the least overlap of the axes on which the bare shapes are still apart (when there are
     any): the recovery leaves the other axes free, and only those axes keep the pair apart.
+  - ``impatience``: an agent that has waited ``wait_patience_s`` (10 s) for a neighbour sitting on
+    its goal treats it as in its way (``sidestep``, ``climb_past``): the neighbour is not leaving,
+    perhaps because the agent sits on its own goal; without it, two agents each on the other's
+    goal (a swap: each goal in the other's wake column) wait for each other until the run stalls.
+  - ``climb_when_shorter``: ``climb_past`` climbs only when rising clear of the neighbour's box
+    (the wake column included) is shorter than the step aside, weighted by ``vertical_cost``: with
+    a 0.5 m wake column a climb past takes the agent out of the arena's working height, and the
+    planner pulls it back down.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.
@@ -120,6 +128,7 @@ from pybullet_swarm.planning.orca.kernel import (
     FLAG_FREE,
     FLAG_INFEASIBLE,
     FLAG_OBSTACLE,
+    FLAG_WAITING,
     bounding_boxes,
     commanded_velocities,
     neighbour_table,
@@ -146,6 +155,7 @@ __all__ = [
     "FLAG_FREE",
     "FLAG_INFEASIBLE",
     "FLAG_OBSTACLE",
+    "FLAG_WAITING",
     "RULE_DOCS",
     "OrcaLayer",
     "OrcaParams",

@@ -35,6 +35,7 @@ FLAG_BIASED = 2  # stalled by a neighbour: the sideways (or upward) bias was app
 FLAG_FREE = 4  # the commanded velocity satisfies every plane: nothing was changed (MINIMAL_INTERVENTION)
 FLAG_CLIMB = 8  # took a pair's whole share of a vertical way out (CLIMB_OVER)
 FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach (STATIC_OBSTACLES)
+FLAG_WAITING = 32  # stalled, waiting for a neighbour that sits on its goal (IMPATIENCE counts the time)
 
 HARD_PLANES = 6  # at most two velocity bounds per axis
 NO_BARE = (-1.0, -1.0, -1.0)  # box_u without MARGIN_OVERLAP
@@ -239,6 +240,27 @@ def obstacle_planes(
 
 
 @njit
+def climb_first(
+    i: int,
+    j: int,
+    pos: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    half: NDArray[np.float64],
+    boxes: bool,
+    cs: np.record,
+    rs: np.record,
+    wake: float,
+) -> bool:
+    """CLIMB_PAST (with CLIMB_WHEN_SHORTER): whether agent i, above j in its way, passes over it."""
+    if not (rs.climb_when_shorter and boxes):
+        return True
+    c = add(add(row(pos, j), row(centre, j), 1.0), add(row(pos, i), row(centre, i), 1.0), -1.0)
+    m2 = 2.0 * cs.margin
+    H = (half[i, 0] + half[j, 0] + m2, half[i, 1] + half[j, 1] + m2, half[i, 2] + half[j, 2] + m2 + wake)
+    return rules.climb_is_shorter(c, H, rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost))
+
+
+@njit
 def orca_batch(
     pos: NDArray[np.float64],
     vel: NDArray[np.float64],
@@ -256,6 +278,7 @@ def orca_batch(
     oc: NDArray[np.float64],
     oh: NDArray[np.float64],
     parts: NDArray[np.float64],
+    impatient: NDArray[np.bool_],
     core_rec: NDArray[np.void],
     rule_rec: NDArray[np.void],
     out: NDArray[np.float64],
@@ -293,7 +316,8 @@ def orca_batch(
         f = 0 if feasible else FLAG_INFEASIBLE
         sp = math.sqrt(dot(pr, pr))
         if stall_on and sp > rules.MIN_PREFERRED_SPEED and dot(res, pr) < stuck * sp * sp:
-            j, make_way = rules.stalled_by(
+            wake = rules.wake_growth(rs.wake_column and boxes, rs.wake_depth)
+            j, make_way, waits = rules.stalled_by(
                 i,
                 pos,
                 pr,
@@ -308,8 +332,11 @@ def orca_batch(
                 2.0 * cs.margin,
                 rs.time_horizon,
                 rs.make_way,
-                rules.wake_growth(rs.wake_column and boxes, rs.wake_depth),
+                wake,
+                rs.impatience and impatient[i],
             )
+            if waits:
+                f |= FLAG_WAITING
             held = False
             side = (0.0, 0.0, 0.0)
             if make_way:
@@ -317,7 +344,7 @@ def orca_batch(
                 f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
             elif j >= 0 and side_on:
                 held = True
-                if rs.climb_past and pos[i, 2] > pos[j, 2]:
+                if rs.climb_past and pos[i, 2] > pos[j, 2] and climb_first(i, j, pos, centre, half, boxes, cs, rs, wake):
                     side = (0.0, 0.0, 1.0)  # above the one in the way: over it
                 else:
                     side = rules.sidestep(scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0))
@@ -348,7 +375,7 @@ def orca_batch(
                     # leaves the axis across the blocking face free; the bias can exactly cancel the
                     # preferred velocity along it): ask for the sideways step alone
                     feasible, res = core.solve(N, P, m, n_hard, max_speed, scale(side, sp), SN, SP)
-                f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
+                f = FLAG_BIASED | (f & FLAG_WAITING) | (0 if feasible else FLAG_INFEASIBLE)
         set_row(out, i, res)
         flags[i] = f | up
 
@@ -391,6 +418,7 @@ def orca_velocities(
     neighbours: NDArray[np.int64] | None = None,
     obstacles: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     parts: NDArray[np.float64] | None = None,
+    impatient: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Collision-avoiding velocities of all agents from sensed state (one compiled call).
 
@@ -419,10 +447,12 @@ def orca_velocities(
             touched by the agent at its goal, ``goals`` and ``has_goal``) is left out for it.
         parts: (n, 12) airframe and load boxes of each agent (``shape_parts``), which tell the
             target's own obstacles (default: each agent's shape as one part).
+        impatient: (n,) True for the agents that have waited ``wait_patience_s`` for a neighbour on their
+            goal (``IMPATIENCE``; the caller counts the time from ``FLAG_WAITING``; default: none).
 
     Returns:
         (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE | FLAG_CLIMB |
-        FLAG_OBSTACLE``).
+        FLAG_OBSTACLE | FLAG_WAITING``).
     """
     pos = np.ascontiguousarray(positions, dtype=float)
     n = pos.shape[0]
@@ -456,6 +486,7 @@ def orca_velocities(
         parts = np.zeros((n, 12))
         parts[:, :3] = centre
         parts[:, 3:6] = half if use_boxes else radius[:, None]
+    impatient = np.zeros(n, dtype=np.bool_) if impatient is None else np.ascontiguousarray(impatient, dtype=np.bool_)
     out = np.empty((n, 3))
     flags = np.zeros(n, dtype=np.int64)
     core_rec, rule_rec = _settings(params, None if v_max is None else tuple(map(float, vm)))
@@ -476,6 +507,7 @@ def orca_velocities(
         oc,
         oh,
         np.ascontiguousarray(parts, dtype=float).reshape(n, 12),
+        impatient.reshape(n),
         core_rec,
         rule_rec,
         out,

@@ -16,6 +16,7 @@ from pybullet_swarm.planning.orca.kernel import (
     FLAG_FREE,
     FLAG_INFEASIBLE,
     FLAG_OBSTACLE,
+    FLAG_WAITING,
     commanded_velocities,
     neighbour_table,
     orca_velocities,
@@ -108,8 +109,11 @@ class OrcaLayer:
         self.r_carry = max(
             self.r_agent, math.hypot(math.sqrt(2.0) * 0.5 * self.box_size, self.box_drop + 0.5 * self.box_size)
         )
+        self.planner_dt = float(setup.planner_dt)  # s, between filter calls
+        self._waited = np.zeros(self.n)  # s, how long each agent has waited for a neighbour on its goal
         _warm_up()
         self._ticks = 0
+        self._impatient = 0
         self._agent_ticks = 0
         self._infeasible = 0
         self._biased = 0
@@ -179,7 +183,10 @@ class OrcaLayer:
             neighbours=nbr,
             obstacles=(oc, oh),
             parts=parts,
+            impatient=self._waited >= p.wait_patience_s,
         )
+        waiting = (flags & FLAG_WAITING) != 0  # IMPATIENCE: the time counts while the wait lasts
+        self._waited = np.where(waiting, self._waited + self.planner_dt, 0.0)
         passthrough = np.zeros(n, dtype=np.bool_)
         if p.passthrough:
             near = has_goal & (np.linalg.norm(goals - pos, axis=1) <= p.capture_radius)
@@ -213,6 +220,7 @@ class OrcaLayer:
         self._biased += int(np.count_nonzero(flags & FLAG_BIASED))
         self._climbing += int(np.count_nonzero(flags & FLAG_CLIMB))
         self._obstacle += int(np.count_nonzero(flags & FLAG_OBSTACLE))
+        self._impatient += int(np.count_nonzero(self._waited > p.wait_patience_s))
         self._changed += int(n - np.count_nonzero(keep))
         self._time_total += dt
         self._time_max = max(self._time_max, dt)
@@ -228,6 +236,7 @@ class OrcaLayer:
             "orca_biased_agent_ticks": self._biased,
             "orca_climbing_agent_ticks": self._climbing,
             "orca_obstacle_agent_ticks": self._obstacle,
+            "orca_impatient_agent_ticks": self._impatient,
             "orca_mean_solve_ms": 1e3 * self._time_total / ticks,
             "orca_max_solve_ms": 1e3 * self._time_max,
         }

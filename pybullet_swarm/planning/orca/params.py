@@ -166,6 +166,14 @@ class OrcaParams(Params):
     headway: bool = _switch(Rule.HEADWAY)
     wake_share_on_course: bool = _switch(Rule.WAKE_SHARE_ON_COURSE)
     margin_overlap: bool = _switch(Rule.MARGIN_OVERLAP)
+    impatience: bool = _switch(Rule.IMPATIENCE)
+    wait_patience_s: float = Field(
+        10.0,
+        gt=0.0,
+        le=1000.0,
+        description="s, with impatience: an agent waiting this long for a neighbour on its goal goes round it",
+    )
+    climb_when_shorter: bool = _switch(Rule.CLIMB_WHEN_SHORTER)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

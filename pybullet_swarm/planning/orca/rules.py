@@ -46,6 +46,8 @@ class Rule(str, enum.Enum):
     HEADWAY = "headway"
     WAKE_SHARE_ON_COURSE = "wake_share_on_course"
     MARGIN_OVERLAP = "margin_overlap"
+    IMPATIENCE = "impatience"
+    CLIMB_WHEN_SHORTER = "climb_when_shorter"
 
     @property
     def doc(self) -> str:
@@ -90,6 +92,10 @@ RULE_DOCS: dict[Rule, str] = {
     "the freedom",
     Rule.MARGIN_OVERLAP: "overlapping boxes recover along the least overlap of the axes on which the bare shapes "
     "are apart",
+    Rule.IMPATIENCE: "after wait_patience_s waiting for a neighbour on its goal, an agent treats it as in its way: "
+    "a swap resolves",
+    Rule.CLIMB_WHEN_SHORTER: "climb_past only when the climb over the neighbour, wake column included, is shorter "
+    "than the step aside",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -356,19 +362,24 @@ def stalled_by(
     tau: float,
     make_way: bool,
     wake: float,
-) -> tuple[int, bool]:
-    """SIDESTEP and MAKE_WAY: who holds up stalled agent i.
+    impatient: bool,
+) -> tuple[int, bool, bool]:
+    """SIDESTEP, MAKE_WAY and IMPATIENCE: who holds up stalled agent i.
 
     Returns the nearest neighbour ahead (reachable at speed ``sp`` m/s over ``tau`` s, shapes grown
     by ``margin2`` m, and vertically by ``wake`` m: ``WAKE_COLUMN``) that is in the way and does
-    not sit on i's goal (its wake column included), or -1; and, with ``make_way``, True instead
+    not sit on i's goal (its wake column included), or -1; with ``make_way``, True instead
     when, descending straight down, i first meets a neighbour below whose shape itself sits on
     its goal: that one can only leave upwards, through i. A neighbour on the goal is otherwise
-    waited for: circling it would not help.
+    waited for (circling one that is about to leave would not help), and the third value says
+    that i waits for one; once i is ``impatient`` (``IMPATIENCE``: it has waited long enough),
+    the first such neighbour is returned as the one in its way: it is not leaving, perhaps
+    because i sits on its goal.
     """
     n = pos.shape[0]
     pi = row(pos, i)
     dh = scale(pref, 1.0 / sp)
+    waits = False
     for c in range(nbr.shape[1]):  # nearest first
         j = nbr[i, c]
         if j < 0 or j >= n or j == i:
@@ -389,10 +400,28 @@ def stalled_by(
                 and rel[2] < 0.0
                 and (wake == 0.0 or overlap(gi, pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2))
             ):
-                return -1, True  # over the goal's occupant: make way upwards
+                return -1, True, False  # over the goal's occupant: make way upwards
+            if impatient:
+                return j, False, True  # waited long enough: the occupant is in the way
+            waits = True
             continue  # the neighbour occupies the goal: wait, do not circle it
-        return j, False
-    return -1, False
+        return j, False, waits
+    return -1, False, waits
+
+
+@njit
+def climb_is_shorter(c: Vec, H: Vec, wz: float) -> bool:
+    """CLIMB_WHEN_SHORTER: whether climbing over a neighbour below is the shorter way past it.
+
+    ``c`` m: the neighbour's box centre relative to the agent's (below it: ``c[2] < 0``); ``H`` m:
+    the half extents of the pair's boxes summed, margins and the wake column included. The climb
+    is what raises the agent's box (and the wake column under it) clear of the neighbour's,
+    weighted by ``wz`` (``way_out_weight``); the step aside, what takes the agent past a neighbour
+    straight ahead: the pair's narrower horizontal extent (the present offsets say little: a stall
+    is a meeting ahead, not an overlap now).
+    """
+    climb = H[2] + c[2]
+    return wz * climb <= min(H[0], H[1])
 
 
 @njit
