@@ -333,6 +333,8 @@ class Simulation:
             range_offset=0.0 if fan is None else float(fan.start_offset),
             obstacles=sc.arena.obstacle_boxes(),
             downwash=bool(sc.sim.downwash),
+            downwash_model=p.downwash_params,
+            mass=float(p.mass),
         )
 
     def _make_planner(self) -> None:

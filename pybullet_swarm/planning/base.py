@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pybullet_swarm.types import Perception
+from pybullet_swarm.vehicle.downwash import DownwashParams
 
 
 class Action(enum.IntEnum):
@@ -318,6 +319,8 @@ class AvoidanceSetup:
         obstacles: the arena's static obstacles (pillars, boxes, walls), for the whole run.
         downwash: True when the simulation models the rotor wake of each vehicle pushing down those
             below it (``sim.downwash``).
+        downwash_model: the airframe's downwash constants (what the simulation applies when ``downwash``).
+        mass: kg, the airframe's mass (with ``downwash_model``: the wake's strength against the weight).
     """
 
     n: int
@@ -334,6 +337,8 @@ class AvoidanceSetup:
     range_offset: float = 0.0
     obstacles: Obstacles = dataclasses.field(default_factory=Obstacles)
     downwash: bool = False
+    downwash_model: DownwashParams | None = None
+    mass: float = 0.0
 
 
 @runtime_checkable

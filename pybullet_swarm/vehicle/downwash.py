@@ -124,6 +124,30 @@ class DownwashParams:
         """m, horizontal distance beyond which the force is below ``negligible`` times the upper thrust."""
         return 2.0 * self.rotor_radius * math.sqrt(self.momentum_fraction / (math.e * negligible))
 
+    def centreline_fraction(self, dz: float, *, mass: float) -> float:
+        """The force on a vehicle ``dz`` m (> 0) straight below this airframe (of ``mass`` kg), as a fraction of
+        the upper vehicle's thrust (of the weight of a lower one of the same airframe at hover)."""
+        c = self.const(kf=1.0, mass=mass)
+        return float(_pair_force(0.0, float(dz), 1.0, c))
+
+    def depth(self, fraction: float, *, mass: float) -> float:
+        """m, how far below this airframe (of ``mass`` kg) the wake pushes a vehicle straight under it with more
+        than ``fraction`` of the upper vehicle's thrust (the force falls with depth: bisection to 1 um)."""
+        if not 0.0 < fraction < 1.0:
+            raise ValueError(f"fraction must lie in (0, 1), got {fraction}")
+        lo, hi = 1e-3, 100.0
+        if self.centreline_fraction(lo, mass=mass) <= fraction:
+            return 0.0
+        if self.centreline_fraction(hi, mass=mass) > fraction:
+            return hi
+        while hi - lo > 1e-6:
+            mid = 0.5 * (lo + hi)
+            if self.centreline_fraction(mid, mass=mass) > fraction:
+                lo = mid
+            else:
+                hi = mid
+        return hi
+
     def const(self, *, kf: float, mass: float, negligible: float = NEGLIGIBLE) -> NDArray[np.float64]:
         """The constant array of the kernels for an airframe of thrust coefficient ``kf`` and ``mass`` kg."""
         c = np.zeros(D_LEN)

@@ -14,6 +14,7 @@ from pybullet_swarm.planning.orca import (
     FLAG_BIASED,
     FLAG_CLIMB,
     FLAG_FREE,
+    FLAG_WAITING,
     RULE_DOCS,
     OrcaLayer,
     OrcaParams,
@@ -186,13 +187,16 @@ def _over(params: OrcaParams, dz: float, dx: float = 0.3) -> tuple[np.ndarray, n
 
 @pytest.mark.parametrize("downwash", [True, False])
 def test_a_null_wake_depth_acts_only_where_the_run_models_downwash(downwash: bool):
-    sim = Simulation(_layer_scenario(**{"sim.downwash": downwash}))
+    sc = _layer_scenario(**{"sim.downwash": downwash})
+    sim = Simulation(sc)
     try:
         layer = sim.avoidance_layer
         assert isinstance(layer, OrcaLayer)
-        assert layer.params.wake_depth == (0.5 if downwash else 0.0)
+        # as deep as the airframe's wake pushes one straight under it with 5 % of its weight: quad150, 1.81 m
+        assert layer.params.wake_depth == (pytest.approx(1.808, abs=1e-3) if downwash else 0.0)
     finally:
         sim.close()
+    assert sc.agents.vehicle == "quad150"
     assert OrcaParams(wake_depth=0.3).wake(downwash=False) == 0.3  # an explicit depth always acts
     assert OrcaParams(wake_depth=0.3, wake_column=False).wake(downwash=True) == 0.0
     assert OrcaParams(wake_depth=0.3, shape="sphere").wake(downwash=True) == 0.0
@@ -459,3 +463,89 @@ def test_construction_runs_with_a_rule_switched_off(off: str):
     assert r.metrics["orca_changed_fraction"] > 0.0
     expected = () if off == "paper" else tuple(rule for rule in Rule if rule.value != off)
     assert isinstance(sc.avoidance_params, OrcaParams) and sc.avoidance_params.rules == expected
+
+
+# ----------------------------------------------------------------------------- waiting and passing
+def _swap(params: OrcaParams, impatient: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Two agents level, 22 cm apart along x, each with its goal where the other is (a swap; the suite's
+    random_8 under shortest_path, seed 0: two carriers each over the other's slot stalled the run)."""
+    pos = np.array([[1.0, 0.5, 0.5], [1.22, 0.5, 0.5]])
+    goals = pos[::-1].copy()
+    kinds = np.full(2, int(CommandKind.POSITION))
+    pref = preferred_velocities(kinds, goals, pos, arrive_time=params.arrive_time, v_max=VM)
+    return orca_velocities(
+        pos,
+        np.zeros((2, 3)),
+        pref,
+        params=params,
+        sensing_radius=1.0,
+        v_max=VM,
+        boxes=(np.zeros((2, 3)), np.tile(HALF, (2, 1))),
+        goals=goals,
+        has_goal=np.ones(2, dtype=bool),
+        impatient=np.full(2, impatient),
+    )
+
+
+def test_impatience_ends_a_wait_for_a_neighbour_on_the_goal_and_only_when_on():
+    v, flags = _swap(OrcaParams(), impatient=False)
+    assert np.all(flags & FLAG_WAITING) and not np.any(flags & FLAG_BIASED)  # each waits for the other
+    assert np.all(np.abs(v[:, 1]) < 0.01)
+    v, flags = _swap(OrcaParams(), impatient=True)
+    assert np.all(flags & FLAG_BIASED) and np.all(flags & FLAG_WAITING)  # goes round it, still counted as waiting
+    assert np.all(np.abs(v[:, 1]) > 0.05) and v[0, 1] * v[1, 1] < 0.0  # opposite sides: they pass
+    v, flags = _swap(OrcaParams(impatience=False), impatient=True)
+    assert not np.any(flags & FLAG_BIASED) and np.all(np.abs(v[:, 1]) < 0.01)
+
+
+def test_the_layer_counts_the_wait_and_loses_patience_after_wait_patience_s(monkeypatch: pytest.MonkeyPatch):
+    seen: list[np.ndarray] = []
+    real = orca_layer.orca_velocities
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        if "impatient" in kwargs:  # a filter call (the warm-up at start passes none)
+            seen.append(kwargs["impatient"].copy())
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(orca_layer, "orca_velocities", spy)
+    sim = Simulation(_layer_scenario(wait_patience_s=0.5, wake_depth=0.0))
+    try:
+        layer = sim.avoidance_layer
+        assert isinstance(layer, OrcaLayer)
+        pos = sim.perceive().positions  # 25 cm apart along x: each goes where the other is
+        cmds = [Command.goto(pos[1]), Command.goto(pos[0])]
+        outs = [layer.filter(cmds, sim.perceive(), sim.task.view(sim.time)) for _ in range(9)]
+        ticks = round(0.5 / layer.planner_dt)
+        assert not any(s.any() for s in seen[:ticks]) and all(s.all() for s in seen[ticks:])
+        assert abs(outs[0][0].vector[1]) < 0.01  # waits ...
+        assert (
+            abs(outs[-1][0].vector[1]) > 0.05 and outs[-1][0].vector[1] * outs[-1][1].vector[1] < 0.0
+        )  # ... then passes
+        assert layer.metrics()["orca_impatient_agent_ticks"] > 0
+    finally:
+        sim.close()
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_climb_when_shorter_steps_aside_rather_than_climbing_over_a_wake_column(on: bool):
+    """An agent 5 cm above another it meets head-on, stalled: with a 0.5 m wake column, passing over needs a
+    climb of half a metre, and the planner pulls it back down (random_8 under shortest_path, seed 0); the step
+    aside is a box's width. Without a wake column the climb is the shorter way, rule or not."""
+    pos = np.array([[1.0, 0.5, 0.55], [1.22, 0.5, 0.5]])
+    pref = np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0]])
+    for wake, climbs in ((0.5, not on), (0.0, True)):
+        v, flags = orca_velocities(
+            pos,
+            np.zeros((2, 3)),
+            pref,
+            params=OrcaParams(climb_when_shorter=on, wake_depth=wake),
+            sensing_radius=1.0,
+            v_max=VM,
+            boxes=(np.zeros((2, 3)), np.tile(HALF, (2, 1))),
+            goals=pos + 10.0 * pref,
+            has_goal=np.ones(2, dtype=bool),
+        )
+        assert flags[0] & FLAG_BIASED
+        assert bool(v[0, 2] > 0.05) is climbs, (wake, v[0])
+        if not climbs:
+            assert abs(v[0, 1]) > 0.05

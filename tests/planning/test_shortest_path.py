@@ -345,3 +345,20 @@ def test_round_parked_takes_a_carrier_round_the_top_of_a_descent_at_its_altitude
         p[:2] += step * min(1.0, 0.02 / max(float(np.linalg.norm(step)), 1e-9))
         gaps.append(float(np.linalg.norm(p[:2] - top[:2])))
     assert (min(gaps) >= PARKED_CLEARANCE - 0.02) is round_parked
+
+
+def test_wait_away_never_waits_where_the_arena_edge_pulls_the_point_onto_the_column():
+    """A slot 15 cm from the arena's edge: the arc facing away from the depot is clipped to the edge, 4 cm off
+    the column, where a waiting carrier stands in the way of the one it waits for (random_8 of the suite, seed
+    0: held 14 cm from its slot, the slot's carrier never reached it). Such a point comes last."""
+    from pybullet_swarm.planning import shortest_path as sp_module
+
+    tower = np.array([[2.85, 0.5, 0.05 + 0.1 * k] for k in range(3)])
+    sp = _planner(5, slots=tower, wait_away=True)
+    above = np.array([2.85, 0.5, sp._alt(0)])
+    view = _view(np.array([[1.0, 0.1 + 0.2 * i, above[2]] for i in range(5)]), n_slots=len(tower))
+    for i in range(5):
+        xy = sp._wait_aside(i, view, above, sp.depot_xy).vector[:2]
+        assert np.max(np.abs(xy - above[:2])) >= sp_module.WAKE_CLEARANCE
+    lane = (sp.depot_xy, above[:2])
+    assert sp_module._wait_clearance(np.array([2.894, 0.5]), 0.044, lane) < 0.0

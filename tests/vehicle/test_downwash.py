@@ -86,6 +86,21 @@ def test_with_these_constants_the_fit_is_above_the_momentum_bound_everywhere():
         assert fitted[np.searchsorted(dz, 0.1)] > 25  # 0.1 m below: 25+ times the upper thrust
 
 
+@pytest.mark.parametrize("fraction", [0.2, 0.05, 0.02])
+def test_the_wake_depth_is_where_the_force_straight_below_falls_to_the_fraction(fraction: float):
+    """``DownwashParams.depth``: by hand, where the wake is wider than the airframe (beta > min_width) and the
+    momentum bound holds, k (1 - exp(-2 r^2 / beta^2)) = fraction gives beta, and dz = (beta - eta) / zeta."""
+    p = load_vehicle("quad150")
+    beta = math.sqrt(-2.0 * R**2 / math.log(1.0 - fraction / K))
+    assert beta > MIN_W
+    expected = (beta - ETA) / ZETA
+    depth = p.downwash_params.depth(fraction, mass=p.mass)
+    assert depth == pytest.approx(expected, abs=1e-5)
+    assert closed_form(0.0, depth * 0.99, 1.0) > fraction > closed_form(0.0, depth * 1.01, 1.0)
+    with pytest.raises(ValueError, match="fraction"):
+        p.downwash_params.depth(1.5, mass=p.mass)
+
+
 def test_force_scales_with_the_upper_thrust_and_adds_over_vehicles_above():
     one = kernel_force([[1.0, 1.0, 1.0], [1.0, 1.0, 1.3]], thrust=1.4715)
     assert -one[0] == pytest.approx(closed_form(0.0, 0.3, 1.4715), rel=1e-12)

@@ -344,7 +344,11 @@ def orca_batch(
                 f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
             elif j >= 0 and side_on:
                 held = True
-                if rs.climb_past and pos[i, 2] > pos[j, 2] and climb_first(i, j, pos, centre, half, boxes, cs, rs, wake):
+                if (
+                    rs.climb_past
+                    and pos[i, 2] > pos[j, 2]
+                    and climb_first(i, j, pos, centre, half, boxes, cs, rs, wake)
+                ):
                     side = (0.0, 0.0, 1.0)  # above the one in the way: over it
                 else:
                     side = rules.sidestep(scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0))

@@ -93,8 +93,11 @@ class OrcaLayer:
         if std > 0.0 and self.params.uncertainty_margin:
             grow = rules.uncertainty_growth(self.params.uncertainty_sigmas, std)
             self.params = self.params.model_copy(update={"safety_margin": self.params.margin + grow})
-        if self.params.wake_depth is None:  # the wake column acts where the run has wakes
-            self.params = self.params.model_copy(update={"wake_depth": self.params.wake(setup.downwash)})
+        if self.params.wake_depth is None:  # the wake column acts where the run has wakes, as deep as they push
+            model = setup.downwash_model
+            reach = model.depth(self.params.wake_fraction, mass=setup.mass) if model is not None else None
+            depth = self.params.wake(setup.downwash, reach)
+            self.params = self.params.model_copy(update={"wake_depth": depth})
         self.n = setup.n
         self.v_max = setup.v_max  # (3,) m/s or None
         self.a_max = setup.a_max  # (3,) m/s^2

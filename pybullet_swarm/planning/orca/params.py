@@ -24,9 +24,9 @@ class Shape(enum.Enum):
     SPHERE = "sphere"  # enclosing spheres (the classic ORCA model)
 
 
-#: m, the wake column's depth when ``wake_depth`` is null and the run models downwash. On the thesis task
-#: (stigmergy + orca, seeds 0..9) 0.3 m left contacts in 2 runs and a stall; 0.5 m, 1.0 m and 1.8 m none, at
-#: medians within 1 s of each other (README, "Downwash"); the model's wake reaches further (1.27 m for quad150).
+#: m, the wake column's depth when ``wake_depth`` is null, the run models downwash and the layer is not told the
+#: airframe's downwash model (the array API; a run always tells it: ``wake_fraction``). On the thesis task
+#: (stigmergy + orca, seeds 0..9) 0.3 m left contacts in 2 runs and a stall; 0.5 m, 1.0 m and 1.8 m none.
 DEFAULT_WAKE_DEPTH = 0.5
 
 #: m, safety margin of each shape when ``safety_margin`` is null: two airframes side by side at the
@@ -159,7 +159,15 @@ class OrcaParams(Params):
         ge=0.0,
         le=10.0,
         description="m, boxes: against other agents each agent's box reaches this far further down, its rotor wake "
-        "kept clear of others (null: 0.5 when the run models downwash, 0 without; sphere shapes: no effect)",
+        "kept clear of others (null: where the run models downwash, the depth down to which the airframe's wake "
+        "pushes one straight under it with more than wake_fraction of its weight; 0 without; spheres: no effect)",
+    )
+    wake_fraction: float = Field(
+        0.05,
+        gt=0.0,
+        lt=1.0,
+        description="with wake_depth null: the wake column reaches as deep as the downwash model's force on a vehicle "
+        "straight below exceeds this fraction of its weight (quad150: 1.81 m; cf2x: 1.32 m)",
     )
 
     wake_share_by_approach: bool = _switch(Rule.WAKE_SHARE_BY_APPROACH)
@@ -184,14 +192,17 @@ class OrcaParams(Params):
             return float(self.safety_margin)
         return DEFAULT_MARGIN[self.shape]
 
-    def wake(self, downwash: bool) -> float:
-        """m, the wake column's depth in use: ``wake_depth``, or when null the default with downwash (0 without);
+    def wake(self, downwash: bool, model_depth: float | None = None) -> float:
+        """m, the wake column's depth in use: ``wake_depth``, or when null, with downwash, ``model_depth`` (the
+        airframe's wake reach at ``wake_fraction``) or, not given, ``DEFAULT_WAKE_DEPTH`` (0 without downwash);
         0 when the rule is off or agents are spheres."""
         if not self.wake_column or self.shape is not Shape.BOX:
             return 0.0
         if self.wake_depth is not None:
             return float(self.wake_depth)
-        return DEFAULT_WAKE_DEPTH if downwash else 0.0
+        if not downwash:
+            return 0.0
+        return DEFAULT_WAKE_DEPTH if model_depth is None else float(model_depth)
 
     def on(self, rule: Rule) -> bool:
         """True when ``rule`` is switched on."""
