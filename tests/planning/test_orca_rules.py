@@ -549,3 +549,32 @@ def test_climb_when_shorter_steps_aside_rather_than_climbing_over_a_wake_column(
         assert bool(v[0, 2] > 0.05) is climbs, (wake, v[0])
         if not climbs:
             assert abs(v[0, 1]) > 0.05
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_side_memory_keeps_the_side_taken_round_a_neighbour_when_their_offset_flips(on: bool):
+    """Head-on and stalled, 2 cm apart across the way: each steps to the side the other leaves free. Traced
+    (construction, stigmergy + orca, seeds 48 and 96): as both moved, the offset changed sign and the sides
+    with it, tick after tick, while the neighbour pushed the carrier 1 m back. With the rule the side stays."""
+    memory = (np.full(2, -1, dtype=np.int64), np.zeros((2, 3)))
+    pref = np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0]])
+    sides = []
+    for dy in (0.02, -0.02):
+        pos = np.array([[1.0, 0.5, 0.5], [1.22, 0.5 + dy, 0.5]])
+        v, flags = orca_velocities(
+            pos,
+            np.zeros((2, 3)),
+            pref,
+            params=OrcaParams(side_memory=on, wake_depth=0.0),
+            sensing_radius=1.0,
+            v_max=VM,
+            boxes=(np.zeros((2, 3)), np.tile(HALF, (2, 1))),
+            goals=pos + 10.0 * pref,
+            has_goal=np.ones(2, dtype=bool),
+            memory=memory,
+        )
+        assert flags[0] & FLAG_BIASED and abs(v[0, 1]) > 0.05
+        sides.append(np.sign(v[0, 1]))
+    assert sides[0] < 0.0  # first away from the neighbour's side (it is at +y)
+    assert bool(sides[1] == sides[0]) is on
+    assert memory[0][0] == 1 and memory[0][1] == 0  # who went round whom is kept for the next call

@@ -42,8 +42,10 @@ The paper's core and our extension rules are kept apart:
   - ``static_obstacles``: boxes (free and placed), the structure and the arena's walls and obstacles
     are velocity obstacles the agent avoids alone, the paper's obstacles (see below).
   - ``wake_column``: against other agents each agent's box reaches ``wake_depth`` further down
-    (null: 0.5 m where the run models downwash, 0 without): nobody flies in another's rotor wake;
-    a pair apart vertically but for the wake is the upper agent's to resolve.
+    (null: where the run models downwash, as deep as the airframe's downwash model pushes a
+    vehicle straight below with more than ``wake_fraction``, 5 %, of its weight: 1.81 m for
+    quad150, 1.32 m for cf2x; 0 without): nobody flies in another's rotor wake; a pair apart
+    vertically but for the wake is the upper agent's to resolve.
   - ``wake_share_by_approach``: such a pair's share goes to whichever agent moves into the
     conflict, in proportion to their speeds towards each other; the upper one takes it all only
     when neither does (the upper one fleeing a lower agent closing in was pushed into a third).
@@ -65,6 +67,11 @@ The paper's core and our extension rules are kept apart:
     (the wake column included) is shorter than the step aside, weighted by ``vertical_cost``: with
     a 0.5 m wake column a climb past takes the agent out of the arena's working height, and the
     planner pulls it back down.
+  - ``side_memory``: a stalled agent keeps the side it took round a neighbour while that neighbour
+    holds it up: head-on, a few centimetres apart across the way, their offset flipped sign as
+    both moved, and with it ``sidestep``'s choice of side, tick after tick, while the neighbour,
+    not stalled, pushed the agent backwards 1 m (a carrier with the last box, among empty agents
+    searching the empty depot).
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

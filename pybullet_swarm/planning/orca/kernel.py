@@ -279,6 +279,8 @@ def orca_batch(
     oh: NDArray[np.float64],
     parts: NDArray[np.float64],
     impatient: NDArray[np.bool_],
+    side_of: NDArray[np.int64],
+    side_dir: NDArray[np.float64],
     core_rec: NDArray[np.void],
     rule_rec: NDArray[np.void],
     out: NDArray[np.float64],
@@ -298,6 +300,8 @@ def orca_batch(
     side_on = rs.sidestep and right_bias > 0.0
     stall_on = side_on or rs.make_way
     for i in range(n):
+        passing = side_of[i]  # SIDE_MEMORY: the neighbour i went round at the last tick (-1: none)
+        side_of[i] = -1
         n_bounds = core.bound_planes(lo, hi, i, N, P)
         n_hard = n_static = n_bounds
         if static:
@@ -350,8 +354,12 @@ def orca_batch(
                     and climb_first(i, j, pos, centre, half, boxes, cs, rs, wake)
                 ):
                     side = (0.0, 0.0, 1.0)  # above the one in the way: over it
+                elif rs.side_memory and passing == j:
+                    side = (side_dir[i, 0], side_dir[i, 1], side_dir[i, 2])  # the side chosen for j: keep it
                 else:
                     side = rules.sidestep(scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0))
+                side_of[i] = j
+                set_row(side_dir, i, side)
             elif side_on and n_static > n_bounds:
                 held, side = rules.obstacle_in_way(
                     i,
@@ -423,6 +431,7 @@ def orca_velocities(
     obstacles: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     parts: NDArray[np.float64] | None = None,
     impatient: NDArray[np.bool_] | None = None,
+    memory: tuple[NDArray[np.int64], NDArray[np.float64]] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Collision-avoiding velocities of all agents from sensed state (one compiled call).
 
@@ -453,6 +462,9 @@ def orca_velocities(
             target's own obstacles (default: each agent's shape as one part).
         impatient: (n,) True for the agents that have waited ``wait_patience_s`` for a neighbour on their
             goal (``IMPATIENCE``; the caller counts the time from ``FLAG_WAITING``; default: none).
+        memory: (neighbour (n,) int, direction (n, 3)) of ``SIDE_MEMORY``, read and written: the neighbour
+            each agent went round at the last call and the direction it took (-1: none), kept by the caller
+            from call to call (default: fresh, nothing remembered).
 
     Returns:
         (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE | FLAG_CLIMB |
@@ -491,6 +503,12 @@ def orca_velocities(
         parts[:, :3] = centre
         parts[:, 3:6] = half if use_boxes else radius[:, None]
     impatient = np.zeros(n, dtype=np.bool_) if impatient is None else np.ascontiguousarray(impatient, dtype=np.bool_)
+    if memory is None:
+        side_of, side_dir = np.full(n, -1, dtype=np.int64), np.zeros((n, 3))
+    else:
+        side_of, side_dir = memory
+        if side_of.dtype != np.int64 or side_dir.dtype != np.float64 or not side_dir.flags.c_contiguous:
+            raise ValueError("memory must be (int64 (n,), contiguous float64 (n, 3)) arrays, written in place")
     out = np.empty((n, 3))
     flags = np.zeros(n, dtype=np.int64)
     core_rec, rule_rec = _settings(params, None if v_max is None else tuple(map(float, vm)))
@@ -512,6 +530,8 @@ def orca_velocities(
         oh,
         np.ascontiguousarray(parts, dtype=float).reshape(n, 12),
         impatient.reshape(n),
+        side_of,
+        side_dir,
         core_rec,
         rule_rec,
         out,

@@ -114,6 +114,8 @@ class OrcaLayer:
         )
         self.planner_dt = float(setup.planner_dt)  # s, between filter calls
         self._waited = np.zeros(self.n)  # s, how long each agent has waited for a neighbour on its goal
+        self._side_of = np.full(self.n, -1, dtype=np.int64)  # the neighbour each agent goes round (SIDE_MEMORY)
+        self._side_dir = np.zeros((self.n, 3))  # the direction it took
         _warm_up()
         self._ticks = 0
         self._impatient = 0
@@ -187,6 +189,7 @@ class OrcaLayer:
             obstacles=(oc, oh),
             parts=parts,
             impatient=self._waited >= p.wait_patience_s,
+            memory=(self._side_of, self._side_dir),
         )
         waiting = (flags & FLAG_WAITING) != 0  # IMPATIENCE: the time counts while the wait lasts
         self._waited = np.where(waiting, self._waited + self.planner_dt, 0.0)

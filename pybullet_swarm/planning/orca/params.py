@@ -182,6 +182,7 @@ class OrcaParams(Params):
         description="s, with impatience: an agent waiting this long for a neighbour on its goal goes round it",
     )
     climb_when_shorter: bool = _switch(Rule.CLIMB_WHEN_SHORTER)
+    side_memory: bool = _switch(Rule.SIDE_MEMORY)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

@@ -48,6 +48,7 @@ class Rule(str, enum.Enum):
     MARGIN_OVERLAP = "margin_overlap"
     IMPATIENCE = "impatience"
     CLIMB_WHEN_SHORTER = "climb_when_shorter"
+    SIDE_MEMORY = "side_memory"
 
     @property
     def doc(self) -> str:
@@ -96,6 +97,8 @@ RULE_DOCS: dict[Rule, str] = {
     "a swap resolves",
     Rule.CLIMB_WHEN_SHORTER: "climb_past only when the climb over the neighbour, wake column included, is shorter "
     "than the step aside",
+    Rule.SIDE_MEMORY: "a stalled agent keeps the side it took round a neighbour while that one holds it up, "
+    "though their offset flips",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
