@@ -578,3 +578,34 @@ def test_side_memory_keeps_the_side_taken_round_a_neighbour_when_their_offset_fl
     assert sides[0] < 0.0  # first away from the neighbour's side (it is at +y)
     assert bool(sides[1] == sides[0]) is on
     assert memory[0][0] == 1 and memory[0][1] == 0  # who went round whom is kept for the next call
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_pushed_back_a_stalled_agent_steps_aside_instead_of_being_pushed_along(on: bool):
+    """Agent 1 flies at agent 0 head-on, 9 cm apart across the way, at the speed agent 0 is pushed back (the
+    pair's velocity obstacle only keeps them apart: neither is told to stop). ORCA linearises about the present
+    velocities, so agent 1 kept its speed and agent 0 kept retreating; its sideways bias was cancelled by its
+    preferred velocity back towards its line (shortest_path + orca, construction seed 43: a carrier pushed out
+    of the arena; stigmergy, seeds 48 and 96). Velocities follow the commands with a 0.3 s lag, 6 s."""
+    pos = np.array([[0.23, 0.6, 0.5], [0.0, 0.51, 0.5]])
+    vel = np.array([[0.11, 0.0, 0.0], [0.11, 0.0, 0.0]])
+    goals = np.array([[-1.0, 0.6, 0.5], [5.0, 0.51, 0.5]])
+    memory = (np.full(2, -1, dtype=np.int64), np.zeros((2, 3)))
+    for _ in range(60):
+        pref = np.clip((goals - pos) / 0.5, -VM, VM)
+        v, _ = orca_velocities(
+            pos,
+            vel,
+            pref,
+            params=OrcaParams(pushed_back=on, wake_depth=0.0),
+            sensing_radius=1.0,
+            v_max=VM,
+            boxes=(np.zeros((2, 3)), np.tile(HALF, (2, 1))),
+            goals=goals,
+            has_goal=np.ones(2, dtype=bool),
+            memory=memory,
+        )
+        vel += (v - vel) * (0.1 / 0.3)
+        pos += vel * 0.1
+    assert bool(pos[0, 0] < pos[1, 0]) is on  # past agent 1 on its way, or pushed along ahead of it
+    assert bool(pos[0, 0] < 0.23) is on

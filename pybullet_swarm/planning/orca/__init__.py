@@ -72,6 +72,10 @@ The paper's core and our extension rules are kept apart:
     both moved, and with it ``sidestep``'s choice of side, tick after tick, while the neighbour,
     not stalled, pushed the agent backwards 1 m (a carrier with the last box, among empty agents
     searching the empty depot).
+  - ``pushed_back``: a stalled agent that its biased velocity takes backwards and hardly sideways
+    asks for the sideways step alone: ORCA linearises about the present velocities, so an agent
+    flying at one that is pushed back at its speed keeps its speed, and the pushed one keeps
+    retreating, its bias cancelled by its preferred velocity back towards its line.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

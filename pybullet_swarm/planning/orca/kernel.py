@@ -382,10 +382,12 @@ def orca_batch(
                 )
             if held:
                 feasible, res = core.solve(N, P, m, n_hard, max_speed, add(pr, side, right_bias * sp), SN, SP)
-                if dot(res, res) < stuck * stuck * sp * sp:
+                pushed = rs.pushed_back and dot(res, pr) < 0.0 and dot(res, side) < stuck * sp
+                if pushed or dot(res, res) < stuck * stuck * sp * sp:
                     # still held: the bias cancelled what the neighbours' planes left free (a box VO
                     # leaves the axis across the blocking face free; the bias can exactly cancel the
-                    # preferred velocity along it): ask for the sideways step alone
+                    # preferred velocity along it), or (PUSHED_BACK) the agent moves backwards and
+                    # hardly sideways: ask for the sideways step alone
                     feasible, res = core.solve(N, P, m, n_hard, max_speed, scale(side, sp), SN, SP)
                 f = FLAG_BIASED | (f & FLAG_WAITING) | (0 if feasible else FLAG_INFEASIBLE)
         set_row(out, i, res)

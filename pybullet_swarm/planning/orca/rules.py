@@ -49,6 +49,7 @@ class Rule(str, enum.Enum):
     IMPATIENCE = "impatience"
     CLIMB_WHEN_SHORTER = "climb_when_shorter"
     SIDE_MEMORY = "side_memory"
+    PUSHED_BACK = "pushed_back"
 
     @property
     def doc(self) -> str:
@@ -99,6 +100,8 @@ RULE_DOCS: dict[Rule, str] = {
     "than the step aside",
     Rule.SIDE_MEMORY: "a stalled agent keeps the side it took round a neighbour while that one holds it up, "
     "though their offset flips",
+    Rule.PUSHED_BACK: "a stalled agent that its biased velocity takes backwards and hardly sideways asks for the "
+    "sideways step alone",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
