@@ -29,7 +29,6 @@ from pybullet_swarm.planning.orca import layer as orca_layer
 from pybullet_swarm.planning.orca.core import box_u
 from pybullet_swarm.planning.orca.rules import (
     approach_speed,
-    targets_touching,
     obstacles_beside,
     reference_velocities,
     uncertainty_growth,
@@ -425,8 +424,7 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
             assert (kw["beside"] is None) is (off in (Rule.COLUMN_RULE, Rule.STATIC_OBSTACLES))
             assert kw["preferred"] is not None  # floor_preferred (on by default) hands the bounds the preferences
             assert seen["reference"][0][2] is (off is not Rule.CLIPPED_REFERENCE)
-            # agent 0 is 1 cm from its target, 1 m up in the air: only without passthrough_at_contact is it passed
-            assert ("clear_paths" in seen) is (off is Rule.PASSTHROUGH_AT_CONTACT)
+            assert ("clear_paths" in seen) is (off is not Rule.PASSTHROUGH)  # agent 0 is 1 cm from its target
             if "clear_paths" in seen:  # the swept boxes reach the wake depth down unless the wake column is off
                 assert seen["clear_paths"][0][-1] == (0.0 if off is Rule.WAKE_COLUMN else 0.4)
             assert out[0].action is Action.GRASP
@@ -611,27 +609,3 @@ def test_pushed_back_a_stalled_agent_steps_aside_instead_of_being_pushed_along(o
         pos += vel * 0.1
     assert bool(pos[0, 0] < pos[1, 0]) is on  # past agent 1 on its way, or pushed along ahead of it
     assert bool(pos[0, 0] < 0.23) is on
-
-
-def test_passthrough_at_contact_knows_grasp_and_drop_points_from_waypoints():
-    """A carrier's waypoint over its slot at cruise height was passed through within 5 cm of it: the shaped
-    command lurched it at the velocity limit into an agent turning towards it (construction seed 32, stigmergy
-    + orca: the one agent-agent contact of 150 runs). Grasp and drop points touch something; waypoints do not."""
-    box = (np.array([[1.0, 1.0, 0.05]]), np.full((1, 3), 0.05))  # a box on the ground
-    empty = np.array([0.0, 0.0, 0.0, 0.075, 0.075, 0.01] + [0.0] * 6)  # airframe only
-    carrier = np.array([0.0, 0.0, 0.0, 0.075, 0.075, 0.01, 0.0, 0.0, -0.065, 0.05, 0.05, 0.05])
-    goals = np.array(
-        [
-            [1.0, 1.0, 0.115],  # grasp point: airframe just over the box
-            [1.0, 1.0, 0.45],  # waypoint over it
-            [2.0, 1.0, 0.118],  # drop point on the ground: the load just over it
-            [2.0, 1.0, 0.45],  # waypoint, loaded
-            [1.0, 1.0, 0.05],  # inside the box: not its own, held off
-        ]
-    )
-    parts = np.array([empty, empty, carrier, carrier, empty])
-    out = np.zeros(5, dtype=bool)
-    targets_touching(goals, parts, np.ones(5, dtype=bool), *box, 0.035, out)
-    assert out.tolist() == [True, False, True, False, False]
-    targets_touching(goals, parts, np.zeros(5, dtype=bool), *box, 0.035, out)
-    assert not out.any()  # only candidates

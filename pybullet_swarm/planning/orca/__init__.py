@@ -76,10 +76,6 @@ The paper's core and our extension rules are kept apart:
     asks for the sideways step alone: ORCA linearises about the present velocities, so an agent
     flying at one that is pushed back at its speed keeps its speed, and the pushed one keeps
     retreating, its bias cancelled by its preferred velocity back towards its line.
-  - ``passthrough_at_contact``: ``passthrough`` only for a target where the airframe or load
-    touches the ground, a box or the structure (``rules.targets_touching``): grasp and drop points
-    need millimetres, a waypoint over a slot at cruise height does not, and reached unfiltered at
-    the shaper's full speed it lurched a carrier into a neighbour.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

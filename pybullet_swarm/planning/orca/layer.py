@@ -25,7 +25,7 @@ from pybullet_swarm.planning.orca.kernel import (
     union_boxes,
 )
 from pybullet_swarm.planning.orca.params import OrcaParams, Shape
-from pybullet_swarm.planning.orca.rules import clear_paths, obstacles_beside, targets_touching, velocity_bounds
+from pybullet_swarm.planning.orca.rules import clear_paths, obstacles_beside, velocity_bounds
 from pybullet_swarm.types import Perception
 
 NO_OBSTACLES = Obstacles()
@@ -66,9 +66,6 @@ def _warm_up() -> None:
         np.zeros((2, 12)),
         0.0,
         0.0,
-    )
-    targets_touching(
-        z3, np.zeros((2, 12)), np.ones(2, dtype=np.bool_), z3, np.full((2, 3), 0.05), 0.0, np.zeros(2, dtype=np.bool_)
     )
 
 
@@ -199,19 +196,6 @@ class OrcaLayer:
         passthrough = np.zeros(n, dtype=np.bool_)
         if p.passthrough:
             near = has_goal & (np.linalg.norm(goals - pos, axis=1) <= p.capture_radius)
-            if near.any() and p.passthrough_at_contact:  # only where the target touches something
-                known = self.arena_obstacles + task.obstacles  # whether avoided (static_obstacles) or not
-                touching = np.zeros(n, dtype=np.bool_)
-                targets_touching(
-                    goals,
-                    parts,
-                    near,
-                    np.ascontiguousarray(known.centres, dtype=float),
-                    np.ascontiguousarray(known.half_extents, dtype=float),
-                    p.margin + p.goal_reach,
-                    touching,
-                )
-                near &= touching
             if near.any():
                 clear_paths(
                     pos,

@@ -184,7 +184,6 @@ class OrcaParams(Params):
     climb_when_shorter: bool = _switch(Rule.CLIMB_WHEN_SHORTER)
     side_memory: bool = _switch(Rule.SIDE_MEMORY)
     pushed_back: bool = _switch(Rule.PUSHED_BACK)
-    passthrough_at_contact: bool = _switch(Rule.PASSTHROUGH_AT_CONTACT)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

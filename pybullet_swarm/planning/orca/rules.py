@@ -50,7 +50,6 @@ class Rule(str, enum.Enum):
     CLIMB_WHEN_SHORTER = "climb_when_shorter"
     SIDE_MEMORY = "side_memory"
     PUSHED_BACK = "pushed_back"
-    PASSTHROUGH_AT_CONTACT = "passthrough_at_contact"
 
     @property
     def doc(self) -> str:
@@ -103,8 +102,6 @@ RULE_DOCS: dict[Rule, str] = {
     "though their offset flips",
     Rule.PUSHED_BACK: "a stalled agent that its biased velocity takes backwards and hardly sideways asks for the "
     "sideways step alone",
-    Rule.PASSTHROUGH_AT_CONTACT: "passthrough only for a target where the airframe or load touches the ground, a box "
-    "or the structure",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -509,34 +506,6 @@ def clear_paths(
                 ok = False
                 break
         out[i] = ok
-
-
-@njit
-def targets_touching(
-    goal: NDArray[np.float64],
-    parts: NDArray[np.float64],
-    candidate: NDArray[np.bool_],
-    oc: NDArray[np.float64],
-    oh: NDArray[np.float64],
-    reach: float,
-    out: NDArray[np.bool_],
-) -> None:
-    """PASSTHROUGH_AT_CONTACT: for each candidate, True when at its target (``goal``) its airframe or load
-    (``parts``) comes within ``reach`` m of the ground or of an obstacle (``oc``, ``oh``) without reaching into
-    it (``own_target``): a grasp point over a box, a drop point on the ground, a slot's support or beside a
-    neighbour. Elsewhere (a waypoint over a slot at cruise height) nothing needs millimetres."""
-    for i in range(goal.shape[0]):
-        out[i] = False
-        if not candidate[i]:
-            continue
-        for k in range(2):
-            b = 6 * k
-            if parts[i, b + 3] > 0.0 and goal[i, 2] + parts[i, b + 2] - parts[i, b + 5] <= reach:
-                out[i] = True  # on (or just over) the ground
-        o = 0
-        while not out[i] and o < oc.shape[0]:
-            out[i] = own_target(i, o, goal, goal, parts, oc, oh, reach)
-            o += 1
 
 
 # ----------------------------------------------------------------------------- static obstacles
