@@ -29,6 +29,7 @@ from pybullet_swarm.planning.orca import layer as orca_layer
 from pybullet_swarm.planning.orca.core import box_u
 from pybullet_swarm.planning.orca.rules import (
     approach_speed,
+    clear_paths,
     obstacles_beside,
     reference_velocities,
     uncertainty_growth,
@@ -426,7 +427,9 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
             assert seen["reference"][0][2] is (off is not Rule.CLIPPED_REFERENCE)
             assert ("clear_paths" in seen) is (off is not Rule.PASSTHROUGH)  # agent 0 is 1 cm from its target
             if "clear_paths" in seen:  # the swept boxes reach the wake depth down unless the wake column is off
-                assert seen["clear_paths"][0][-1] == (0.0 if off is Rule.WAKE_COLUMN else 0.4)
+                assert seen["clear_paths"][0][-2] == (0.0 if off is Rule.WAKE_COLUMN else 0.4)
+                turn = 0.0 if off is Rule.PASSTHROUGH_TURNS else 0.5 * layer.a_max * 0.3**2  # 0.3 s lookahead
+                assert np.allclose(seen["clear_paths"][0][-1], turn)
             assert out[0].action is Action.GRASP
             # agent 1 flies away from agent 0: nothing to avoid, its command stands unless the rule is off
             assert out[1].kind is (CommandKind.VELOCITY if off is Rule.MINIMAL_INTERVENTION else CommandKind.POSITION)
@@ -609,3 +612,25 @@ def test_pushed_back_a_stalled_agent_steps_aside_instead_of_being_pushed_along(o
         pos += vel * 0.1
     assert bool(pos[0, 0] < pos[1, 0]) is on  # past agent 1 on its way, or pushed along ahead of it
     assert bool(pos[0, 0] < 0.23) is on
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_passthrough_turns_keeps_a_neighbour_that_may_turn_out_of_the_clear_path(on: bool):
+    """Agent 0 is 4 cm from its target; agent 1 flies past 5 cm beyond the reach of agent 0's swept box.
+    Swept along its velocity it stays clear; turning at its acceleration limit (1 m/s^2) it can come 4.5 cm
+    closer within the 0.3 s lookahead (construction seed 32: a neighbour turned towards a carrier that was
+    passed through to its waypoint, and they touched)."""
+    half = np.tile(HALF, (2, 1))
+    pos = np.array([[1.0, 1.0, 0.45], [1.0, 1.0 + 0.15 + 0.04 + 0.05, 0.45]])  # y: airframes, path, gap
+    goals = np.array([[1.0, 1.04, 0.45], pos[1]])
+    vel = np.array([[0.0, 0.0, 0.0], [0.15, 0.0, 0.0]])
+    out = np.zeros(2, dtype=bool)
+    turn = 0.5 * np.full(3, 1.0) * 0.3**2 if on else np.zeros(3)
+    nbr = np.array([[1, -1], [0, -1]])
+    candidate = np.array([True, False])
+    no_obstacles = np.zeros((0, 3))
+    clear_paths(
+        pos, goals, np.zeros((2, 3)), half, vel, nbr, candidate, 0.02, 0.3, out, no_obstacles, no_obstacles,
+        np.zeros((2, 12)), 0.035, 0.0, turn,
+    )  # fmt: skip
+    assert bool(out[0]) is not on

@@ -76,6 +76,10 @@ The paper's core and our extension rules are kept apart:
     asks for the sideways step alone: ORCA linearises about the present velocities, so an agent
     flying at one that is pushed back at its speed keeps its speed, and the pushed one keeps
     retreating, its bias cancelled by its preferred velocity back towards its line.
+  - ``passthrough_turns``: ``passthrough``'s clearance test grows each neighbour's swept box by what
+    its acceleration limit allows over ``clearance_lookahead`` (1/2 a_max t^2): swept along its
+    velocity, a neighbour that then turned towards a carrier passed through to its waypoint
+    seemed clear.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

@@ -66,6 +66,7 @@ def _warm_up() -> None:
         np.zeros((2, 12)),
         0.0,
         0.0,
+        np.zeros(3),
     )
 
 
@@ -213,6 +214,8 @@ class OrcaLayer:
                     parts,
                     p.margin + p.goal_reach,
                     p.wake(downwash=False),
+                    # how far a neighbour turning at the acceleration limit strays from its line
+                    0.5 * self.a_max * p.clearance_lookahead**2 if p.passthrough_turns else np.zeros(3),
                 )
         keep = passthrough | ((flags & FLAG_FREE) != 0)
         out = [

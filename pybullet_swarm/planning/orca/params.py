@@ -184,6 +184,7 @@ class OrcaParams(Params):
     climb_when_shorter: bool = _switch(Rule.CLIMB_WHEN_SHORTER)
     side_memory: bool = _switch(Rule.SIDE_MEMORY)
     pushed_back: bool = _switch(Rule.PUSHED_BACK)
+    passthrough_turns: bool = _switch(Rule.PASSTHROUGH_TURNS)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

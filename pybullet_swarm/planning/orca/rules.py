@@ -50,6 +50,7 @@ class Rule(str, enum.Enum):
     CLIMB_WHEN_SHORTER = "climb_when_shorter"
     SIDE_MEMORY = "side_memory"
     PUSHED_BACK = "pushed_back"
+    PASSTHROUGH_TURNS = "passthrough_turns"
 
     @property
     def doc(self) -> str:
@@ -102,6 +103,8 @@ RULE_DOCS: dict[Rule, str] = {
     "though their offset flips",
     Rule.PUSHED_BACK: "a stalled agent that its biased velocity takes backwards and hardly sideways asks for the "
     "sideways step alone",
+    Rule.PASSTHROUGH_TURNS: "passthrough's clearance test grows each neighbour's swept box by what its acceleration "
+    "limit allows",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -473,12 +476,14 @@ def clear_paths(
     parts: NDArray[np.float64],
     reach: float,
     wake: float,
+    turn: NDArray[np.float64],
 ) -> None:
     """PASSTHROUGH: for each candidate, True when the box it sweeps to its goal stays ``margin`` m clear of
     every neighbour's box swept along the neighbour's velocity over ``lookahead`` s, and of every static
     obstacle (``oc``, ``oh``: centres and half extents (K, 3) m) but its target's own (``own_target``
     with ``parts`` and ``reach`` m). With ``WAKE_COLUMN`` (``wake`` m) both boxes of a pair reach that
-    much further down."""
+    much further down. ``turn`` (3,) m (``PASSTHROUGH_TURNS``): each neighbour's swept box also grows by this
+    on every side of each axis, how far a change of its velocity can take it within ``lookahead``."""
     n = pos.shape[0]
     for i in range(n):
         out[i] = False
@@ -497,8 +502,8 @@ def clear_paths(
                 lo_i = min(pos[i, a], goal[i, a]) + centre[i, a] - half[i, a] - down
                 hi_i = max(pos[i, a], goal[i, a]) + centre[i, a] + half[i, a]
                 ahead = vel[j, a] * lookahead
-                lo_j = pos[j, a] + centre[j, a] - half[j, a] - down - margin + min(ahead, 0.0)
-                hi_j = pos[j, a] + centre[j, a] + half[j, a] + margin + max(ahead, 0.0)
+                lo_j = pos[j, a] + centre[j, a] - half[j, a] - down - margin - turn[a] + min(ahead, 0.0)
+                hi_j = pos[j, a] + centre[j, a] + half[j, a] + margin + turn[a] + max(ahead, 0.0)
                 if hi_i <= lo_j or hi_j <= lo_i:
                     apart = True
                     break
