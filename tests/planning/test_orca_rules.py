@@ -30,6 +30,7 @@ from pybullet_swarm.planning.orca.core import box_u
 from pybullet_swarm.planning.orca.rules import (
     approach_speed,
     clear_paths,
+    targets_touching,
     obstacles_beside,
     reference_velocities,
     uncertainty_growth,
@@ -428,8 +429,9 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
             assert ("clear_paths" in seen) is (off is not Rule.PASSTHROUGH)  # agent 0 is 1 cm from its target
             if "clear_paths" in seen:  # the swept boxes reach the wake depth down unless the wake column is off
                 assert seen["clear_paths"][0][-2] == (0.0 if off is Rule.WAKE_COLUMN else 0.4)
-                turn = 0.0 if off is Rule.PASSTHROUGH_TURNS else 0.5 * layer.a_max * 0.3**2  # 0.3 s lookahead
-                assert np.allclose(seen["clear_paths"][0][-1], turn)
+                # agent 0's target, 1 m up in the air, touches nothing: a waypoint (0.3 s lookahead)
+                turn = 0.0 if off is Rule.PASSTHROUGH_TURNS else 0.5 * layer.a_max * 0.3**2
+                assert np.allclose(seen["clear_paths"][0][-1][0], turn)
             assert out[0].action is Action.GRASP
             # agent 1 flies away from agent 0: nothing to avoid, its command stands unless the rule is off
             assert out[1].kind is (CommandKind.VELOCITY if off is Rule.MINIMAL_INTERVENTION else CommandKind.POSITION)
@@ -625,7 +627,9 @@ def test_passthrough_turns_keeps_a_neighbour_that_may_turn_out_of_the_clear_path
     goals = np.array([[1.0, 1.04, 0.45], pos[1]])
     vel = np.array([[0.0, 0.0, 0.0], [0.15, 0.0, 0.0]])
     out = np.zeros(2, dtype=bool)
-    turn = 0.5 * np.full(3, 1.0) * 0.3**2 if on else np.zeros(3)
+    turn = np.zeros((2, 3))
+    if on:
+        turn[0] = 0.5 * 1.0 * 0.3**2
     nbr = np.array([[1, -1], [0, -1]])
     candidate = np.array([True, False])
     no_obstacles = np.zeros((0, 3))
@@ -634,3 +638,26 @@ def test_passthrough_turns_keeps_a_neighbour_that_may_turn_out_of_the_clear_path
         np.zeros((2, 12)), 0.035, 0.0, turn,
     )  # fmt: skip
     assert bool(out[0]) is not on
+
+
+def test_targets_touching_tells_grasp_and_drop_points_from_waypoints():
+    """``passthrough_turns`` asks for room to turn only round waypoints: grasp and drop points need millimetres
+    (required there, shortest_path + orca lost its precise hold over a slot and flipped: construction seed 12)."""
+    box = (np.array([[1.0, 1.0, 0.05]]), np.full((1, 3), 0.05))  # a box on the ground
+    empty = np.array([0.0, 0.0, 0.0, 0.075, 0.075, 0.01] + [0.0] * 6)  # airframe only
+    carrier = np.array([0.0, 0.0, 0.0, 0.075, 0.075, 0.01, 0.0, 0.0, -0.065, 0.05, 0.05, 0.05])
+    goals = np.array(
+        [
+            [1.0, 1.0, 0.115],  # grasp point: airframe just over the box
+            [1.0, 1.0, 0.45],  # waypoint over it
+            [2.0, 1.0, 0.118],  # drop point on the ground: the load just over it
+            [2.0, 1.0, 0.45],  # waypoint, loaded
+            [1.0, 1.0, 0.05],  # inside the box: not its own
+        ]
+    )
+    parts = np.array([empty, empty, carrier, carrier, empty])
+    out = np.zeros(5, dtype=bool)
+    targets_touching(goals, parts, np.ones(5, dtype=bool), *box, 0.035, out)
+    assert out.tolist() == [True, False, True, False, False]
+    targets_touching(goals, parts, np.zeros(5, dtype=bool), *box, 0.035, out)
+    assert not out.any()  # only candidates

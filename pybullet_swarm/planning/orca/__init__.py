@@ -76,10 +76,11 @@ The paper's core and our extension rules are kept apart:
     asks for the sideways step alone: ORCA linearises about the present velocities, so an agent
     flying at one that is pushed back at its speed keeps its speed, and the pushed one keeps
     retreating, its bias cancelled by its preferred velocity back towards its line.
-  - ``passthrough_turns``: ``passthrough``'s clearance test grows each neighbour's swept box by what
-    its acceleration limit allows over ``clearance_lookahead`` (1/2 a_max t^2): swept along its
-    velocity, a neighbour that then turned towards a carrier passed through to its waypoint
-    seemed clear.
+  - ``passthrough_turns``: passing through to a waypoint (a target touching neither the ground, a
+    box nor the structure: ``rules.targets_touching``), the clearance test grows each neighbour's
+    swept box by what its acceleration limit allows over ``clearance_lookahead`` (1/2 a_max t^2):
+    swept along its velocity, a neighbour that then turned towards a carrier passed through to its
+    waypoint seemed clear. Grasp and drop points keep the plain test (they need millimetres).
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

@@ -25,7 +25,7 @@ from pybullet_swarm.planning.orca.kernel import (
     union_boxes,
 )
 from pybullet_swarm.planning.orca.params import OrcaParams, Shape
-from pybullet_swarm.planning.orca.rules import clear_paths, obstacles_beside, velocity_bounds
+from pybullet_swarm.planning.orca.rules import clear_paths, obstacles_beside, targets_touching, velocity_bounds
 from pybullet_swarm.types import Perception
 
 NO_OBSTACLES = Obstacles()
@@ -66,7 +66,10 @@ def _warm_up() -> None:
         np.zeros((2, 12)),
         0.0,
         0.0,
-        np.zeros(3),
+        np.zeros((2, 3)),
+    )
+    targets_touching(
+        z3, np.zeros((2, 12)), np.ones(2, dtype=np.bool_), z3, np.full((2, 3), 0.05), 0.0, np.zeros(2, dtype=np.bool_)
     )
 
 
@@ -198,6 +201,20 @@ class OrcaLayer:
         if p.passthrough:
             near = has_goal & (np.linalg.norm(goals - pos, axis=1) <= p.capture_radius)
             if near.any():
+                turn = np.zeros((n, 3))
+                if p.passthrough_turns:  # to a waypoint: clear of where each neighbour may turn to
+                    known = self.arena_obstacles + task.obstacles  # whether avoided (static_obstacles) or not
+                    touching = np.zeros(n, dtype=np.bool_)
+                    targets_touching(
+                        goals,
+                        parts,
+                        near,
+                        np.ascontiguousarray(known.centres, dtype=float),
+                        np.ascontiguousarray(known.half_extents, dtype=float),
+                        p.margin + p.goal_reach,
+                        touching,
+                    )
+                    turn[near & ~touching] = 0.5 * self.a_max * p.clearance_lookahead**2
                 clear_paths(
                     pos,
                     goals,
@@ -214,8 +231,7 @@ class OrcaLayer:
                     parts,
                     p.margin + p.goal_reach,
                     p.wake(downwash=False),
-                    # how far a neighbour turning at the acceleration limit strays from its line
-                    0.5 * self.a_max * p.clearance_lookahead**2 if p.passthrough_turns else np.zeros(3),
+                    turn,
                 )
         keep = passthrough | ((flags & FLAG_FREE) != 0)
         out = [

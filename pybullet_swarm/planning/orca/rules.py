@@ -103,8 +103,8 @@ RULE_DOCS: dict[Rule, str] = {
     "though their offset flips",
     Rule.PUSHED_BACK: "a stalled agent that its biased velocity takes backwards and hardly sideways asks for the "
     "sideways step alone",
-    Rule.PASSTHROUGH_TURNS: "passthrough's clearance test grows each neighbour's swept box by what its acceleration "
-    "limit allows",
+    Rule.PASSTHROUGH_TURNS: "passthrough to a waypoint (a target touching nothing) needs clearance from what each "
+    "neighbour can reach by turning",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -482,8 +482,9 @@ def clear_paths(
     every neighbour's box swept along the neighbour's velocity over ``lookahead`` s, and of every static
     obstacle (``oc``, ``oh``: centres and half extents (K, 3) m) but its target's own (``own_target``
     with ``parts`` and ``reach`` m). With ``WAKE_COLUMN`` (``wake`` m) both boxes of a pair reach that
-    much further down. ``turn`` (3,) m (``PASSTHROUGH_TURNS``): each neighbour's swept box also grows by this
-    on every side of each axis, how far a change of its velocity can take it within ``lookahead``."""
+    much further down. ``turn`` (n, 3) m (``PASSTHROUGH_TURNS``): for candidate i each neighbour's swept box
+    also grows by row i on every side of each axis, how far a change of its velocity can take it within
+    ``lookahead`` (0 for a target that needs millimetres, see ``targets_touching``)."""
     n = pos.shape[0]
     for i in range(n):
         out[i] = False
@@ -502,8 +503,8 @@ def clear_paths(
                 lo_i = min(pos[i, a], goal[i, a]) + centre[i, a] - half[i, a] - down
                 hi_i = max(pos[i, a], goal[i, a]) + centre[i, a] + half[i, a]
                 ahead = vel[j, a] * lookahead
-                lo_j = pos[j, a] + centre[j, a] - half[j, a] - down - margin - turn[a] + min(ahead, 0.0)
-                hi_j = pos[j, a] + centre[j, a] + half[j, a] + margin + turn[a] + max(ahead, 0.0)
+                lo_j = pos[j, a] + centre[j, a] - half[j, a] - down - margin - turn[i, a] + min(ahead, 0.0)
+                hi_j = pos[j, a] + centre[j, a] + half[j, a] + margin + turn[i, a] + max(ahead, 0.0)
                 if hi_i <= lo_j or hi_j <= lo_i:
                     apart = True
                     break
@@ -511,6 +512,34 @@ def clear_paths(
                 ok = False
                 break
         out[i] = ok
+
+
+@njit
+def targets_touching(
+    goal: NDArray[np.float64],
+    parts: NDArray[np.float64],
+    candidate: NDArray[np.bool_],
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    reach: float,
+    out: NDArray[np.bool_],
+) -> None:
+    """PASSTHROUGH_TURNS: for each candidate, True when at its target (``goal``) its airframe or load (``parts``)
+    comes within ``reach`` m of the ground or of an obstacle (``oc``, ``oh``) without reaching into it
+    (``own_target``): a grasp point over a box, a drop point on the ground, on a slot's support or beside a
+    neighbour, which need millimetres. Elsewhere (a waypoint over a slot at cruise height) they do not."""
+    for i in range(goal.shape[0]):
+        out[i] = False
+        if not candidate[i]:
+            continue
+        for k in range(2):
+            b = 6 * k
+            if parts[i, b + 3] > 0.0 and goal[i, 2] + parts[i, b + 2] - parts[i, b + 5] <= reach:
+                out[i] = True  # on (or just over) the ground
+        o = 0
+        while not out[i] and o < oc.shape[0]:
+            out[i] = own_target(i, o, goal, goal, parts, oc, oh, reach)
+            o += 1
 
 
 # ----------------------------------------------------------------------------- static obstacles
