@@ -471,6 +471,25 @@ def test_construction_runs_with_a_rule_switched_off(off: str):
 
 
 # ----------------------------------------------------------------------------- waiting and passing
+def _level_boxes(
+    params: OrcaParams, pos: np.ndarray, pref: np.ndarray, goals: np.ndarray, vel: np.ndarray | None = None, **kw: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """Level quad150 airframes (no load) at ``pos`` (flying at ``vel``, default at rest), each with a goal."""
+    n = len(pos)
+    return orca_velocities(
+        pos,
+        np.zeros((n, 3)) if vel is None else vel,
+        pref,
+        params=params,
+        sensing_radius=1.0,
+        v_max=VM,
+        boxes=(np.zeros((n, 3)), np.tile(HALF, (n, 1))),
+        goals=goals,
+        has_goal=np.ones(n, dtype=bool),
+        **kw,
+    )
+
+
 def _swap(params: OrcaParams, impatient: bool) -> tuple[np.ndarray, np.ndarray]:
     """Two agents level, 22 cm apart along x, each with its goal where the other is (a swap; the suite's
     random_8 under shortest_path, seed 0: two carriers each over the other's slot stalled the run)."""
@@ -478,18 +497,7 @@ def _swap(params: OrcaParams, impatient: bool) -> tuple[np.ndarray, np.ndarray]:
     goals = pos[::-1].copy()
     kinds = np.full(2, int(CommandKind.POSITION))
     pref = preferred_velocities(kinds, goals, pos, arrive_time=params.arrive_time, v_max=VM)
-    return orca_velocities(
-        pos,
-        np.zeros((2, 3)),
-        pref,
-        params=params,
-        sensing_radius=1.0,
-        v_max=VM,
-        boxes=(np.zeros((2, 3)), np.tile(HALF, (2, 1))),
-        goals=goals,
-        has_goal=np.ones(2, dtype=bool),
-        impatient=np.full(2, impatient),
-    )
+    return _level_boxes(params, pos, pref, goals, impatient=np.full(2, impatient))
 
 
 def test_impatience_ends_a_wait_for_a_neighbour_on_the_goal_and_only_when_on():
@@ -539,17 +547,7 @@ def test_climb_when_shorter_steps_aside_rather_than_climbing_over_a_wake_column(
     pos = np.array([[1.0, 0.5, 0.55], [1.22, 0.5, 0.5]])
     pref = np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0]])
     for wake, climbs in ((0.5, not on), (0.0, True)):
-        v, flags = orca_velocities(
-            pos,
-            np.zeros((2, 3)),
-            pref,
-            params=OrcaParams(climb_when_shorter=on, wake_depth=wake),
-            sensing_radius=1.0,
-            v_max=VM,
-            boxes=(np.zeros((2, 3)), np.tile(HALF, (2, 1))),
-            goals=pos + 10.0 * pref,
-            has_goal=np.ones(2, dtype=bool),
-        )
+        v, flags = _level_boxes(OrcaParams(climb_when_shorter=on, wake_depth=wake), pos, pref, pos + 10.0 * pref)
         assert flags[0] & FLAG_BIASED
         assert bool(v[0, 2] > 0.05) is climbs, (wake, v[0])
         if not climbs:
@@ -566,18 +564,8 @@ def test_side_memory_keeps_the_side_taken_round_a_neighbour_when_their_offset_fl
     sides = []
     for dy in (0.02, -0.02):
         pos = np.array([[1.0, 0.5, 0.5], [1.22, 0.5 + dy, 0.5]])
-        v, flags = orca_velocities(
-            pos,
-            np.zeros((2, 3)),
-            pref,
-            params=OrcaParams(side_memory=on, wake_depth=0.0),
-            sensing_radius=1.0,
-            v_max=VM,
-            boxes=(np.zeros((2, 3)), np.tile(HALF, (2, 1))),
-            goals=pos + 10.0 * pref,
-            has_goal=np.ones(2, dtype=bool),
-            memory=memory,
-        )
+        params = OrcaParams(side_memory=on, wake_depth=0.0)
+        v, flags = _level_boxes(params, pos, pref, pos + 10.0 * pref, memory=memory)
         assert flags[0] & FLAG_BIASED and abs(v[0, 1]) > 0.05
         sides.append(np.sign(v[0, 1]))
     assert sides[0] < 0.0  # first away from the neighbour's side (it is at +y)
@@ -598,18 +586,7 @@ def test_pushed_back_a_stalled_agent_steps_aside_instead_of_being_pushed_along(o
     memory = (np.full(2, -1, dtype=np.int64), np.zeros((2, 3)))
     for _ in range(60):
         pref = np.clip((goals - pos) / 0.5, -VM, VM)
-        v, _ = orca_velocities(
-            pos,
-            vel,
-            pref,
-            params=OrcaParams(pushed_back=on, wake_depth=0.0),
-            sensing_radius=1.0,
-            v_max=VM,
-            boxes=(np.zeros((2, 3)), np.tile(HALF, (2, 1))),
-            goals=goals,
-            has_goal=np.ones(2, dtype=bool),
-            memory=memory,
-        )
+        v, _ = _level_boxes(OrcaParams(pushed_back=on, wake_depth=0.0), pos, pref, goals, vel=vel, memory=memory)
         vel += (v - vel) * (0.1 / 0.3)
         pos += vel * 0.1
     assert bool(pos[0, 0] < pos[1, 0]) is on  # past agent 1 on its way, or pushed along ahead of it
