@@ -127,22 +127,26 @@ class DownwashParams:
     def centreline_fraction(self, dz: float, *, mass: float) -> float:
         """The force on a vehicle ``dz`` m (> 0) straight below this airframe (of ``mass`` kg), as a fraction of
         the upper vehicle's thrust (of the weight of a lower one of the same airframe at hover)."""
-        c = self.const(kf=1.0, mass=mass)
-        return float(_pair_force(0.0, float(dz), 1.0, c))
+        return float(_pair_force(0.0, float(dz), 1.0, self.const(kf=1.0, mass=mass)))
 
     def depth(self, fraction: float, *, mass: float) -> float:
         """m, how far below this airframe (of ``mass`` kg) the wake pushes a vehicle straight under it with more
         than ``fraction`` of the upper vehicle's thrust (the force falls with depth: bisection to 1 um)."""
         if not 0.0 < fraction < 1.0:
             raise ValueError(f"fraction must lie in (0, 1), got {fraction}")
+        c = self.const(kf=1.0, mass=mass)  # once: the force per newton of the upper thrust, on the centreline
+
+        def above(dz: float) -> bool:
+            return float(_pair_force(0.0, dz, 1.0, c)) > fraction
+
         lo, hi = 1e-3, 100.0
-        if self.centreline_fraction(lo, mass=mass) <= fraction:
+        if not above(lo):
             return 0.0
-        if self.centreline_fraction(hi, mass=mass) > fraction:
+        if above(hi):
             return hi
         while hi - lo > 1e-6:
             mid = 0.5 * (lo + hi)
-            if self.centreline_fraction(mid, mass=mass) > fraction:
+            if above(mid):
                 lo = mid
             else:
                 hi = mid

@@ -76,6 +76,12 @@ def rule_settings(params: OrcaParams) -> NDArray[np.void]:
 
 # ----------------------------------------------------------------------------- the compiled tick
 @njit
+def box_offset(a: int, b: int, pos: NDArray[np.float64], centre: NDArray[np.float64]) -> Vec:
+    """m, the centre of agent b's box relative to agent a's."""
+    return add(add(row(pos, b), row(centre, b), 1.0), add(row(pos, a), row(centre, a), 1.0), -1.0)
+
+
+@njit
 def pair_u(
     a: int,
     b: int,
@@ -93,7 +99,7 @@ def pair_u(
     m2 = 2.0 * cs.margin
     on, lag, hw = rs.lag_margin, rs.lag_margin_s, rs.headway
     if boxes:
-        c = add(add(row(pos, b), row(centre, b), 1.0), add(row(pos, a), row(centre, a), 1.0), -1.0)
+        c = box_offset(a, b, pos, centre)
         g = (
             rules.lag_growth(on, lag, rules.approach_speed(hw, c[0], vel[a, 0], vel[b, 0])),
             rules.lag_growth(on, lag, rules.approach_speed(hw, c[1], vel[a, 1], vel[b, 1])),
@@ -254,7 +260,7 @@ def climb_first(
     """CLIMB_PAST (with CLIMB_WHEN_SHORTER): whether agent i, above j in its way, passes over it."""
     if not (rs.climb_when_shorter and boxes):
         return True
-    c = add(add(row(pos, j), row(centre, j), 1.0), add(row(pos, i), row(centre, i), 1.0), -1.0)
+    c = box_offset(i, j, pos, centre)
     m2 = 2.0 * cs.margin
     H = (half[i, 0] + half[j, 0] + m2, half[i, 1] + half[j, 1] + m2, half[i, 2] + half[j, 2] + m2 + wake)
     return rules.climb_is_shorter(c, H, rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost))

@@ -156,7 +156,8 @@ class OrcaLayer:
         )
         centre, half = union_boxes(parts)
         radii = np.where(carrying, self.r_carry, self.r_agent)
-        obstacles = self.arena_obstacles + task.obstacles if p.static_obstacles else NO_OBSTACLES
+        known = self.arena_obstacles + task.obstacles  # avoided with static_obstacles; passthrough_turns reads them
+        obstacles = known if p.static_obstacles else NO_OBSTACLES
         oc = np.ascontiguousarray(obstacles.centres, dtype=float)
         oh = np.ascontiguousarray(obstacles.half_extents, dtype=float)
         beside = None
@@ -203,7 +204,6 @@ class OrcaLayer:
             if near.any():
                 turn = np.zeros((n, 3))
                 if p.passthrough_turns:  # to a waypoint: clear of where each neighbour may turn to
-                    known = self.arena_obstacles + task.obstacles  # whether avoided (static_obstacles) or not
                     touching = np.zeros(n, dtype=np.bool_)
                     targets_touching(
                         goals,
