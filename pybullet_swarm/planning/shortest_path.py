@@ -118,6 +118,14 @@ switch                       default  thesis  what it does
                                               the carrier whose turn it was could not pass them;
                                               facing away always, those waiting for a wall stood
                                               among its slots' columns beyond it)
+``park_clear``               true     false   an agent with nothing left to carry parks at its
+                                              start unless that lies within ``WAKE_CLEARANCE`` of
+                                              the column of a free box, a slot or an agent below
+                                              it; then at a point off them found as a waiting
+                                              point is, facing out of the arena (with the start
+                                              beside the depot, two parked agents stood over
+                                              free boxes, held by the agents under their starts
+                                              that waited for those boxes: neither moved again)
 ===========================  =======  ======  ==================================================
 
 The thesis gives no code for this baseline (its appendices hold the stigmergy planners only), so
@@ -322,6 +330,12 @@ class ShortestPathParams(Params):
         "arena's centre [false]",
     )
 
+    park_clear: bool = Field(
+        True,
+        description="an agent with nothing left to carry parks off the columns of free boxes, slots and the agents "
+        "below it (at its start when that is clear) [false]",
+    )
+
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
         Preset.THESIS: {
             "altitude_step": 0.0,
@@ -336,6 +350,7 @@ class ShortestPathParams(Params):
             "round_parked": False,
             "wake_clear": False,
             "wait_away": False,
+            "park_clear": False,
         }
     }
 
@@ -407,6 +422,7 @@ class ShortestPath:
         self.slot = np.full(n, -1, dtype=np.int64)
         self.next_slot = 0
         self.home: np.ndarray | None = None  # m, start positions (parking spots)
+        self.park: np.ndarray | None = None  # m, (n, 2) where each agent parks (``park_clear``: off the columns)
         self.offset = np.tile([0.0, 0.0, -info.grasp_height], (n, 1))  # m, held box relative to agent
         self.attach = float(info.extra.get("attach_threshold", 0.02))
         sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agents' own estimates
@@ -538,6 +554,33 @@ class ShortestPath:
             if off >= LEG_SPACING:
                 break
         return xy, best
+
+    def _park_point(self, i: int, view: WorldView) -> np.ndarray:
+        """Where agent ``i``, with nothing left to carry, parks (2,) m: above its start; with ``park_clear`` and
+        ``wake_clear`` the point it keeps until that comes within ``WAKE_CLEARANCE`` (per axis) of a column it must
+        not wait over (free boxes, slots, agents below it), then the start again if that is clear, or else a
+        waiting point round the start facing out of the arena (parked over a free box, an agent held the one that
+        waited under its start for that box, and that one held it)."""
+        home = self.home if self.home is not None else view.positions
+        if not (self.params.park_clear and self.wake_clear):
+            return np.asarray(home[i, :2], dtype=float)
+        if self.park is None:
+            self.park = np.array(home[:, :2], dtype=float)
+        columns = self._columns(i, view)
+        if not columns.size:
+            return self.park[i]
+
+        def clear(xy: np.ndarray) -> bool:
+            return bool(np.min(np.max(np.abs(columns - xy), axis=1)) >= WAKE_CLEARANCE)
+
+        if not clear(self.park[i]):
+            start = np.asarray(home[i, :2], dtype=float)
+            if clear(start):
+                self.park[i] = start
+            else:
+                out = start - 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2]
+                self.park[i], _ = self._wait_point(i, np.array([start[0], start[1], 0.0]), out, columns)
+        return self.park[i]
 
     def _alt(self, i: int) -> float:
         """m, the cruise altitude of agent ``i`` in its present phase: ``hs[i]``, or with ``wake_lanes`` the
@@ -705,8 +748,8 @@ class ShortestPath:
             self._assign(i, view)
             ph = Phase(self.phase[i])
         if ph == Phase.DONE:  # nothing left to carry: park above the start, out of the others' way
-            home = self.home if self.home is not None else view.positions
-            return self._cruise(i, view, np.array([home[i, 0], home[i, 1], self._alt(i)]))
+            xy = self._park_point(i, view)
+            return self._cruise(i, view, np.array([xy[0], xy[1], self._alt(i)]))
         b, s = self.box[i], self.slot[i]
         if ph == Phase.TO_BOX:
             if view.box_state[b] != 0:  # someone took or placed it meanwhile: choose again

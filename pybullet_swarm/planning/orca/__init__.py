@@ -63,6 +63,10 @@ The paper's core and our extension rules are kept apart:
     its goal treats it as in its way (``sidestep``, ``climb_past``): the neighbour is not leaving,
     perhaps because the agent sits on its own goal; without it, two agents each on the other's
     goal (a swap: each goal in the other's wake column) wait for each other until the run stalls.
+    The wait goes on counting while the agent breaks free of it for less than ``wait_memory_s``
+    (2 s): two carriers head-on in a row of slots, each over the other's, stepped aside for half a
+    second once impatient, were free of each other for a tick, fell back into line and waited
+    their 10 s again, for 150 s.
   - ``climb_when_shorter``: ``climb_past`` climbs only when rising clear of the neighbour's box
     (the wake column included) is shorter than the step aside, weighted by ``vertical_cost``: with
     a 0.5 m wake column a climb past takes the agent out of the arena's working height, and the

@@ -181,6 +181,13 @@ class OrcaParams(Params):
         le=1000.0,
         description="s, with impatience: an agent waiting this long for a neighbour on its goal goes round it",
     )
+    wait_memory_s: float = Field(
+        2.0,
+        ge=0.0,
+        le=1000.0,
+        description="s, with impatience: a wait goes on counting (and an impatient agent stays impatient) while "
+        "the agent is free of it for less than this; 0: every free tick ends the wait",
+    )
     climb_when_shorter: bool = _switch(Rule.CLIMB_WHEN_SHORTER)
     side_memory: bool = _switch(Rule.SIDE_MEMORY)
     pushed_back: bool = _switch(Rule.PUSHED_BACK)
