@@ -121,6 +121,7 @@ switch                        default     thesis      source of the thesis's val
 ``footprint``                 true        false       appendix B: the agent marks its own cell only
 ``ahead_cone``                true        false       chapter 6.0.4: "any area they move into"
 ``detour``                    true        false       not in the thesis
+``queue_at_slots``            true        false       not in the thesis (five agents, a gapped wall)
 ============================  ==========  ==========  =================================================
 
 It also sets the thesis's numbers where they are parameters (Tables 5.1, 5.2, 6.1: 10 cm cells,
@@ -295,6 +296,12 @@ DESCENT_TIMEOUT_S = 20.0
 THESIS_VIEW_M = 0.15
 """m: the thesis's view window, two agent radii of its 15 cm airframe (Tables 3.2 and 5.1)."""
 MAX_STEPS = 6
+QUEUE_MARGIN = 0.03
+"""m: ``queue_at_slots``: a slot's working square reaches an airframe's width and this much (per axis) from the
+column where a carrier stands to serve it: two carriers nearer than that touch, or the upper one's wake pushes
+the lower one down."""
+QUEUE_GAP = 0.05
+"""m: ``queue_at_slots``: a carrier waits this much further out than every slot's working square."""
 """Most phase steps an agent takes in one planner tick (a step that only changes the phase lets the next act)."""
 
 
@@ -437,6 +444,12 @@ class StigmergyParams(Params):
         description="at a search point with no open slot in view, clear the goal marks over the columns "
         "whose every slot is in view [false]",
     )
+    queue_at_slots: bool = Field(
+        True,
+        description="a carrier whose slot's working square (an airframe's width and QUEUE_MARGIN round the "
+        "column it serves the slot from) holds another carrier, and which is not in it itself, waits outside "
+        "every slot's square until that one is free [false]",
+    )
     mark_seen_slots: bool = Field(
         True,
         description="an empty agent that sees an open slot marks its own cell as a goal (-1), as a placement "
@@ -470,6 +483,7 @@ class StigmergyParams(Params):
             "clear_spent_goals": False,
             "raise_drop_point": False,
             "mark_seen_slots": False,
+            "queue_at_slots": False,
         }
     }
 
@@ -820,6 +834,22 @@ class FlightGeometry:
         if not 0.0 < d[j] <= reach:
             return None
         return nearest[j] - xy
+
+    def off_columns(self, xy: NDArray[np.float64], half: float) -> NDArray[np.float64]:
+        """The point (2,) m itself when it lies at least ``half`` m (per axis) from every column, else the
+        nearest point that does, straight along an axis from it and within the arena (itself when none
+        does: a structure that spans the arena)."""
+        if len(self.columns) == 0 or np.min(np.max(np.abs(self.columns - xy), axis=1)) >= half:
+            return xy
+        lo, hi = self.columns - half - 1e-6, self.columns + half + 1e-6
+        cand = [np.array([x, xy[1]]) for x in (*lo[:, 0], *hi[:, 0])]
+        cand += [np.array([xy[0], y]) for y in (*lo[:, 1], *hi[:, 1])]
+        pts = np.clip(np.array(cand), self.arena_lo, self.arena_hi)
+        ok = np.min(np.max(np.abs(pts[:, None, :] - self.columns[None, :, :]), axis=2), axis=1) >= half
+        if not ok.any():
+            return xy
+        pts = pts[ok]
+        return pts[int(np.argmin(np.linalg.norm(pts - xy, axis=1)))]
 
     def clear_of_structure(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
         """(k,) True for points (k, 2) m straight over a structure column (on top of a stack) or far
@@ -1370,11 +1400,32 @@ class Stigmergy:
 
     def _approach_slot(self, obs: Observation) -> Command:
         drop = self._drop_point()
+        hold = self._queue_point(obs, drop[:2])
+        if hold is not None:
+            return self._travel(obs.position, hold)
         if self._over(obs, drop[:2]):
             self.phase = Phase.DESCEND_SLOT
             self.watch.descent_start = obs.time_s
             return self._release(obs, drop)
         return self._travel(obs.position, drop[:2])
+
+    def _queue_point(self, obs: Observation, column: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """``queue_at_slots``: where the agent waits (2,) m for its turn at the slot it serves from ``column``
+        (2,) m, or None when it goes on: when it is in that slot's working square itself (an airframe's width
+        and ``QUEUE_MARGIN`` per axis), or no other carrier is. It waits ``QUEUE_GAP`` outside every slot's
+        square, so that no waiting carrier holds up another slot (ten carriers round a 3 x 3 slab pushed
+        each other about over it for 150 s and none set its box down)."""
+        if not self.params.queue_at_slots or len(obs.neighbour_ids) == 0:
+            return None
+        half = math.sqrt(2.0) * self.info.agent_radius + QUEUE_MARGIN
+        if np.max(np.abs(obs.position[:2] - column)) < half:
+            return None
+        q = obs.neighbour_positions[:, :2]
+        if len(obs.neighbour_carrying) == len(obs.neighbour_ids):
+            q = q[obs.neighbour_carrying]
+        if not np.any(np.max(np.abs(q - column), axis=1) < half):
+            return None
+        return self.geo.off_columns(obs.position[:2], half + QUEUE_GAP)
 
     def _step_reclimb_slot(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
         """RECLIMB_SLOT -> TO_SLOT (back at the flying altitude) | SEEK_GOAL."""
