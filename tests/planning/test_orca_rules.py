@@ -539,6 +539,35 @@ def test_the_layer_counts_the_wait_and_loses_patience_after_wait_patience_s(monk
         sim.close()
 
 
+@pytest.mark.parametrize("memory", [0.0, 2.0])
+def test_a_wait_goes_on_through_a_break_shorter_than_wait_memory_s(monkeypatch: pytest.MonkeyPatch, memory: float):
+    """Two carriers head-on in a row of slots, each over the other's, stepped aside once impatient, were free of
+    each other for a tick, fell back into line and waited their wait_patience_s again, until the run stalled
+    (the suite's random_3, seed 2, shortest_path + orca). A break shorter than wait_memory_s ends no wait."""
+    seen: list[np.ndarray] = []
+    real = orca_layer.orca_velocities
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        if "impatient" in kwargs:
+            seen.append(kwargs["impatient"].copy())
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(orca_layer, "orca_velocities", spy)
+    sim = Simulation(_layer_scenario(wait_patience_s=0.5, wait_memory_s=memory, wake_depth=0.0))
+    try:
+        layer = sim.avoidance_layer
+        assert isinstance(layer, OrcaLayer)
+        pos = sim.perceive().positions
+        swap = [Command.goto(pos[1]), Command.goto(pos[0])]
+        stay = [Command.goto(pos[0]), Command.goto(pos[1])]  # no wish to move: free of the wait
+        for cmds in [swap] * 8 + [stay] + [swap] * 2:
+            layer.filter(cmds, sim.perceive(), sim.task.view(sim.time))
+        assert seen[7].all()  # impatient before the break
+        assert seen[9].all() == (memory > 0.0) and seen[10].all() == (memory > 0.0)
+    finally:
+        sim.close()
+
+
 @pytest.mark.parametrize("on", [True, False])
 def test_climb_when_shorter_steps_aside_rather_than_climbing_over_a_wake_column(on: bool):
     """An agent 5 cm above another it meets head-on, stalled: with a 0.5 m wake column, passing over needs a

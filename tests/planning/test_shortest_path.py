@@ -362,3 +362,33 @@ def test_wait_away_never_waits_where_the_arena_edge_pulls_the_point_onto_the_col
         assert np.max(np.abs(xy - above[:2])) >= sp_module.WAKE_CLEARANCE
     lane = (sp.depot_xy, above[:2])
     assert sp_module._wait_clearance(np.array([2.894, 0.5]), 0.044, lane) < 0.0
+
+
+@pytest.mark.parametrize("park_clear", [True, False])
+def test_park_clear_parks_off_free_boxes_and_agents_below(park_clear: bool):
+    """With the starts beside the depot, two agents with nothing left to carry stood over free boxes on their
+    way to their starts, held there by the agents that waited under those starts for those very boxes, which
+    they held in turn: neither moved again (the suite's random_3, seed 2, shortest_path + orca). With
+    ``park_clear`` an agent parks at its start only when that is clear of free boxes, slots and agents below
+    it, and else at a point off them."""
+    from pybullet_swarm.planning.shortest_path import WAKE_CLEARANCE
+
+    sp = _planner(3, park_clear=park_clear)
+    park = sp._alt(0)
+    below = np.array([0.4, 0.8, park - 0.6])  # agent 2 waits in a lower lane
+    sp.home = np.array([[*DEPOT[0, :2], 0.011], [below[0], below[1], 0.011], [1.5, 0.5, 0.011]])
+    sp.phase[:] = [Phase.DONE, Phase.DONE, Phase.TO_BOX]
+    view = _view([[1.0, 0.5, park], [1.0, 0.7, park], below])
+    columns = np.vstack([DEPOT[:, :2], SLOTS[:, :2], below[:2]])
+    for i in (0, 1):
+        sp._step(i, view)  # the parking agent's step chooses its point
+        target = sp._park_point(i, view)
+        assert (sp.park is not None and np.allclose(sp.park[i], target)) is park_clear
+        off = float(np.min(np.max(np.abs(columns - target), axis=1)))
+        if park_clear:
+            assert off >= WAKE_CLEARANCE
+        else:
+            assert np.allclose(target, sp.home[i, :2]) and off < WAKE_CLEARANCE
+    sp.home[0, :2] = [2.0, 0.9]  # a clear start: parked there
+    sp.park = None
+    assert np.allclose(sp._park_point(0, view), [2.0, 0.9])

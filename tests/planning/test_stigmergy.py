@@ -25,6 +25,7 @@ from pybullet_swarm.planning.stigmergy import (
     Stigmergy,
     StigmergyParams,
     Strategy,
+    VIEW_MARGIN,
     TieBreak,
 )
 from pybullet_swarm.types import ExitStatus
@@ -863,3 +864,63 @@ def test_an_empty_agent_that_sees_an_open_slot_marks_its_cell_as_a_goal(mark):
     a.plan(_obs(q, slots=[SLOTS[3]], slot_ids=[3]), med)
     med.step(0.1)
     assert med.sample(Layer.TASK.value, q) == 1.0
+
+
+@pytest.mark.parametrize("queue", [True, False])
+def test_queue_at_slots_waits_outside_every_square_while_a_carrier_works_in_its_slots(queue: bool):
+    """Ten carriers round a 3 x 3 slab pushed each other about over it for 150 s and none set its box down (the
+    suite's random_3, seed 1, stigmergy + orca). With ``queue_at_slots`` a carrier whose slot's working square
+    (an airframe's width and QUEUE_MARGIN round its column) holds another carrier waits outside every slot's
+    square; an empty neighbour there, or one in the square already, does not hold it."""
+    from pybullet_swarm.planning.stigmergy import QUEUE_GAP, QUEUE_MARGIN
+
+    half = np.sqrt(2.0) * R + QUEUE_MARGIN
+    slot = SLOTS[1]
+    worker = [slot[0], slot[1] + 0.14, 0.2]  # 14 cm along the wall, on its way down to the next slot
+    for carrying, p, held in (
+        (True, [2.3, 0.4], queue),
+        (False, [2.3, 0.4], False),  # an empty neighbour does not hold a carrier
+        (True, [2.55, 0.2], queue),  # inside another slot's square, not its own: out of every square
+        (True, [2.62, 0.4], False),  # in its own square: its turn
+    ):
+        a = _agent(queue_at_slots=queue)
+        a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.TO_SLOT, Sighting(1, slot.copy())
+        xy = np.asarray(p)
+        pos = [xy[0], xy[1], a.geo.altitude(xy)]
+        obs = _obs(pos, carrying=3, slots=[slot], slot_ids=[1], nb_ids=[1], nb_pos=[worker], nb_carrying=[carrying])
+        cmd = a.plan(obs, _medium())
+        assert a.phase == Phase.TO_SLOT
+        drop = a._drop_point()
+        off = float(np.min(np.max(np.abs(a.geo.columns - cmd.vector[:2]), axis=1)))
+        if held:
+            assert off >= half + QUEUE_GAP - 1e-6, (carrying, p)
+            assert np.linalg.norm(cmd.vector[:2] - xy) < 0.3  # the nearest such point
+        else:
+            assert np.linalg.norm(cmd.vector[:2] - drop[:2]) < np.linalg.norm(xy - drop[:2]), (carrying, p)
+
+
+def test_clear_spent_goals_clears_a_column_seen_from_anywhere_an_agent_arrives_at_its_search_point():
+    """A search point beside the structure keeps its column within the task's view from everywhere within
+    ``arrive_tol`` of it (the geometry's horizontal margin); clearing a spent mark used a 3 cm margin on top,
+    and an agent that arrived 4 cm short saw the column whole but never cleared its mark: its searches were
+    drawn back to that mark for 150 s (construction seed 66, stigmergy + orca, stalled)."""
+    med = _medium()
+    mark = SLOTS[0] + [0, 0, 0.004 + GH]
+    med.deposit(Layer.TASK.value, mark, -1.0, rule=DepositRule.SET)
+    med.step(0.1)
+    a = _agent()
+    g = a.geo
+    target = np.array([g.structure.lo[:, 0].min() - g.standoff, 0.2])
+    p = np.array([target[0] - 0.9 * a.params.arrive_tol, 0.2, g.floor_altitude])  # arrived, short of the point
+    column = SLOTS[[0, 4, 7]] + [0, 0, GH] - p
+    assert np.max(np.abs(column)) <= g.view_range  # in the task's view (max-norm)
+    assert np.max(np.abs(SLOTS[0, :2] - p[:2])) > g.view_range - VIEW_MARGIN  # beyond the old reach
+    a.carry, a.phase, a.strategy, a.target = (
+        Carry(3, np.array([0.0, 0.0, -GH])),
+        Phase.SEEK_GOAL,
+        Strategy.PHEROMONE,
+        target,
+    )
+    a.plan(_obs(p, carrying=3), med)
+    med.step(0.1)
+    assert med.sample(Layer.TASK.value, mark) == 0.0
