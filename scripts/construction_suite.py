@@ -43,6 +43,7 @@ from pybullet_swarm.validation import read_yaml
 PLANNERS = ("shortest_path", "stigmergy", "layered_stigmergy")
 AVOIDANCE = ("none", "orca")
 CONTACTS = ("agent_agent", "agent_structure", "agent_box", "agent_ground", "agent_obstacle")
+CRASH_CAUSES = ("agent_agent_contact", "wake", "other")
 
 
 def _wall(origin: list[float], **kw: Any) -> dict[str, Any]:
@@ -158,6 +159,13 @@ def table_rows(layout: str, rows: Sequence[Mapping[str, Any]]) -> list[dict[str,
             "completed": len(done),
             "completion_rate": len(done) / len(mine) if mine else math.nan,
             "crashed": status.count("crashed") + status.count("diverged"),
+            # what came before each crash (Simulation._crash_cause): an agent-agent contact, another's wake, neither
+            **{
+                f"crashed_{cause}": sum(
+                    1 for r in mine if r.get("exit_status") == "crashed" and r.get("crash_cause") == cause
+                )
+                for cause in CRASH_CAUSES
+            },
             "stalled": status.count("stalled"),
             "timeout": status.count("timeout"),
             "error": status.count("error"),
@@ -177,17 +185,25 @@ def _f(v: Any, digits: str) -> str:
     return "-" if not isinstance(v, (int, float)) or not math.isfinite(v) else format(v, digits)
 
 
+def crashed(r: Mapping[str, Any]) -> str:
+    """The crash count of a table record, and (when there are any) how many came after an agent-agent contact,
+    in another agent's wake, or after neither."""
+    if not r["crashed"]:
+        return "0"
+    return f"{r['crashed']} ({' / '.join(str(r.get(f'crashed_{c}', 0)) for c in CRASH_CAUSES)})"
+
+
 def markdown(table: Sequence[Mapping[str, Any]]) -> str:
     """The table as Markdown."""
     lines = [
-        "| layout | configuration | completed | crashed | stalled | timeout | median completion [s] | "
+        "| layout | configuration | completed | crashed (contact / wake / other) | stalled | timeout | median completion [s] | "
         "median efficiency | boxes placed | contacts a-a / a-s / a-b per run |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in table:
         contacts = " / ".join(_f(r[f"contacts_{c}_per_run"], ".1f") for c in CONTACTS[:3])
         lines.append(
-            f"| {r['layout']} | {r['configuration']} | {r['completed']}/{r['runs']} | {r['crashed']} | {r['stalled']} | "
+            f"| {r['layout']} | {r['configuration']} | {r['completed']}/{r['runs']} | {crashed(r)} | {r['stalled']} | "
             f"{r['timeout']} | {_f(r['completion_time_median_s'], '.1f')} | {_f(r['efficiency_median'], '.2f')} | "
             f"{_f(r['boxes_placed_mean'], '.1f')}/{_f(r['boxes_total'], '.0f')} | {contacts} |"
         )

@@ -48,7 +48,9 @@ ID_COLUMNS: tuple[str, ...] = ("run_id", "planner", "avoidance", "seed")
 #: Outcome columns of a row, after the grid values and before the metrics.
 STATUS_COLUMNS: tuple[str, ...] = ("exit_status", "error", "worker_time_s", "run_dir")
 #: Columns that are not outcomes of a run (never summarised or plotted).
-NOT_METRICS: frozenset[str] = frozenset({*ID_COLUMNS, *STATUS_COLUMNS, "crashed_agent", "scenario", "vehicle", "video"})
+NOT_METRICS: frozenset[str] = frozenset(
+    {*ID_COLUMNS, *STATUS_COLUMNS, "crashed_agent", "crash_cause", "scenario", "vehicle", "video"}
+)
 #: Metric keys already in the identity or status columns.
 _DUPLICATES = frozenset({"planner", "avoidance", "seed", "exit_status"})
 

@@ -45,6 +45,13 @@ from pybullet_swarm.vehicle import VehicleParams, load_vehicle
 from pybullet_swarm.vehicle.downwash import Downwash
 from pybullet_swarm.world import BodyKind, World
 
+CRASH_LOOKBACK_S = 3.0
+"""s: a crash is put down to what happened to the agent this long before it (``crash_cause``)."""
+WAKE_CAUSE_FRACTION = 0.05
+"""A crash with no agent-agent contact before it counts as the wake's when another agent's downwash pushed the
+agent down with at least this fraction of its weight within ``CRASH_LOOKBACK_S`` (the fraction at which ORCA's
+``wake_depth`` ends the column under an agent)."""
+
 
 @dataclasses.dataclass(frozen=True)
 class RunResult:
@@ -175,6 +182,13 @@ class Simulation:
         self.step_count = 0
         self.exit_status = ExitStatus.RUNNING
         self.crashed_agent: int | None = None
+        self.crash_cause: str | None = None  # what came before the crash (``_crash_cause``)
+        # N, the downwash each agent carried at the last recording instants (``CRASH_LOOKBACK_S``), and when
+        hist = int(math.ceil(CRASH_LOOKBACK_S * s.record_hz)) + 1
+        self._wake_hist = np.zeros((hist, n))
+        self._wake_t = np.full(hist, -np.inf)
+        self._wake_k = 0
+        self.weight = float(p.mass) * float(s.gravity)  # N
         self.open_loop = False
         self._external = False
         self._wall_time = 0.0
@@ -621,10 +635,34 @@ class Simulation:
             self.exit_status = status
             if agent is not None:
                 self.crashed_agent = agent
+            if status is ExitStatus.CRASHED and agent is not None:
+                self.crash_cause, why = self._crash_cause(agent)
+                detail = f"{detail}; {why}" if detail else why
             if status in (ExitStatus.CRASHED, ExitStatus.DIVERGED):
                 self.events.append(
                     Event(self.time, status.value, f"agent{agent}" if agent is not None else "", "", detail)
                 )
+
+    def _crash_cause(self, i: int) -> tuple[str, str]:
+        """What came before agent ``i``'s crash within ``CRASH_LOOKBACK_S``, as a cause and in words: an
+        agent-agent contact of its own (``agent_agent_contact``), else another agent's wake pushing it down with at
+        least ``WAKE_CAUSE_FRACTION`` of its weight at a recording instant (``wake``), else ``other``."""
+        t0 = self.time - CRASH_LOOKBACK_S
+        name = f"agent{i}"
+        hits = [
+            e
+            for e in self.events
+            if e.kind == CollisionClass.AGENT_AGENT.value and e.time_s >= t0 and name in (e.a, e.b)
+        ]
+        recent = self._wake_t >= t0
+        peak = float(np.max(self._wake_hist[recent, i])) if recent.any() else 0.0
+        wake = f"downwash on it up to {peak:.3f} N ({100.0 * peak / self.weight:.0f} % of its weight)"
+        if hits:
+            other = hits[-1].b if hits[-1].a == name else hits[-1].a
+            return "agent_agent_contact", f"{self.time - hits[-1].time_s:.2f} s after a contact with {other}; {wake}"
+        if peak >= WAKE_CAUSE_FRACTION * self.weight:
+            return "wake", f"no agent-agent contact in the last {CRASH_LOOKBACK_S:g} s; {wake}"
+        return "other", f"no agent-agent contact in the last {CRASH_LOOKBACK_S:g} s; {wake}"
 
     def _on_contacts(self, pairs: AbstractSet[tuple[int, int]]) -> None:
         t = self.time
@@ -716,6 +754,11 @@ class Simulation:
     def _sample(self) -> None:
         """Work done at the recording rate: the recorder and the altitude high-water mark."""
         np.maximum(self.max_height, self.state_array[:, 2], out=self.max_height)
+        if self.downwash is not None and self.downwash.last.size:
+            k = self._wake_k % len(self._wake_t)
+            self._wake_hist[k] = self.downwash.last
+            self._wake_t[k] = self.time
+            self._wake_k += 1
         if self.recorder is not None:
             s = self.state_array
             self.recorder.record(
@@ -752,6 +795,7 @@ class Simulation:
             "agents": self.n,
             "vehicle": self.params.name,
             "crashed_agent": self.crashed_agent,
+            "crash_cause": self.crash_cause,
             "completion_time_s": self.task.completed_at,
             "collisions": {c: self.contacts.counts[c] for c in COLLISION_CLASSES},
             "collision_time_s": {c: round(self.contacts.time_s[c], 9) for c in COLLISION_CLASSES},

@@ -270,10 +270,14 @@ class Downwash:
     def __init__(self, params: DownwashParams, *, kf: float, mass: float) -> None:
         self.params = params
         self.const = params.const(kf=kf, mass=mass)
+        self.last: NDArray[np.float64] = np.zeros(0)  # N, (n,) downward force on each vehicle at the last call
 
     def add_to(self, state: NDArray[np.float64], rotor_speeds: NDArray[np.float64], force: NDArray[np.float64]) -> None:
-        """Add the downwash to ``force`` (n, 3) N, world frame, from ``state`` (n, 13) and rotor speeds (n, 4) rad/s."""
+        """Add the downwash to ``force`` (n, 3) N, world frame, from ``state`` (n, 13) and rotor speeds (n, 4) rad/s;
+        ``last`` keeps what it added (downward, N, per vehicle)."""
         if state.shape[0] < 2:
             return
         kernel = downwash_all_pairs if state.shape[0] <= ALL_PAIRS_MAX else downwash_sweep
+        before = force[:, 2].copy()
         kernel(state, rotor_speeds, self.const, force)
+        self.last = before - force[:, 2]

@@ -58,7 +58,7 @@ def test_table_markdown_and_figure_from_rows(tmp_path):
         {"planner": "stigmergy", "avoidance": "orca", "exit_status": "stalled", "boxes_placed": 2, "boxes_total": 5,
          "collisions.agent_agent": 2},
         {"planner": "shortest_path", "avoidance": "none", "exit_status": "crashed", "boxes_placed": 1,
-         "boxes_total": 5, "collisions.agent_agent": 1, "collisions.agent_structure": 3},
+         "boxes_total": 5, "collisions.agent_agent": 1, "collisions.agent_structure": 3, "crash_cause": "wake"},
     ]  # fmt: skip
     table = suite.table_rows("tower5", rows)
     by = {r["configuration"]: r for r in table}
@@ -67,7 +67,9 @@ def test_table_markdown_and_figure_from_rows(tmp_path):
     assert by["stigmergy + orca"]["contacts_agent_agent_per_run"] == 1.0
     assert by["shortest_path"]["crashed"] == 1 and math.isnan(by["shortest_path"]["completion_time_median_s"])
     text = suite.markdown(table)
-    assert "| tower5 | stigmergy + orca | 1/2 |" in text
+    assert "| tower5 | stigmergy + orca | 1/2 | 0 |" in text
+    assert by["shortest_path"]["crashed_wake"] == 1 and by["shortest_path"]["crashed_other"] == 0
+    assert "| tower5 | shortest_path | 0/1 | 1 (0 / 1 / 0) |" in text
     from pybullet_swarm.plotting.suite_plots import suite_figure
 
     assert suite_figure(table, tmp_path / "suite.png").stat().st_size > 1000

@@ -62,7 +62,9 @@ def test_crash_when_agent_flips(make_sim):
     sim.step(sim.physics_hz)
     assert sim.exit_status is ExitStatus.CRASHED
     assert sim.crashed_agent == 0
-    assert any(e.kind == "crashed" for e in sim.events)
+    crash = [e for e in sim.events if e.kind == "crashed"]
+    assert crash and "no agent-agent contact" in crash[0].detail  # alone: neither a contact nor a wake
+    assert sim.crash_cause == "other" and sim.metrics()["crash_cause"] == "other"
 
 
 @pytest.mark.parametrize("contact_hz", [None, 48], ids=["every_step", "every_control_tick"])

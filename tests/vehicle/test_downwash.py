@@ -255,3 +255,27 @@ def test_without_downwash_the_lower_vehicle_holds_at_its_weight():
         weight = 0.150 * sim.scenario.sim.gravity
         np.testing.assert_allclose(thrust, weight, rtol=1e-9)
         assert sim.state.positions[0, 2] == pytest.approx(1.0, abs=1e-6)
+
+
+def test_a_crash_is_put_down_to_a_contact_to_the_wake_or_to_neither():
+    """Crashes without avoidance on the construction suite came with no agent-agent contact before them, from
+    an agent hovering above the one that fell: ``crash_cause`` tells an agent-agent contact within
+    ``CRASH_LOOKBACK_S`` from the wake (downwash of at least ``WAKE_CAUSE_FRACTION`` of the weight at a
+    recording instant in that time) from neither. The downwash each vehicle carried is the model's."""
+    from pybullet_swarm.experiment.simulation import WAKE_CAUSE_FRACTION
+    from pybullet_swarm.types import Event
+
+    sim, thrust = stacked("quad150", 0.05, 0.3, downwash=True)
+    with sim:
+        assert sim.downwash is not None
+        assert sim.downwash.last[0] == pytest.approx(thrust[0] - thrust[1], rel=1e-3)  # what held it down
+        assert sim.downwash.last[1] == 0.0
+        assert sim.downwash.last[0] > WAKE_CAUSE_FRACTION * sim.weight
+        cause, why = sim._crash_cause(0)
+        assert cause == "wake" and "no agent-agent contact" in why
+        assert sim._crash_cause(1)[0] == "other"
+        sim.events.append(Event(sim.time - 1.0, "agent_agent", "agent1", "agent0"))
+        cause, why = sim._crash_cause(1)
+        assert cause == "agent_agent_contact" and "contact with agent0" in why
+        sim.events[-1] = Event(sim.time - 4.0, "agent_agent", "agent1", "agent0")  # too long before
+        assert sim._crash_cause(1)[0] == "other"
