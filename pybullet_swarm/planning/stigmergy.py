@@ -87,6 +87,11 @@ extension with its own switch (bold; the table below).
 * **wide_view**: an agent notices every object the task shows it (grasp point within the task's
   ``view_radius`` plus the grasp height, max-norm: 27.7 cm per axis for ``quad150``) instead of the
   thesis's window of two agent radii (15 cm: its 15 cm airframe) from its centre to the object's.
+* **search_near**: a random search point is drawn near what is sought (within the view range,
+  per axis, of a slot drawn at random for a carrier, of a depot box for an empty agent), not
+  anywhere in the arena: section 5.2.5 names limiting the search space as one of the three
+  reactions, but appendix A draws over the whole arena. In a 6 x 3 m arena the carrier of the
+  last box searched it for its slot for 150 s.
 * **ties**: among equally strong cells one is drawn at random (spreading agents over every found
   box) instead of the first in the thesis's grid order.
 * Flying on an estimate (``TaskInfo.extra["position_std"]``, the per-axis standard deviation the
@@ -127,6 +132,7 @@ switch                        default     thesis      source of the thesis's val
 ``ahead_cone``                true        false       chapter 6.0.4: "any area they move into"
 ``detour``                    true        false       not in the thesis
 ``queue_at_slots``            true        false       not in the thesis (five agents, a gapped wall)
+``search_near``               true        false       section 5.2.5 (limit the search space); not appendix A
 ============================  ==========  ==========  =================================================
 
 It also sets the thesis's numbers where they are parameters (Tables 5.1, 5.2, 6.1: 10 cm cells,
@@ -449,6 +455,11 @@ class StigmergyParams(Params):
         description="at a search point with no open slot in view, clear the goal marks over the columns "
         "whose every slot is in view [false]",
     )
+    search_near: bool = Field(
+        True,
+        description="draw a random search point within the view range of a slot (carrying) or a depot box "
+        "(empty) drawn at random, not anywhere in the arena [false]",
+    )
     queue_at_slots: bool = Field(
         True,
         description="a carrier whose slot's working square (an airframe's width and QUEUE_MARGIN round the "
@@ -489,6 +500,7 @@ class StigmergyParams(Params):
             "raise_drop_point": False,
             "mark_seen_slots": False,
             "queue_at_slots": False,
+            "search_near": False,
         }
     }
 
@@ -1154,7 +1166,12 @@ class Stigmergy:
         layout = self.params.layout_altitudes
         if best is None or self.strategy == Strategy.LOCAL:
             self.strategy = Strategy.RANDOM
-            xy = self.rng.uniform(g.arena_lo, g.arena_hi)
+            near = (self.info.slots if sign < 0 else self.info.depot)[:, :2] if self.params.search_near else None
+            if near is not None and len(near):
+                c = near[int(self.rng.integers(len(near)))]
+                xy = c + self.rng.uniform(-g.view_range, g.view_range, size=2)
+            else:
+                xy = self.rng.uniform(g.arena_lo, g.arena_hi)
         elif self.strategy == Strategy.RANDOM:
             self.strategy = Strategy.PHEROMONE
             xy = best[:2]

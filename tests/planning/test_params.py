@@ -43,6 +43,8 @@ THESIS_STIGMERGY = {
     "clear_spent_goals": False,
     "raise_drop_point": False,
     "mark_seen_slots": False,
+    "search_near": False,
+    "queue_at_slots": False,
 }
 THESIS_LAYERED = {
     **THESIS_STIGMERGY,
@@ -66,6 +68,7 @@ THESIS_SHORTEST_PATH = {
     "round_parked": False,
     "wake_clear": False,
     "wait_away": False,
+    "park_clear": False,
 }
 
 
@@ -101,6 +104,7 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "round_parked",
         "wake_clear",
         "wait_away",
+        "park_clear",
     ]
     assert list(extensions(StigmergyParams)) == [
         "ties",
@@ -116,6 +120,8 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "release_over_neighbours",
         "raise_drop_point",
         "clear_spent_goals",
+        "search_near",
+        "queue_at_slots",
         "mark_seen_slots",
     ]
     assert list(extensions(LayeredStigmergyParams)) == [

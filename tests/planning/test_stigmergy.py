@@ -386,7 +386,8 @@ def test_layered_agent_replans_before_entering_another_agents_cell_but_not_its_o
 
 def test_layered_agent_passes_a_neighbour_beside_it_and_after_a_replan_detours_before_fetching():
     med = _medium(layered=True)
-    a = _agent(LayeredStigmergy, agent=0)
+    # search points drawn over the arena (with search_near, seed 0's lies past the mark beside it: a replan again)
+    a = _agent(LayeredStigmergy, agent=0, search_near=False)
     look = a.geo.look_altitude
     box = DEPOT[4]
     p = np.array([box[0] - 0.25, box[1] - 0.01, look])
@@ -924,3 +925,24 @@ def test_clear_spent_goals_clears_a_column_seen_from_anywhere_an_agent_arrives_a
     a.plan(_obs(p, carrying=3), med)
     med.step(0.1)
     assert med.sample(Layer.TASK.value, mark) == 0.0
+
+
+@pytest.mark.parametrize("near", [True, False])
+def test_search_near_draws_random_search_points_near_what_is_sought(near: bool):
+    """With ``search_near`` a random search point lies within the view range (per axis) of a slot for a carrier,
+    of a depot box for an empty agent (section 5.2.5's limited search space); without it, anywhere in the arena
+    (appendix A): the carrier of the last box in a 6 x 3 m arena searched it for its slot for 150 s."""
+    for carrying, anchors in ((True, SLOTS[:, :2]), (False, DEPOT[:, :2])):
+        offs = []
+        for seed in range(40):
+            a = _agent(seed=seed, search_near=near)
+            a.strategy = Strategy.LOCAL  # the next search point is a random one
+            if carrying:
+                a.carry = Carry(3, np.array([0.0, 0.0, -GH]))
+            a._choose(
+                _obs([1.5, 0.5, a.geo.floor_altitude], carrying=3 if carrying else -1), None, -1 if carrying else 1
+            )
+            assert a.strategy == Strategy.RANDOM
+            offs.append(float(np.min(np.max(np.abs(anchors - a.target), axis=1))))
+        reach = a.geo.view_range + 1e-9  # (a point in the keep-out zone moves to its edge: nearer than that)
+        assert (max(offs) <= reach) is near, carrying
