@@ -826,9 +826,7 @@ class FlightGeometry:
             if np.any(np.all(np.isclose(self.hidden, c, atol=1e-9), axis=1)):
                 return c.copy()
         k = self.structure
-        cand = [np.array([x, xy[1]]) for x in (*(k.lo[:, 0] - self.standoff), *(k.hi[:, 0] + self.standoff))]
-        cand += [np.array([xy[0], y]) for y in (*(k.lo[:, 1] - self.standoff), *(k.hi[:, 1] + self.standoff))]
-        pts = np.clip(np.array(cand), self.arena_lo, self.arena_hi)
+        pts = self._along_axes(xy, k.lo - self.standoff, k.hi + self.standoff)
         ok = np.array([not self.inside(c) for c in pts])
         if not ok.any():  # the zone fills the arena across: nowhere to look from but above it
             return xy
@@ -852,16 +850,22 @@ class FlightGeometry:
             return None
         return nearest[j] - xy
 
+    def _along_axes(
+        self, xy: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """(2k + 2k, 2) m: the points straight along x from ``xy`` (2,) m to each edge of the squares ``lo``,
+        ``hi`` (k, 2) m, then along y, clipped to the arena."""
+        cand = [np.array([x, xy[1]]) for x in (*lo[:, 0], *hi[:, 0])]
+        cand += [np.array([xy[0], y]) for y in (*lo[:, 1], *hi[:, 1])]
+        return np.clip(np.array(cand), self.arena_lo, self.arena_hi)
+
     def off_columns(self, xy: NDArray[np.float64], half: float) -> NDArray[np.float64]:
         """The point (2,) m itself when it lies at least ``half`` m (per axis) from every column, else the
         nearest point that does, straight along an axis from it and within the arena (itself when none
         does: a structure that spans the arena)."""
         if len(self.columns) == 0 or np.min(np.max(np.abs(self.columns - xy), axis=1)) >= half:
             return xy
-        lo, hi = self.columns - half - 1e-6, self.columns + half + 1e-6
-        cand = [np.array([x, xy[1]]) for x in (*lo[:, 0], *hi[:, 0])]
-        cand += [np.array([xy[0], y]) for y in (*lo[:, 1], *hi[:, 1])]
-        pts = np.clip(np.array(cand), self.arena_lo, self.arena_hi)
+        pts = self._along_axes(xy, self.columns - half - 1e-6, self.columns + half + 1e-6)
         ok = np.min(np.max(np.abs(pts[:, None, :] - self.columns[None, :, :]), axis=2), axis=1) >= half
         if not ok.any():
             return xy
