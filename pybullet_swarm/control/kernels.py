@@ -278,6 +278,29 @@ def physics_tick(
 
 
 @numba.njit(cache=True)
+def braking_speed(rest: float, am: float, dt: float) -> float:
+    """m/s, the largest speed u from which braking by am dt a tick (the last tick by what is left, positions
+    integrating the mean of old and new speed) covers at most ``rest`` m beyond u dt / 2 (this tick's share).
+
+    From u = K c + r (c = am dt, 0 <= r < c) braking covers (u^2 - r^2) / (2 am) + r dt / 2, so the condition
+    is linear in u on each branch K: u (K + 1) dt - K (K + 1) c dt / 2 <= rest. The continuous bound
+    sqrt(h^2 + 2 am rest) - h (h = c / 2) leaves out the last tick's r (c - r) / (2 am) and is never below
+    the answer: it picks the branch.
+    """
+    if rest <= 0.0:
+        return 0.0
+    c = am * dt
+    h = 0.5 * c
+    upper = math.sqrt(h * h + 2.0 * am * rest) - h
+    k = math.floor(upper / c)
+    while True:
+        u = (rest + 0.5 * k * (k + 1) * c * dt) / ((k + 1) * dt)
+        if u >= k * c or k == 0:
+            return u if u < upper else upper
+        k -= 1
+
+
+@numba.njit(cache=True)
 def shape_references(
     target: NDArray[np.float64],  # (n, 3) m target position, or m/s target velocity
     velocity_mode: NDArray[np.bool_],  # (n,) True: target is a velocity
@@ -290,9 +313,13 @@ def shape_references(
 ) -> None:
     """Move references towards targets within per-axis velocity and acceleration limits.
 
-    Position targets follow a braking curve v = sqrt(2 a_max |e|) capped at v_max, so each axis
-    arrives without overshoot; velocity targets are clipped to v_max. The reference velocity
-    changes by at most a_max dt per tick.
+    Position targets follow the discrete braking curve: the speed towards the target after this tick
+    is the largest from which braking at a_max, a_max dt per tick, still stops at the target, counting
+    the distance this tick covers (positions integrate the mean of the old and new velocity), capped
+    at v_max; so each axis arrives without overshoot. (The continuous curve v = sqrt(2 a_max |e|)
+    left out this tick's distance and overshot every target by about 3 mm at 0.15 m/s and 48 Hz, of a
+    5 mm grasp gap; ``braking_speed``.) Velocity targets are clipped to
+    v_max. The reference velocity changes by at most a_max dt per tick.
     """
     for i in range(p_ref.shape[0]):
         for k in range(3):
@@ -307,11 +334,10 @@ def shape_references(
             else:
                 e = target[i, k] - p_ref[i, k]
                 ae = abs(e)
-                mag = math.sqrt(2.0 * am * ae)
+                toward = v_ref[i, k] if e >= 0.0 else -v_ref[i, k]  # m/s, the old speed towards the target
+                mag = braking_speed(ae - 0.5 * toward * dt, am, dt)
                 if mag > vm:
                     mag = vm
-                if mag > ae / dt:
-                    mag = ae / dt
                 vd = mag if e >= 0.0 else -mag
             dv = vd - v_ref[i, k]
             lim = am * dt
