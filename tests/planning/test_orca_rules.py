@@ -667,3 +667,29 @@ def test_targets_touching_tells_grasp_and_drop_points_from_waypoints():
     assert out.tolist() == [True, False, True, False, False]
     targets_touching(goals, parts, np.zeros(5, dtype=bool), *box, 0.035, out)
     assert not out.any()  # only candidates
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_pinned_share_gives_the_whole_way_out_to_the_agent_free_to_take_it(on: bool):
+    """An empty agent held over a depot box by the column rule (free to move only towards its box: no velocity
+    away along y) and a carrier closing on it from beside: the carrier took half the way out and they touched
+    (the suite's random_3, seed 4, stigmergy + orca). With ``pinned_share`` it takes the whole; an unpinned
+    neighbour still shares."""
+    pos = np.array([[1.0, 0.5, 0.5], [1.02, 0.68, 0.5]])
+    vel = np.array([[0.0, 0.0, 0.0], [0.15, -0.08, 0.0]])
+    inf = np.inf
+    pinned = (np.array([[-0.15, 0.0, -0.15], [-inf, -inf, -inf]]), np.array([[0.15, 0.15, 0.15], [inf, inf, inf]]))
+    free = (np.full((2, 3), -inf), np.full((2, 3), inf))
+    params = OrcaParams(pinned_share=on)
+    outs = {}
+    for name, bounds in (("pinned", pinned), ("free", free)):
+        v, _ = _level_boxes(params, pos, vel, pos + 10.0 * vel, vel=vel, bounds=bounds)
+        outs[name] = v
+    base, _ = _level_boxes(OrcaParams(pinned_share=False), pos, vel, pos + 10.0 * vel, vel=vel, bounds=pinned)
+    if on:
+        assert outs["pinned"][1, 1] > base[1, 1] + 0.01  # the carrier turns away more
+    else:
+        assert outs["pinned"][1, 1] == pytest.approx(base[1, 1])
+    assert outs["pinned"][0, 1] >= -1e-9  # the pinned one never moves away along y
+    base_free, _ = _level_boxes(OrcaParams(pinned_share=False), pos, vel, pos + 10.0 * vel, vel=vel, bounds=free)
+    np.testing.assert_allclose(outs["free"], base_free)  # free to move, both keep their halves

@@ -85,6 +85,11 @@ The paper's core and our extension rules are kept apart:
     swept box by what its acceleration limit allows over ``clearance_lookahead`` (1/2 a_max t^2):
     swept along its velocity, a neighbour that then turned towards a carrier passed through to its
     waypoint seemed clear. Grasp and drop points keep the plain test (they need millimetres).
+  - ``pinned_share``: against a neighbour whose velocity bounds forbid it any velocity away along
+    the horizontal axis on which the pair's way out mostly runs (``column_rule``: on a leg over a
+    box or the structure, it may only slow down), an agent free to move its way takes the whole way
+    out: the neighbour cannot take its half. A carrier lifting off beside an empty agent held over a depot box took
+    half and touched it.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

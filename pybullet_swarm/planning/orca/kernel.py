@@ -141,6 +141,8 @@ def agent_planes(
     N: NDArray[np.float64],
     P: NDArray[np.float64],
     k: int,
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
 ) -> tuple[int, bool]:
     """Append agent i's ORCA planes (one per neighbour in row i of ``nbr``) after row k; returns the new
     count and whether agent i climbs over a neighbour (``CLIMB_OVER``).
@@ -178,6 +180,7 @@ def agent_planes(
                 away,
                 not rs.wake_share_on_course or dot(nrm, u) > 0.0,
             )
+        r = rules.pinned_share(rs.pinned_share, u, lo, hi, i, j, r, cs.responsibility)
         climbs = climbs or up
         set_row(N, k, nrm)
         set_row(P, k, add(vi, u, r))
@@ -314,7 +317,7 @@ def orca_batch(
             n_hard, n_static = obstacle_planes(
                 i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, parts, cs, rs, N, P, n_bounds
             )
-        m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, n_static)
+        m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, n_static, lo, hi)
         up = (FLAG_CLIMB if climbs else 0) | (FLAG_OBSTACLE if n_static > n_bounds else 0)
         vc = row(v_cmd, i)
         if rs.minimal_intervention and dot(vc, vc) <= max_speed * max_speed and not core.violates(N, P, m, vc):

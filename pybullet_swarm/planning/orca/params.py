@@ -192,6 +192,7 @@ class OrcaParams(Params):
     side_memory: bool = _switch(Rule.SIDE_MEMORY)
     pushed_back: bool = _switch(Rule.PUSHED_BACK)
     passthrough_turns: bool = _switch(Rule.PASSTHROUGH_TURNS)
+    pinned_share: bool = _switch(Rule.PINNED_SHARE)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

@@ -51,6 +51,7 @@ class Rule(str, enum.Enum):
     SIDE_MEMORY = "side_memory"
     PUSHED_BACK = "pushed_back"
     PASSTHROUGH_TURNS = "passthrough_turns"
+    PINNED_SHARE = "pinned_share"
 
     @property
     def doc(self) -> str:
@@ -105,6 +106,8 @@ RULE_DOCS: dict[Rule, str] = {
     "sideways step alone",
     Rule.PASSTHROUGH_TURNS: "passthrough to a waypoint (a target touching nothing) needs clearance from what each "
     "neighbour can reach by turning",
+    Rule.PINNED_SHARE: "against a neighbour that its bounds pin on the axis the pair's way out mostly runs along, "
+    "an agent takes the whole way out",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -131,6 +134,7 @@ SIDE_OFFSET = 0.01  # m, a neighbour ahead further than this to one side has alr
 HORIZONTAL_MIN2 = 1e-6  # squared horizontal part of a unit direction below which it counts as vertical
 BESIDE_MIN2 = 1e-4  # m^2, a neighbour horizontally closer than 1 cm is right above or below
 MIN_PREFERRED_SPEED = 1e-3  # m/s, an agent that prefers to move slower than this is at rest: never stalled
+PIN_TOL = 1e-9  # m/s, velocity bounds narrower than this on an axis pin the agent on it (PINNED_SHARE)
 GOAL_OVERLAP = 0.005  # m, a part of an agent at its target reaching deeper into an obstacle is inside it
 
 
@@ -228,6 +232,28 @@ def reference_velocities(
 def way_out_weight(on: bool, vertical_cost: float) -> float:
     """WEIGHTED_WAY_OUT: weight of vertical changes when choosing a box VO's way out (1: the paper's nearest)."""
     return vertical_cost if on else 1.0
+
+
+@njit
+def pinned_share(
+    on: bool, u: Vec, lo: NDArray[np.float64], hi: NDArray[np.float64], i: int, j: int, r: float, resp: float
+) -> float:
+    """PINNED_SHARE: the share of the pair's ``u`` agent i takes against neighbour j: the whole when j's velocity
+    bounds forbid it any velocity along -``u`` on the horizontal axis along which ``u`` mostly runs (``COLUMN_RULE``:
+    on a leg over a box or the structure it may only slow down, never move sideways away) and i's allow it velocity
+    along ``u`` there, else ``r``. A pinned neighbour cannot take its half: an empty agent held over a depot box,
+    free to move only towards its box, was touched by a carrier lifting off beside it that took only half the way
+    out (the suite's random_3, seed 4)."""
+    if not on:
+        return r
+    a = 0 if abs(u[0]) >= abs(u[1]) else 1
+    if u[a] == 0.0:
+        return r
+    if u[a] > 0.0:  # j would have to move along -axis a, i along +axis a
+        pinned, free = lo[j, a] >= -PIN_TOL, hi[i, a] > PIN_TOL
+    else:
+        pinned, free = hi[j, a] <= PIN_TOL, lo[i, a] < -PIN_TOL
+    return 2.0 * resp if pinned and free else r
 
 
 @njit
