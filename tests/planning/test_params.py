@@ -69,6 +69,7 @@ THESIS_SHORTEST_PATH = {
     "wake_clear": False,
     "wait_away": False,
     "park_clear": False,
+    "recentre_box": False,
 }
 
 
@@ -105,6 +106,7 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "wake_clear",
         "wait_away",
         "park_clear",
+        "recentre_box",
     ]
     assert list(extensions(StigmergyParams)) == [
         "ties",

@@ -168,6 +168,54 @@ def test_soft_landing_creeps_down_the_last_centimetres(soft, to_slot):
         assert z == pytest.approx(point[2])
 
 
+def test_soft_landing_waits_for_a_lagging_airframe_and_backs_up_past_the_point():
+    """The creep lowers its target only while the airframe is within CREEP_LEAD of it, and raises it while the
+    box hangs more than CREEP_STEP under its drop point: run ahead of the airframe, the creep left a box 1.1 cm
+    under its point, out of the release tolerance, for good (suite solid_wall, seed 4)."""
+    from pybullet_swarm.planning.shortest_path import CREEP_LEAD, CREEP_STEP
+
+    sp = _planner(1)
+    sp.home = np.zeros((1, 3))
+    sp.phase[0], sp.box[0], sp.slot[0] = Phase.DESCEND_SLOT, 0, 0
+    drop = SLOTS[0] + [0.0, 0.0, sp.clearances[0] + sp.release_tol]  # where the box is let go
+    top = drop + [0.0, 0.0, GH]  # the agent there
+    sp.creep[0] = top[2] + 0.02  # creeping, 2 cm to go
+
+    def target(z: float) -> float:
+        p = np.array([top[0], top[1], z])
+        view = _view([p], carrying=[0])
+        view.box_positions[0] = p - [0.0, 0.0, GH]
+        return float(sp.plan_all(view)[0].vector[2])
+
+    start = float(sp.creep[0])
+    assert target(start + CREEP_LEAD + 0.002) == pytest.approx(start)  # lagging: the creep waits
+    assert target(start + 0.001) == pytest.approx(start - CREEP_STEP)  # caught up: on down
+    sp.creep[0] = top[2] - 0.011
+    assert target(top[2] - 0.011) == pytest.approx(top[2] - 0.011 + CREEP_STEP)  # 1.1 cm under: back up
+
+
+@pytest.mark.parametrize("recentre", [True, False])
+def test_recentre_box_moves_a_settled_carrier_over_by_its_boxs_error(recentre):
+    """The box hangs 7 mm off its drop point (the offset was measured in flight, tilted): once the carrier has
+    arrived and the box is still, its target moves by SERVO_GAIN of the error a tick, towards a release."""
+    from pybullet_swarm.planning.shortest_path import SERVO_GAIN
+
+    sp = _planner(1, recentre_box=recentre)
+    sp.home = np.zeros((1, 3))
+    sp.phase[0], sp.box[0], sp.slot[0] = Phase.DESCEND_SLOT, 0, 0
+    drop = SLOTS[0] + [0.0, 0.0, sp.clearances[0] + sp.release_tol]
+    sp.offset[0] = [-0.007, 0.0, -GH]  # as measured: the box 7 mm behind the airframe
+    p = drop - sp.offset[0]  # the agent over its target
+    sp.creep[0] = p[2]
+    view = _view([p], carrying=[0])
+    view.box_positions[0] = p + [0.0, 0.0, -GH]  # in fact straight under it: 7 mm off the drop point in x
+    xs = [float(sp.plan_all(view)[0].vector[0]) for _ in range(2)]  # the first tick sees the box still
+    if recentre:
+        assert xs[1] == pytest.approx(p[0] - SERVO_GAIN * 0.007)
+    else:
+        assert xs == pytest.approx([p[0], p[0]])
+
+
 @pytest.mark.parametrize("swap", [True, False])
 def test_swap_boxes_exchanges_the_boxes_of_two_agents_on_one_line(swap):
     """Agent 0 next to the box at y 0.5 wants it, agent 1 behind it wants the one at y 0.7, beyond agent 0's
