@@ -81,6 +81,10 @@ switch                       default  thesis  what it does
                                               an airframe onto its box); the creep waits for a
                                               lagging airframe (``CREEP_LEAD``) and backs up
                                               when the box is past its point
+``held_pass``                true     false   with ``wake_clear``, an agent held short of a
+                                              column does not itself hold others up as one
+                                              hovering over their target (two held agents,
+                                              each over the other's target, waited for ever)
 ``recentre_box``             true     false   a carrier at rest over its slot whose box hangs
                                               more than ``release_tol`` off its drop point moves
                                               over by what it sees of the box (the offset is
@@ -348,6 +352,11 @@ class ShortestPathParams(Params):
         description="an agent with nothing left to carry parks off the columns of free boxes, slots and the agents "
         "below it (at its start when that is clear) [false]",
     )
+    held_pass: bool = Field(
+        True,
+        description="with wake_clear, an agent held short of a column does not itself hold up others as one "
+        "hovering over their target [false]",
+    )
     recentre_box: bool = Field(
         True,
         description="a carrier settled over its slot whose box hangs off its drop point by more than release_tol "
@@ -370,6 +379,7 @@ class ShortestPathParams(Params):
             "wait_away": False,
             "park_clear": False,
             "recentre_box": False,
+            "held_pass": False,
         }
     }
 
@@ -457,6 +467,7 @@ class ShortestPath:
         self.depot_xy = np.mean(info.depot[:, :2], axis=0) if len(info.depot) else None
         self.structure_xy = np.mean(info.slots[:, :2], axis=0) if len(info.slots) else None
         self.creep = np.full(n, np.nan)  # m, soft_landing: each agent's creeping target height (nan: not yet)
+        self.held = np.zeros(n, dtype=bool)  # wake_clear: held short of a column at its last tick (held_pass)
 
     def _assign(self, i: int, view: WorldView) -> None:
         taken_boxes = set(self.box[self.box >= 0].tolist())
@@ -622,7 +633,9 @@ class ShortestPath:
         ``WAKE_LOOKAHEAD`` come closer than ``WAKE_CLEARANCE`` (per axis), and nearer than it is now, to an agent
         at another altitude that is on a vertical leg (below it, its wake would push that agent down onto its box
         or slot; above it, that agent's wake would push it down: a carrier reaching the top of its slot's column
-        under an agent climbing from it sank 12 cm onto the structure) or hovers over ``target``."""
+        under an agent climbing from it sank 12 cm onto the structure) or hovers over ``target`` (with
+        ``held_pass``, not one held there itself by this rule: it waits for another column, and two held agents,
+        each over the other's target, waited for ever: suite double_wall, seed 1)."""
         if not self.wake_clear:
             return False
         p = view.positions[i]
@@ -634,7 +647,8 @@ class ShortestPath:
             q = view.positions[j]
             if j == i or abs(q[2] - p[2]) < WAKE_MIN_DZ:
                 continue
-            if not (self._in_column(j, q) or np.max(np.abs(target[:2] - q[:2])) < WAKE_CLEARANCE):
+            over = np.max(np.abs(target[:2] - q[:2])) < WAKE_CLEARANCE and not (self.params.held_pass and self.held[j])
+            if not (self._in_column(j, q) or over):
                 continue
             now = float(np.max(np.abs(p[:2] - q[:2])))
             near = float(np.min(np.max(np.abs(ahead - q[:2]), axis=1)))
@@ -763,7 +777,9 @@ class ShortestPath:
         if not self._near_xy(p, target) and abs(p[2] - self._alt(i)) > 0.03:
             return Command.goto([p[0], p[1], self._alt(i)])
         if not self._near_xy(p, target) and self._wake_blocked(i, view, target):
+            self.held[i] = True
             return Command.goto([p[0], p[1], self._alt(i)])
+        self.held[i] = False
         return Command.goto(self._detour(i, view, target))
 
     def _step(self, i: int, view: WorldView) -> Command:

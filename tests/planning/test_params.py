@@ -70,6 +70,7 @@ THESIS_SHORTEST_PATH = {
     "wait_away": False,
     "park_clear": False,
     "recentre_box": False,
+    "held_pass": False,
 }
 
 
@@ -106,6 +107,7 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "wake_clear",
         "wait_away",
         "park_clear",
+        "held_pass",
         "recentre_box",
     ]
     assert list(extensions(StigmergyParams)) == [

@@ -440,3 +440,28 @@ def test_park_clear_parks_off_free_boxes_and_agents_below(park_clear: bool):
     sp.home[0, :2] = [2.0, 0.9]  # a clear start: parked there
     sp.park = None
     assert np.allclose(sp._park_point(0, view), [2.0, 0.9])
+
+
+@pytest.mark.parametrize("held_pass", [True, False])
+def test_held_pass_breaks_two_agents_holding_each_other_over_their_targets(held_pass):
+    """Agent 0 carries its box to slot 0 in the lower lane; agent 1, empty, flies to a free box lying under agent
+    0, in the upper lane over slot 0: each hovers over the other's target, and ``wake_clear`` held both for 150 s
+    (suite double_wall, seed 1). With ``held_pass`` the agent held there does not hold the other up."""
+    sp = _planner(2, held_pass=held_pass, swap_boxes=False)
+    sp.home = np.zeros((2, 3))
+    sp.phase[:] = [Phase.TO_SLOT, Phase.TO_BOX]
+    sp.box[:], sp.slot[:] = [0, 1], [0, 1]
+    sp.offset[0] = [0.0, 0.0, -GH]
+    p0 = np.array([2.05, 0.25, sp._alt(0)])
+    p1 = np.array([2.65, 0.25, sp._alt(1)])
+    assert sp._alt(1) - sp._alt(0) > 0.5
+    view = _view([p0, p1], carrying=[0, -1])
+    view.box_positions[1] = [2.05, 0.25, 0.05]  # agent 1's box, under agent 0
+    moved = []
+    for _ in range(3):
+        cmds = sp.plan_all(view)
+        moved.append([bool(np.linalg.norm(c.vector[:2] - q[:2]) > 0.05) for c, q in zip(cmds, (p0, p1))])
+    if held_pass:
+        assert any(any(m) for m in moved)
+    else:
+        assert not any(any(m) for m in moved)  # both hold where they are
