@@ -693,24 +693,3 @@ def test_pinned_share_gives_the_whole_way_out_to_the_agent_free_to_take_it(on: b
     assert outs["pinned"][0, 1] >= -1e-9  # the pinned one never moves away along y
     base_free, _ = _level_boxes(OrcaParams(pinned_share=False), pos, vel, pos + 10.0 * vel, vel=vel, bounds=free)
     np.testing.assert_allclose(outs["free"], base_free)  # free to move, both keep their halves
-
-
-@pytest.mark.parametrize("on", [True, False])
-def test_keep_met_planes_keeps_a_plane_the_least_violating_velocity_meets(on: bool):
-    """Squeezed between two neighbours (v_x >= 0.1 and v_x <= -0.1: no common velocity) with a third one beside
-    it (v_y <= 0, met by the least-violating velocity), an agent preferring +y: sharing the largest violation
-    with every plane let it close on the third at 0.1 m/s (suite double_wall, seed 4: two agents lifting off
-    beside the depot flew into each other); kept, that plane stays met."""
-    from pybullet_swarm.planning.orca import core
-
-    normals = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-    points = np.array([[0.1, 0.0, 0.0], [-0.1, 0.0, 0.0], [0.0, 0.0, 0.0]])
-    m = 3
-    N, P = np.zeros((m + 6, 3)), np.zeros((m + 6, 3))
-    n_hard = core.bound_planes(-VM[None, :], VM[None, :], 0, N, P)
-    N[n_hard : n_hard + m], P[n_hard : n_hard + m] = normals, points
-    scratch = (np.zeros((m + 6, 3)), np.zeros((m + 6, 3)))
-    feasible, v = core.solve(N, P, n_hard + m, n_hard, 1.0, (0.0, 0.15, 0.0), *scratch, on)
-    assert not feasible
-    assert v[0] == pytest.approx(0.0, abs=1e-6)  # the least violation of the squeeze either way
-    assert v[1] == (pytest.approx(0.0, abs=1e-6) if on else pytest.approx(0.1, abs=1e-6))

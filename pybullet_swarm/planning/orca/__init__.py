@@ -90,10 +90,6 @@ The paper's core and our extension rules are kept apart:
     box or the structure, it may only slow down), an agent free to move its way takes the whole way
     out: the neighbour cannot take its half. A carrier lifting off beside an empty agent held over a depot box took
     half and touched it.
-  - ``keep_met_planes``: when the planes have no common velocity, the velocity closest to the preferred one
-    violates each plane by no more than the least-violating velocity does; a plane that one meets stays met.
-    Relaxing every plane by the largest violation let two agents lifting off beside the depot, each squeezed
-    by others, fly into each other at 0.1 m/s towards their preferred velocities.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

@@ -398,14 +398,10 @@ def solve(
     pref: Vec,
     SN: NDArray[np.float64],
     SP: NDArray[np.float64],
-    keep_met: bool = False,
 ) -> tuple[bool, Vec]:
     """One agent's LP over the hard planes [0, n_hard) and the ORCA planes [n_hard, m); returns (feasible, velocity).
 
-    ``SN``, ``SP`` are (m, 3) scratch arrays. ``keep_met`` (the rule ``KEEP_MET_PLANES``): when there is no
-    common velocity, the one closest to the preferred velocity violates no soft plane more than the
-    least-violating velocity does, each plane by its own violation there (none for a plane it meets), instead
-    of every plane by the largest.
+    ``SN``, ``SP`` are (m, 3) scratch arrays.
     """
     fail, res = lp3(N, P, m, radius, pref, False)
     if fail >= m:
@@ -419,10 +415,7 @@ def solve(
     for i in range(m):
         ni = row(N, i)
         set_row(SN, i, ni)
-        slack = worst
-        if keep_met:
-            slack = max(0.0, dot(ni, add(row(P, i), res, -1.0)))
-        set_row(SP, i, add(row(P, i), ni, -(slack + FALLBACK_SLACK) if i >= n_hard else 0.0))
+        set_row(SP, i, add(row(P, i), ni, -(worst + FALLBACK_SLACK) if i >= n_hard else 0.0))
     fail2, res2 = lp3(SN, SP, m, radius, pref, False)
     if fail2 >= m:
         res = res2

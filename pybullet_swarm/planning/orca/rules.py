@@ -52,7 +52,6 @@ class Rule(str, enum.Enum):
     PUSHED_BACK = "pushed_back"
     PASSTHROUGH_TURNS = "passthrough_turns"
     PINNED_SHARE = "pinned_share"
-    KEEP_MET_PLANES = "keep_met_planes"
 
     @property
     def doc(self) -> str:
@@ -109,8 +108,6 @@ RULE_DOCS: dict[Rule, str] = {
     "neighbour can reach by turning",
     Rule.PINNED_SHARE: "against a neighbour that its bounds pin on the axis the pair's way out mostly runs along, "
     "an agent takes the whole way out",
-    Rule.KEEP_MET_PLANES: "with no common velocity, no plane is violated more than by the least-violating velocity "
-    "(met ones stay met)",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
