@@ -92,10 +92,6 @@ extension with its own switch (bold; the table below).
   anywhere in the arena: section 5.2.5 names limiting the search space as one of the three
   reactions, but appendix A draws over the whole arena. In a 6 x 3 m arena the carrier of the
   last box searched it for its slot for 150 s.
-* **wake_aside**: where the run models downwash and no avoidance layer flies, an agent with a neighbour
-  above it in its rotor wake's column (``WAKE_ASIDE_CLEAR`` horizontally, up to ``WAKE_ASIDE_DEPTH`` higher)
-  steps straight away from that column before its phase acts: nothing else kept agents out of each other's
-  wake, and it pushed agents down onto boxes and the structure without a contact.
 * **ties**: among equally strong cells one is drawn at random (spreading agents over every found
   box) instead of the first in the thesis's grid order.
 * Flying on an estimate (``TaskInfo.extra["position_std"]``, the per-axis standard deviation the
@@ -137,7 +133,6 @@ switch                        default     thesis      source of the thesis's val
 ``detour``                    true        false       not in the thesis
 ``queue_at_slots``            true        false       not in the thesis (five agents, a gapped wall)
 ``search_near``               true        false       section 5.2.5 (limit the search space); not appendix A
-``wake_aside``                true        false       not in the thesis (no downwash, no wake)
 ============================  ==========  ==========  =================================================
 
 It also sets the thesis's numbers where they are parameters (Tables 5.1, 5.2, 6.1: 10 cm cells,
@@ -318,16 +313,6 @@ column where a carrier stands to serve it: two carriers nearer than that touch, 
 the lower one down."""
 QUEUE_GAP = 0.05
 """m: ``queue_at_slots``: a carrier waits this much further out than every slot's working square."""
-WAKE_ASIDE_CLEAR = 0.1
-"""m: ``wake_aside``: a neighbour above nearer than this horizontally has the agent in its wake's column (the
-model's wake is 5 cm wide at the narrowest; crashes came from vehicles 1 to 8 cm aside)."""
-WAKE_ASIDE_DEPTH = 1.0
-"""m: ``wake_aside`` minds neighbours up to this far above (the wake pushed a vehicle 0.38 m under another onto
-the structure)."""
-WAKE_ASIDE_MARGIN = 0.02
-"""m: ``wake_aside`` steps this much further out than ``WAKE_ASIDE_CLEAR``."""
-WAKE_ASIDE_MIN_DZ = 0.05
-"""m: a neighbour less than this higher is beside the agent, not above it (an airframe's height and more)."""
 """Most phase steps an agent takes in one planner tick (a step that only changes the phase lets the next act)."""
 
 
@@ -481,11 +466,6 @@ class StigmergyParams(Params):
         "column it serves the slot from) holds another carrier, and which is not in it itself, waits outside "
         "every slot's square until that one is free [false]",
     )
-    wake_aside: bool = Field(
-        True,
-        description="where the run models downwash and no avoidance layer flies: an agent with another above it "
-        "in its rotor wake's column steps sideways out of it [false]",
-    )
     mark_seen_slots: bool = Field(
         True,
         description="an empty agent that sees an open slot marks its own cell as a goal (-1), as a placement "
@@ -521,7 +501,6 @@ class StigmergyParams(Params):
             "mark_seen_slots": False,
             "queue_at_slots": False,
             "search_near": False,
-            "wake_aside": False,
         }
     }
 
@@ -1045,10 +1024,6 @@ class Stigmergy:
         self.clearances = release_clearances(info, self.clearance, over_neighbours=self.params.release_over_neighbours)
         dwell = self.params.release_dwell_s
         self.dwell = (0.5 if sigma > 0.0 else 0.0) if dwell is None else float(dwell)  # s
-        # wake_aside only where the wake is modelled and no avoidance layer keeps agents out of it
-        self.wake_aside = (
-            self.params.wake_aside and bool(info.extra.get("downwash", False)) and not info.extra.get("avoidance")
-        )
         self.phase = Phase.CHOOSE_BOX
         self.strategy = Strategy.RANDOM  # the thesis starts every agent in mode 0 ("random")
         self.target = np.zeros(2)  # m, current search point
@@ -1091,41 +1066,11 @@ class Stigmergy:
         self._sync(obs, medium)
         if self.params.mark_seen_slots and medium is not None and len(obs.slot_ids):
             self._mark_seen_slot(obs, medium)
-        if self.wake_aside:
-            aside = self._out_of_wake(obs)
-            if aside is not None:
-                return aside
         for _ in range(MAX_STEPS):  # a step returns None when it changed the phase and the next one should act now
             cmd = self._steps[self.phase](obs, medium)
             if cmd is not None:
                 return cmd
         return Command.goto(obs.position)
-
-    def _out_of_wake(self, obs: Observation) -> Command | None:
-        """``wake_aside``: with a neighbour above the agent, between ``WAKE_ASIDE_MIN_DZ`` and ``WAKE_ASIDE_DEPTH``
-        higher and nearer than ``WAKE_ASIDE_CLEAR`` horizontally (in its rotor wake's column), a point at the
-        agent's height ``WAKE_ASIDE_CLEAR`` from that neighbour's column, straight away from it (the phase stands:
-        a descent pushed off its column breaks off by ``drift_breakoff``); else None. Without an avoidance layer
-        nothing else keeps an agent out of another's wake, and it pushed agents down onto boxes and the structure
-        (3 of 65 runs of the construction suite crashed so, with no contact)."""
-        if len(obs.neighbour_ids) == 0:
-            return None
-        p = obs.position
-        d = obs.neighbour_positions - p
-        dz = d[:, 2]
-        off = np.hypot(d[:, 0], d[:, 1])
-        over = (dz > WAKE_ASIDE_MIN_DZ) & (dz < WAKE_ASIDE_DEPTH) & (off < WAKE_ASIDE_CLEAR)
-        if not np.any(over):
-            return None
-        j = int(np.flatnonzero(over)[np.argmin(off[over])])
-        if off[j] > 1e-6:
-            away = -d[j, :2] / off[j]
-        else:  # right above: towards the arena's centre
-            c = 0.5 * np.asarray(self.info.arena_size, dtype=float)[:2] - p[:2]
-            n = float(np.linalg.norm(c))
-            away = c / n if n > 1e-9 else np.array([1.0, 0.0])
-        xy = obs.neighbour_positions[j, :2] + away * (WAKE_ASIDE_CLEAR + WAKE_ASIDE_MARGIN)
-        return Command.goto([xy[0], xy[1], p[2]])
 
     # ------------------------------------------------------------- outcome of the last action
     def _sync(self, obs: Observation, medium: PheromoneGrid | None) -> None:

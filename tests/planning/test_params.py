@@ -45,7 +45,6 @@ THESIS_STIGMERGY = {
     "mark_seen_slots": False,
     "search_near": False,
     "queue_at_slots": False,
-    "wake_aside": False,
 }
 THESIS_LAYERED = {
     **THESIS_STIGMERGY,
@@ -127,7 +126,6 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "clear_spent_goals",
         "search_near",
         "queue_at_slots",
-        "wake_aside",
         "mark_seen_slots",
     ]
     assert list(extensions(LayeredStigmergyParams)) == [

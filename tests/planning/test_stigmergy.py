@@ -355,29 +355,6 @@ def test_a_descent_pushed_off_its_column_climbs_straight_back_and_comes_over_the
     assert a.phase == Phase.DESCEND_SLOT  # over it: the descent starts again
 
 
-@pytest.mark.parametrize(
-    ("aside", "downwash", "avoidance"),
-    [(True, True, False), (False, True, False), (True, True, True), (True, False, False)],
-)
-def test_wake_aside_steps_out_of_a_wake_above_only_without_an_avoidance_layer(aside, downwash, avoidance):
-    """A neighbour 0.25 m above and 3 cm aside: with downwash modelled and no avoidance layer the agent steps
-    straight away from its column, to WAKE_ASIDE_CLEAR and the margin from it, at its own height; else it goes
-    on with its phase (here: up to the floor altitude over its start)."""
-    from pybullet_swarm.planning.stigmergy import WAKE_ASIDE_CLEAR, WAKE_ASIDE_MARGIN
-
-    info = _info()
-    info.extra.update({"downwash": downwash, "avoidance": avoidance})
-    a = Stigmergy(Stigmergy.Params(wake_aside=aside))
-    a.reset(0, np.random.default_rng(0), info)
-    p = np.array([1.0, 0.5, 0.3])
-    q = p + [0.03, 0.0, 0.25]
-    cmd = a.plan(_obs(p, nb_ids=[1], nb_pos=[q]), _medium())
-    if aside and downwash and not avoidance:
-        assert cmd.vector == pytest.approx([q[0] - WAKE_ASIDE_CLEAR - WAKE_ASIDE_MARGIN, p[1], p[2]])
-    else:
-        assert cmd.vector[0] != pytest.approx(q[0] - WAKE_ASIDE_CLEAR - WAKE_ASIDE_MARGIN)
-
-
 def test_a_slot_filled_meanwhile_is_given_up():
     a = _agent()
     a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.TO_SLOT, Sighting(1, SLOTS[1].copy())
