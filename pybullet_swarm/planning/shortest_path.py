@@ -886,6 +886,13 @@ class ShortestPath:
             self.box[i] = -1
         return Command.goto([p[0], p[1], self._alt(i)])
 
+    def _box_still(self, i: int, view: WorldView) -> bool:
+        """True when the box carrier ``i`` holds moved less than 2 mm since the last tick (remembered here)."""
+        box = view.box_positions[self.box[i]]
+        still = bool(np.all(np.isfinite(self.last_box[i])) and np.linalg.norm(box - self.last_box[i]) < 0.002)
+        self.last_box[i] = box
+        return still
+
     def _recentre(self, i: int, view: WorldView, target: np.ndarray, err: np.ndarray) -> np.ndarray:
         """``recentre_box``: the target (3,) m of carrier ``i`` over its slot, its box ``err`` (3,) m off the drop
         point: once the agent has arrived and the box is still, a box more than ``release_tol`` off horizontally
@@ -894,10 +901,7 @@ class ShortestPath:
         agent is measured once, after the lift, in flight; 7 mm off it (the airframe tilted as it was measured,
         the box hanging straight under it over the slot), a carrier held its box out of the release tolerance
         for 150 s (suite solid_stepped_wall, seed 3)."""
-        b = self.box[i]
-        box = view.box_positions[b]
-        still = bool(np.all(np.isfinite(self.last_box[i]))) and np.linalg.norm(box - self.last_box[i]) < 0.002
-        self.last_box[i] = box
+        still = self._box_still(i, view)
         off = view.positions[i, :2] - (target[:2] + self.correction[i, :2])
         arrived = np.hypot(off[0], off[1]) < RECENTRE_ARRIVED and np.linalg.norm(view.velocities[i]) < CREEP_SPEED
         if arrived and still and self.release_tol < np.hypot(err[0], err[1]) <= SERVO_LIMIT:
@@ -909,11 +913,8 @@ class ShortestPath:
         """On estimated state: the target (3,) m of carrier ``i`` corrected by what is seen of its box
         (error ``err`` (3,) m from the drop point), and whether to let go (``ok``, held for the dwell
         while the box is still)."""
-        b = self.box[i]
         p = view.positions[i]
-        box = view.box_positions[b]
-        still = bool(np.all(np.isfinite(self.last_box[i]))) and np.linalg.norm(box - self.last_box[i]) < 0.002
-        self.last_box[i] = box
+        still = self._box_still(i, view)
         if np.linalg.norm(p - (target + self.correction[i])) < 0.02 and still:  # arrived: servo the box
             self.correction[i] = np.clip(self.correction[i] - SERVO_GAIN * err, -SERVO_LIMIT, SERVO_LIMIT)
         if not (ok and still):
