@@ -510,13 +510,16 @@ class ShortestPath:
         return bool(np.all(d < self.info.box_size))
 
     def _overflown(self, i: int, s: int) -> bool:
-        """True when another agent cruising higher than agent ``i`` (with ``wake_lanes``: any other agent) still
-        has to come down to a slot whose column lies within two agent radii of slot ``s``'s (its way down passes
-        agent ``i`` waiting over ``s``)."""
+        """True when another agent cruising higher than agent ``i`` (with ``wake_lanes`` or ``wake_clear``: any
+        other agent) still has to come down to a slot whose column lies within two agent radii of slot ``s``'s
+        (its way down passes agent ``i`` waiting over ``s``; with ``wake_clear`` a lower agent may not fly in under
+        it either: on the tower of 5 without avoidance, the carrier of its third box waited for 150 s, held by
+        the one waiting over the column for the fifth slot)."""
         busy = (self.phase >= Phase.TO_BOX) & (self.phase <= Phase.DESCEND_SLOT) & (self.slot >= 0)
         busy[i] = False
-        # with wake_lanes every loaded agent comes down from the one lane: all of them count
-        higher = np.ones(self.n, dtype=bool) if self.wake_lanes else self.hs > self.hs[i]
+        # with wake_lanes every loaded agent comes down from the one lane, with wake_clear a lower one may not
+        # come in under agent i: all of them count
+        higher = np.ones(self.n, dtype=bool) if (self.wake_lanes or self.wake_clear) else self.hs > self.hs[i]
         others = np.flatnonzero(busy & higher)
         if others.size == 0:
             return False

@@ -465,3 +465,17 @@ def test_held_pass_breaks_two_agents_holding_each_other_over_their_targets(held_
         assert any(any(m) for m in moved)
     else:
         assert not any(any(m) for m in moved)  # both hold where they are
+
+
+@pytest.mark.parametrize("clear", [True, False])
+def test_wake_clear_sends_a_waiting_agent_beside_a_column_a_lower_one_must_come_under(clear):
+    """Without avoidance (no lanes) agent 0 cruises higher, its slot (the tower's second) not yet open; agent 1,
+    lower, carries the box of the first. With ``wake_clear`` agent 1 may not fly in under agent 0, so agent 0
+    waits beside the column (on the tower of 5 the carrier of the third box waited 150 s under the one over
+    the column); without it, the lower agent's way does not pass agent 0 and agent 0 waits over the column."""
+    tower = np.array([[2.7, 0.4, 0.05], [2.7, 0.4, 0.15]])
+    sp = _planner(2, slots=tower, downwash=True, avoidance=False, wake_clear=clear, wake_lanes=False)
+    sp.hs[:] = [0.65, 0.45]
+    sp.phase[:] = [Phase.TO_SLOT, Phase.TO_SLOT]
+    sp.box[:], sp.slot[:] = [0, 1], [1, 0]
+    assert sp._overflown(0, 1) is clear
