@@ -90,12 +90,6 @@ The paper's core and our extension rules are kept apart:
     box or the structure, it may only slow down), an agent free to move its way takes the whole way
     out: the neighbour cannot take its half. A carrier lifting off beside an empty agent held over a depot box took
     half and touched it.
-  - ``leximin_fallback``: when the planes have no common velocity, the paper's fallback minimises the
-    largest violation w and then relaxes every plane by w, those that need not be violated too. Here
-    only the planes that no velocity within w of every plane can violate less are relaxed by w; the
-    least largest violation of the rest is sought again, level by level (the lexicographic min-max).
-    An agent squeezed between one ahead and one behind flew at 0.11 m/s into a third beside it, whose
-    plane it could have kept (the suite's double_wall seed 4, stigmergy + orca).
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

@@ -303,8 +303,8 @@ def orca_batch(
     m_max = nbr.shape[1] + HARD_PLANES + (oc.shape[0] if static else 0)
     N = np.empty((m_max, 3))
     P = np.empty((m_max, 3))
-    S = np.empty((6, m_max, 3))
-    lex = rs.leximin_fallback
+    SN = np.empty((m_max, 3))
+    SP = np.empty((m_max, 3))
     max_speed, right_bias, stuck = cs.max_speed, rs.right_bias, rs.stuck_fraction
     side_on = rs.sidestep and right_bias > 0.0
     stall_on = side_on or rs.make_way
@@ -325,7 +325,7 @@ def orca_batch(
             flags[i] = FLAG_FREE | up
             continue
         pr = row(pref, i)
-        feasible, res = rules.fallback_solve(lex, N, P, m, n_hard, max_speed, pr, S)
+        feasible, res = core.solve(N, P, m, n_hard, max_speed, pr, SN, SP)
         f = 0 if feasible else FLAG_INFEASIBLE
         sp = math.sqrt(dot(pr, pr))
         if stall_on and sp > rules.MIN_PREFERRED_SPEED and dot(res, pr) < stuck * sp * sp:
@@ -353,7 +353,7 @@ def orca_batch(
             held = False
             side = (0.0, 0.0, 0.0)
             if make_way:
-                feasible, res = rules.fallback_solve(lex, N, P, m, n_hard, max_speed, (0.0, 0.0, sp), S)
+                feasible, res = core.solve(N, P, m, n_hard, max_speed, (0.0, 0.0, sp), SN, SP)
                 f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
             elif j >= 0 and side_on:
                 held = True
@@ -390,14 +390,14 @@ def orca_batch(
                     rs.climb_past,
                 )
             if held:
-                feasible, res = rules.fallback_solve(lex, N, P, m, n_hard, max_speed, add(pr, side, right_bias * sp), S)
+                feasible, res = core.solve(N, P, m, n_hard, max_speed, add(pr, side, right_bias * sp), SN, SP)
                 pushed = rs.pushed_back and dot(res, pr) < 0.0 and dot(res, side) < stuck * sp
                 if pushed or dot(res, res) < stuck * stuck * sp * sp:
                     # still held: the bias cancelled what the neighbours' planes left free (a box VO
                     # leaves the axis across the blocking face free; the bias can exactly cancel the
                     # preferred velocity along it), or (PUSHED_BACK) the agent moves backwards and
                     # hardly sideways: ask for the sideways step alone
-                    feasible, res = rules.fallback_solve(lex, N, P, m, n_hard, max_speed, scale(side, sp), S)
+                    feasible, res = core.solve(N, P, m, n_hard, max_speed, scale(side, sp), SN, SP)
                 f = FLAG_BIASED | (f & FLAG_WAITING) | (0 if feasible else FLAG_INFEASIBLE)
         set_row(out, i, res)
         flags[i] = f | up

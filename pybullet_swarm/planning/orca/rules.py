@@ -21,9 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pybullet_swarm.planning.orca.cache import njit
-from pybullet_swarm.planning.orca import core
 from pybullet_swarm.planning.orca.core import right_of
-from pybullet_swarm.planning.orca.vec import Vec, add, dot, row, scale, set_row
+from pybullet_swarm.planning.orca.vec import Vec, add, dot, row, scale
 
 
 class Rule(str, enum.Enum):
@@ -53,7 +52,6 @@ class Rule(str, enum.Enum):
     PUSHED_BACK = "pushed_back"
     PASSTHROUGH_TURNS = "passthrough_turns"
     PINNED_SHARE = "pinned_share"
-    LEXIMIN_FALLBACK = "leximin_fallback"
 
     @property
     def doc(self) -> str:
@@ -110,8 +108,6 @@ RULE_DOCS: dict[Rule, str] = {
     "neighbour can reach by turning",
     Rule.PINNED_SHARE: "against a neighbour that its bounds pin on the axis the pair's way out mostly runs along, "
     "an agent takes the whole way out",
-    Rule.LEXIMIN_FALLBACK: "with no common velocity, only planes that must be violated by the largest violation are; "
-    "the rest as little as they must",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -140,7 +136,6 @@ BESIDE_MIN2 = 1e-4  # m^2, a neighbour horizontally closer than 1 cm is right ab
 MIN_PREFERRED_SPEED = 1e-3  # m/s, an agent that prefers to move slower than this is at rest: never stalled
 PIN_TOL = 1e-9  # m/s, velocity bounds narrower than this on an axis pin the agent on it (PINNED_SHARE)
 GOAL_OVERLAP = 0.005  # m, a part of an agent at its target reaching deeper into an obstacle is inside it
-LEXIMIN_TOL = 1e-7  # m/s, a plane whose violation cannot go this far below the level's largest is bound to it
 
 
 # ----------------------------------------------------------------------------- margins and the way out
@@ -276,105 +271,6 @@ def climb_share(on: bool, nrm: Vec, u: Vec, vz_self: float, vz_other: float, res
         if abs(vz_other if nrm[2] > 0.0 else vz_self) <= LEVEL_SPEED:
             return (2.0 * resp if nrm[2] > 0.0 else 0.0), nrm[2] > 0.0
     return resp, False
-
-
-# ----------------------------------------------------------------------------- the fallback LP
-@njit
-def _swap(N: NDArray[np.float64], P: NDArray[np.float64], a: int, b: int) -> None:
-    na, pa = row(N, a), row(P, a)
-    set_row(N, a, row(N, b))
-    set_row(P, a, row(P, b))
-    set_row(N, b, na)
-    set_row(P, b, pa)
-
-
-@njit
-def leximin_solve(
-    N: NDArray[np.float64],
-    P: NDArray[np.float64],
-    m: int,
-    n_hard: int,
-    radius: float,
-    pref: Vec,
-    SN: NDArray[np.float64],
-    SP: NDArray[np.float64],
-    QN: NDArray[np.float64],
-    QP: NDArray[np.float64],
-    RN: NDArray[np.float64],
-    RP: NDArray[np.float64],
-) -> tuple[bool, Vec]:
-    """LEXIMIN_FALLBACK: ``core.solve`` with the fallback refined level by level; returns (feasible, velocity).
-
-    The paper's fallback minimises the largest violation w of the soft planes [n_hard, m) and then
-    relaxes every one of them by w. The planes that conflict are then violated by w, and so is a
-    plane that no velocity needs to violate, against a neighbour elsewhere: an agent squeezed
-    between one ahead and one behind flew into a third beside it at w (the suite's double_wall
-    seed 4: 0.11 m/s). Here, once w is known, a soft plane is bound to it only when no velocity
-    that violates no plane by more than w violates it less (the farthest velocity along its normal,
-    ``core.lp3`` with ``dir_opt``); the bound planes are relaxed by w and kept, and the least
-    largest violation of the others is sought again (``core.lp4``), until the others have a common
-    velocity or every plane is bound. This is the lexicographic min-max; its velocity closest to
-    ``pref`` is returned. ``SN`` ... ``RP`` are (m, 3) scratch arrays.
-    """
-    fail, res = core.lp3(N, P, m, radius, pref, False)
-    if fail >= m:
-        return True, res
-    for k in range(m):
-        set_row(QN, k, row(N, k))
-        set_row(QP, k, row(P, k))
-    h = n_hard  # [0, h): hard planes, then the bound planes (relaxed by their level's violation)
-    while h < m:
-        res = core.lp4(QN, QP, m, fail, h, radius, res, SN, SP)
-        worst = 0.0
-        for k in range(h, m):
-            worst = max(worst, dot(row(QN, k), add(row(QP, k), res, -1.0)))
-        shift = worst + core.FALLBACK_SLACK
-        for k in range(m):
-            nk = row(QN, k)
-            set_row(RN, k, nk)
-            set_row(RP, k, add(row(QP, k), nk, -shift) if k >= h else row(QP, k))
-        top = h
-        for k in range(h, m):
-            nk = row(QN, k)
-            ok, far = core.lp3(RN, RP, m, radius, nk, True)
-            if ok >= m and dot(nk, add(row(QP, k), far, -1.0)) < worst - LEXIMIN_TOL:
-                continue  # can be violated less: not bound at this level
-            _swap(QN, QP, k, top)
-            set_row(QP, top, add(row(QP, top), row(QN, top), -shift))
-            top += 1
-        if top == h:  # (rounding: nothing bound) bind the most violated plane, so that each level binds one
-            kw = h
-            for k in range(h + 1, m):
-                if dot(row(QN, k), add(row(QP, k), res, -1.0)) > dot(row(QN, kw), add(row(QP, kw), res, -1.0)):
-                    kw = k
-            _swap(QN, QP, kw, h)
-            set_row(QP, h, add(row(QP, h), row(QN, h), -shift))
-            top = h + 1
-        h = top
-        fail, new = core.lp3(QN, QP, m, radius, pref, False)
-        if fail >= m:
-            return False, new
-        if fail < h:  # (rounding: the bound planes lost their common velocity) keep the least-violating one
-            return False, res
-        res = new
-    return False, res
-
-
-@njit
-def fallback_solve(
-    leximin: bool,
-    N: NDArray[np.float64],
-    P: NDArray[np.float64],
-    m: int,
-    n_hard: int,
-    radius: float,
-    pref: Vec,
-    S: NDArray[np.float64],
-) -> tuple[bool, Vec]:
-    """One agent's LP (``core.solve``, or with ``leximin`` ``leximin_solve``); ``S`` is (6, m, 3) scratch."""
-    if leximin:
-        return leximin_solve(N, P, m, n_hard, radius, pref, S[0], S[1], S[2], S[3], S[4], S[5])
-    return core.solve(N, P, m, n_hard, radius, pref, S[0], S[1])
 
 
 # ----------------------------------------------------------------------------- hard bounds
