@@ -96,6 +96,10 @@ class ConstructionTask(pydantic.BaseModel):
     # set down between placed boxes of its own width is otherwise held against them before the guide takes it)
     guide_height: float = Field(1.2, ge=0.0, le=5.0)
     guide_force: float = Field(0.5, gt=0.0, le=1000.0)  # N, the guide's pull on a captured box
+    # the chamfers also take a box still held on its way down: a carried box within the guide's reach of an
+    # open slot slides past the boxes bonded beside (and above) it, as a released one does (false: it meets
+    # their edges until released, and a box lowered a few mm off a solid wall's slot is pressed onto them)
+    guide_carried: bool = True
     bond_force: float = Field(50.0, gt=0.0, le=1e5)  # N, the interlock's hold on a placed box
 
     @pydantic.model_validator(mode="before")
@@ -384,6 +388,10 @@ class ConstructionRuntime(TaskBase):
         self._constraints: dict[int, int] = {}
         self._guides: dict[int, int] = {}  # box -> pin constraint (guided placement)
         self.guided_slot = np.full(self.B, -1, dtype=np.int64)  # slot a box is guided into or bonded in
+        # guide_carried: carried box -> boxes it slides past (contacts off); and pairs to give contacts again
+        # once they no longer overlap
+        self._passing: dict[int, set[int]] = {}
+        self._restore: set[tuple[int, int]] = set()
         self.still_since: float | None = None
         self.completed_at: float | None = None
         self.events: list[Event] = []
@@ -543,6 +551,10 @@ class ConstructionRuntime(TaskBase):
         self.events.append(Event(t, "release", f"agent{agent}", f"box{i}"))
         if self.spec.placement == "guided":
             self._capture(i, t)
+        passed = self._passing.pop(i, set())
+        if self.guided_slot[i] >= 0:  # captured: the guide keeps it off its slot's neighbours
+            passed -= set(self._bonded_neighbours(int(self.guided_slot[i])))
+        self._restore.update((i, b) for b in passed)  # it meets the others again
         return i
 
     # ------------------------------------------------------- guided placement
@@ -555,27 +567,69 @@ class ConstructionRuntime(TaskBase):
         structure. The guide is a pin of ``guide_force`` N on the slot pose; the box does not
         touch the placed boxes beside and under it on the way (the chamfers let it slide past
         them), so a release beside a placed box never pushes it. Once placed, the pin becomes the
-        interlock (``bond_force``). Left out: the guide's own geometry (a box released outside the
-        reach falls freely and may land on the guide's rim), friction in the guide, wear.
+        interlock (``bond_force``). With ``guide_carried`` the chamfers take a box still held on its
+        way down too (``_pass_carried``). Left out: the guide's own geometry (a box released outside
+        the reach falls freely and may land on the guide's rim), the chamfers' sideways push on a held
+        box (it passes the neighbours' edges instead of being pushed off them), friction in the guide, wear.
         """
         p, _ = self.world.body_pose(self.bodies[box])
-        open_ = np.flatnonzero(self.slot_open & (self._guided_into() < 0))
-        if open_.size == 0:
+        slots = self._guide_slots(np.asarray(p, dtype=float))
+        if slots.size == 0:
             return
-        rel = self.slots[open_] - p
-        reach = self.spec.guide_capture * self.size
-        ok = (np.hypot(rel[:, 0], rel[:, 1]) <= reach) & (-rel[:, 2] <= self.spec.guide_height * self.size + 1e-9)
-        ok &= rel[:, 2] <= reach  # not captured from below
-        if not np.any(ok):
-            return
-        cand = open_[ok]
-        s = int(cand[np.argmin(np.linalg.norm(rel[ok], axis=1))])
+        s = int(slots[0])
         body = self.bodies[box]
         for other in self._bonded_neighbours(s):
             self.world.set_pair_collision(body, self.bodies[other], False)
         self._guides[box] = self.world.pin(body, self.slots[s], None, self.spec.guide_force)
         self.guided_slot[box] = s
         self.events.append(Event(t, "guided", f"box{box}", f"slot{s}"))
+
+    def _guide_slots(self, p: NDArray[np.float64]) -> NDArray[np.int64]:
+        """Open slots (no box on its way into them) whose guide reaches a box centred at ``p`` (3,) m,
+        nearest first: within ``guide_capture`` x box_size horizontally, at most ``guide_height`` x box_size
+        above the slot and not below it by more than the reach."""
+        open_ = np.flatnonzero(self.slot_open & (self._guided_into() < 0))
+        if open_.size == 0:
+            return open_
+        rel = self.slots[open_] - p
+        reach = self.spec.guide_capture * self.size
+        ok = (np.hypot(rel[:, 0], rel[:, 1]) <= reach) & (-rel[:, 2] <= self.spec.guide_height * self.size + 1e-9)
+        ok &= rel[:, 2] <= reach  # not captured from below
+        return open_[ok][np.argsort(np.linalg.norm(rel[ok], axis=1), kind="stable")]
+
+    def _pass_carried(self) -> None:
+        """``guide_carried``: a carried box within a guide's reach slides past the boxes bonded beside and
+        above its slot (their contacts off, as for a released box the guide has taken; the boxes under the
+        slot still bear it). Leaving the reach, it meets them again once they no longer overlap."""
+        world = self.world
+        for pair in sorted(self._restore):
+            a, b = pair
+            if self.guided_slot[a] >= 0 or not world.overlapping(self.bodies[a], self.bodies[b]):
+                if self.guided_slot[a] < 0:  # a box the guide has since taken keeps them off
+                    world.set_pair_collision(self.bodies[a], self.bodies[b], True)
+                self._restore.discard(pair)
+        held = np.flatnonzero(self.state == CARRIED).tolist() if self.spec.guide_carried else []
+        for i in set(self._passing) - set(held):  # dropped outside ``release`` (a slipped grip)
+            self._restore.update((i, b) for b in self._passing.pop(i))
+        for i in held:
+            slots = self._guide_slots(self.positions[i])
+            want: set[int] = set()
+            if slots.size:
+                s = int(slots[0])
+                want = {
+                    b
+                    for b in self._bonded_neighbours(s)
+                    if self.slots[self.guided_slot[b], 2] >= self.slots[s, 2] - 1e-6
+                }
+            had = self._passing.get(i, set())
+            for b in want - had:
+                world.set_pair_collision(self.bodies[i], self.bodies[b], False)
+                self._restore.discard((i, b))
+            self._restore.update((i, b) for b in had - want)
+            if want:
+                self._passing[i] = want
+            else:
+                self._passing.pop(i, None)
 
     def _free(self) -> NDArray[np.bool_]:
         """(B,) boxes an agent may take: free, and not on their way into a slot."""
@@ -617,6 +671,8 @@ class ConstructionRuntime(TaskBase):
         (the agents' ``positions`` are not needed)."""
         self.read()
         self._update_slots(t)
+        if self.spec.placement == "guided" and (self._passing or self._restore or self.spec.guide_carried):
+            self._pass_carried()
         if self.completed_at is not None:
             return True
         if self.boxes_placed == self.S and np.all(self.speeds(self.slot_box) < self.spec.settle_speed):

@@ -264,6 +264,52 @@ def test_a_box_released_beside_a_placed_one_never_pushes_it(make_sim, placement)
         assert "guided" not in [e.kind for e in c.events]
 
 
+@pytest.mark.parametrize("guide_carried", [True, False])
+def test_a_carried_box_lowered_off_its_slot_slides_past_its_neighbour(make_sim, guide_carried):
+    """guide_carried: a box held 8 mm off a solid wall's slot comes down beside the placed box without
+    touching it (the chamfers take it while still held); without, it meets the placed box's edge."""
+    size = 0.1
+    sc = load_scenario(
+        "construction_single",
+        {
+            "agents.start_jitter": 0.0,
+            "task.boxes": [[0.4, 0.3, 0.05], [0.4, 0.7, 0.05]],
+            "task.structure": [[2.0, 0.5, 0.05], [2.0, 0.5 + size, 0.05]],
+            "task.guide_carried": guide_carried,
+        },
+    )
+    sim = make_sim(sc)
+    c = sim.task
+    gh = c.grasp_height
+    _carry(sim, 0, c.slots[0] + [0.0, 0.0, gh + 0.004])
+    _drop(sim)
+    first = c.positions[0].copy()
+    box_at = c.slots[1] + [0.0, -0.008, 0.004]  # the held box's centre at the release point
+    _carry(sim, 1, box_at + [0.0, 0.0, gh + size])
+    import pybullet as pb
+
+    touched = 0
+    sim.set_targets((box_at + [0.0, 0.0, gh]).reshape(1, 3))
+    for _ in range(40):  # 4 s, the contact looked at every 0.1 s
+        sim.step(int(0.1 * sim.physics_hz))
+        touched += bool(pb.getContactPoints(c.bodies[0], c.bodies[1], physicsClientId=sim.world._cid))
+    c.read()
+    assert c.state[1] == CARRIED
+    if guide_carried:
+        assert touched == 0
+        assert np.linalg.norm(c.positions[1] - box_at) < 3e-3  # down at the release point, beside the first
+        assert np.linalg.norm(c.positions[0] - first) < 1e-4
+        # out of the guide's reach it meets the first box again: set down on top of it, it rests there
+        _hover_to(sim, box_at + [0.0, 0.0, gh + 2.0 * size], 3.0)
+        _hover_to(sim, c.slots[0] + [0.0, 0.0, gh + 2.0 * size], 3.0)
+        _hover_to(sim, c.slots[0] + [0.0, 0.0, gh + size - 0.01], 3.0)  # 1 cm into the first box
+        c.read()
+        assert pb.getContactPoints(c.bodies[0], c.bodies[1], physicsClientId=sim.world._cid)
+        assert c.positions[1, 2] > c.slots[0, 2] + size - 0.003
+    else:
+        assert touched > 0
+
+
 def test_a_bonded_box_springs_back_into_its_slot_after_a_shove(make_sim):
     sc = load_scenario(
         "construction_single",
