@@ -56,19 +56,24 @@ def test_release_clearances(slots, guide, over, expected):
     assert 0.1 + OVER_NEIGHBOURS_CLEARANCE == pytest.approx(0.11)
 
 
-@pytest.mark.parametrize("over", [True, False])
-def test_a_slab_of_boxes_side_by_side_is_built_only_when_boxes_are_let_go_over_their_neighbours(over, tmp_path: Path):
+@pytest.mark.parametrize("over, guide_carried", [(True, True), (False, True), (True, False), (False, False)])
+def test_a_slab_of_boxes_side_by_side_is_built_when_boxes_pass_their_neighbours(over, guide_carried, tmp_path: Path):
     """The suite's 3 x 3 slab (pitch = box size) with shortest_path and orca, without downwash: let go above
-    the neighbours' tops every box is placed with no contact; lowered into the gaps a box catches on a
-    neighbour's edge and its carrier tips over (or the run is held up)."""
+    the neighbours' tops, or lowered past them by the chamfers (``task.guide_carried``), every box is placed
+    with no contact; with neither, a box lowered into a gap catches on a neighbour's edge and its carrier
+    tips over (or the run is held up)."""
     data = compose_layout({"shape": "slab", "origin": [2.4, 0.4], "size": [3, 3]}, agents=5, arena=[3.0, 1.5])
     path = tmp_path / "slab.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
-    overrides = {"sim.downwash": False, "planner.params.release_over_neighbours": over}
+    overrides = {
+        "sim.downwash": False,
+        "planner.params.release_over_neighbours": over,
+        "task.guide_carried": guide_carried,
+    }
     sc = load_scenario(path, overrides, planner="shortest_path")
     m = pybullet_swarm.run(sc, planner="shortest_path", avoidance="orca", seed=0).metrics
     c = m["collisions"]
-    if over:
+    if over or guide_carried:
         assert m["exit_status"] == "completed" and m["boxes_placed"] == 9, m
         assert c["agent_agent"] == c["agent_structure"] == c["load_structure"] == 0, c
     else:
