@@ -32,8 +32,10 @@ them; ``LoopReport.achieved_poles`` lists every pole of the closed loop, as ``s 
 **What is checked** for each candidate w_n: the gains are positive; the closed loop is stable;
 the placed poles dominate (every other pole at least ``dominance`` times farther left than the
 placed pair); gain and phase margins of the loop broken at the acceleration command, on the
-unit circle up to the Nyquist frequency; for the position loops a bandwidth at most the tilt
-loops' divided by ``separation``; and rotor saturation (``SaturationReport``). w_n is the largest
+unit circle up to the Nyquist frequency; a bandwidth at most ``separation`` times below that of
+the inner loop the loop commands: for x and y the tilt loops' (they act through tilt), for z the
+motor's, 1 / tau (it acts through collective thrust, on which the tilt loop has no say); and
+rotor saturation (``SaturationReport``). w_n is the largest
 value (by bisection) that passes.
 
 **Where the vehicle enters.** Only the motor time constant changes the loop dynamics in
@@ -112,6 +114,7 @@ class Loop(str, enum.Enum):
 _ATTITUDE_LOOPS = (Loop.ROLL, Loop.PITCH, Loop.YAW)
 _POSITION_LOOPS = (Loop.X, Loop.Y, Loop.Z)
 _TILT_LOOPS = (Loop.ROLL, Loop.PITCH)
+_TILT_DRIVEN = (Loop.X, Loop.Y)  # the position loops that act through tilt
 
 
 @dataclasses.dataclass(frozen=True)
@@ -121,8 +124,8 @@ class DesignSpec:
     Attributes:
         gain_margin_db: target gain margin of every loop, dB (requirement 6 dB).
         phase_margin_deg: target phase margin of every loop, deg (requirement 45 deg).
-        separation: target ratio of the tilt bandwidth to the fastest position bandwidth
-            (requirement 4).
+        separation: target ratio of an inner loop's bandwidth to that of the loop commanding it:
+            tilt to x and y, motor (1 / tau) to z (requirement 4).
         damping: damping ratio of the placed complex pole pair.
         integral_pole_ratio: the placed real (integral) pole sits at ``-integral_pole_ratio * w_n``;
             about 1/3..1/2 keeps the integral gain large enough to reject a constant disturbance
@@ -958,7 +961,7 @@ class ControllerDesign:
             (multiply by the mass kg for force).
         attitude: reports of the attitude loops, keys 'roll', 'pitch', 'yaw'.
         position: reports of the position loops, keys 'x', 'y', 'z'.
-        separation: min tilt (roll, pitch) bandwidth / max position bandwidth.
+        separation: min tilt (roll, pitch) bandwidth / max horizontal (x, y) bandwidth.
         natural_frequency: w_n of each loop's placed poles, rad/s, keys as ``Loop`` values.
         motor_time_constant: first-order motor lag in the models, s.
         spec: the specification the gains were designed to.
@@ -981,6 +984,11 @@ class ControllerDesign:
     saturation: SaturationReport
     airframe: Airframe
     vehicle_file: str | None = None
+
+    @property
+    def thrust_separation(self) -> float:
+        """Motor bandwidth 1 / tau over the z loop's bandwidth: z acts through collective thrust, not tilt."""
+        return 1.0 / (self.motor_time_constant * self.position[Loop.Z.value].bandwidth_rad_s)
 
     @property
     def substeps(self) -> int:
@@ -1089,6 +1097,7 @@ class ControllerDesign:
             "attitude": {lp.value: loop_dict(lp) for lp in _ATTITUDE_LOOPS},
             "position": {lp.value: loop_dict(lp) for lp in _POSITION_LOOPS},
             "separation": float(self.separation),
+            "thrust_separation": float(self.thrust_separation),
             "saturation": self.saturation.to_json_dict(),
             "requirements_met": not self.meets_requirements(),
         }
@@ -1108,6 +1117,8 @@ class ControllerDesign:
                 problems.append(f"{lp.value}: closed loop unstable")
         if self.separation < REQUIRED_SEPARATION:
             problems.append(f"separation {self.separation:.2f} < {REQUIRED_SEPARATION:g}")
+        if self.thrust_separation < REQUIRED_SEPARATION:
+            problems.append(f"thrust separation {self.thrust_separation:.2f} < {REQUIRED_SEPARATION:g}")
         if not self.saturation.ok:
             problems.append(f"saturation: {_saturation_reason(self.saturation)}")
         return problems
@@ -1221,7 +1232,7 @@ def _design(
                 lambda: vertical_plant(h, n_sub, tau),
                 spec,
                 wn_pos_max,
-                max_bandwidth=max_pos_bw,
+                max_bandwidth=1.0 / (tau * spec.separation),
                 name="z",
                 extra=lambda g: check(_Gains(tilt=tilt.gains, z=g)),
             )
@@ -1267,7 +1278,7 @@ def _design(
     attitude_gains.setflags(write=False)
     position_gains.setflags(write=False)
     separation = min(by_loop[lp].report.bandwidth_rad_s for lp in _TILT_LOOPS) / max(
-        by_loop[lp].report.bandwidth_rad_s for lp in _POSITION_LOOPS
+        by_loop[lp].report.bandwidth_rad_s for lp in _TILT_DRIVEN
     )
     return ControllerDesign(
         vehicle=params.name,
@@ -1322,7 +1333,10 @@ def format_table(design: ControllerDesign) -> str:
     for lp in Loop:
         rep = design.report(lp)
         lines.append(f"{lp.value:<6}placed {_fmt_poles(rep.placed_poles)} | achieved {_fmt_poles(rep.achieved_poles)}")
-    lines.append(f"separation (min tilt BW / max position BW): {design.separation:.2f}")
+    lines.append(
+        f"separation (min tilt BW / max x, y BW): {design.separation:.2f}; "
+        f"thrust separation (motor BW 1/tau / z BW): {design.thrust_separation:.2f}"
+    )
     sat = design.saturation
     st = sat.step
     lines.append(
@@ -1334,6 +1348,6 @@ def format_table(design: ControllerDesign) -> str:
     status = "all met" if not problems else "VIOLATED: " + "; ".join(problems)
     lines.append(
         f"requirements (GM >= {REQUIRED_GAIN_MARGIN_DB:g} dB, PM >= {REQUIRED_PHASE_MARGIN_DEG:g} deg, "
-        f"separation >= {REQUIRED_SEPARATION:g}, no rotor saturation): {status}"
+        f"separations >= {REQUIRED_SEPARATION:g}, no rotor saturation): {status}"
     )
     return "\n".join(lines)

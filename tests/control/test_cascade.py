@@ -195,9 +195,9 @@ def test_payload_of_20_percent_settles_within_1cm(make_sim, vehicle):
     err = np.linalg.norm(sim.state.positions[0] - start[0])
     assert sim.exit_status is ExitStatus.RUNNING
     assert err < 0.01
-    # without integral action the steady error would be 0.2 g / kp_z: the test has teeth
+    # without integral action the steady error would be 0.2 g / kp_z, over twice the 1 cm: the test has teeth
     kp_z = sim.controller.design.position_gains[2, 0]
-    assert 0.2 * sim.scenario.sim.gravity / kp_z > 0.05
+    assert 0.2 * sim.scenario.sim.gravity / kp_z > 0.02
 
 
 def test_shaped_references_respect_limits(make_sim):

@@ -73,11 +73,17 @@ def test_every_loop_meets_margin_requirements(design: ControllerDesign) -> None:
 
 
 def test_separation_of_tilt_and_position_loops(design: ControllerDesign) -> None:
+    """x and y act through tilt: their bandwidth is separated from the tilt loops'; z acts through collective
+    thrust: its bandwidth is separated from the motor's, 1 / tau."""
     tilt = min(design.attitude[k].bandwidth_rad_s for k in ("roll", "pitch"))
-    pos = max(design.position[k].bandwidth_rad_s for k in ("x", "y", "z"))
+    pos = max(design.position[k].bandwidth_rad_s for k in ("x", "y"))
     assert design.separation == pytest.approx(tilt / pos)
     assert design.separation >= REQUIRED_SEPARATION
     assert design.separation >= design.spec.separation * (1 - 1e-6)
+    motor = 1.0 / design.motor_time_constant
+    assert design.thrust_separation == pytest.approx(motor / design.position["z"].bandwidth_rad_s)
+    assert design.thrust_separation >= design.spec.separation * (1 - 1e-6)
+    assert design.to_json_dict()["thrust_separation"] == pytest.approx(design.thrust_separation)
 
 
 def test_placed_poles_are_poles_of_the_full_sampled_model(design: ControllerDesign) -> None:
@@ -253,7 +259,9 @@ def test_bandwidth_is_where_the_closed_loop_falls_3_db(design: ControllerDesign)
 
 def test_position_bandwidth_below_separation_limit(design: ControllerDesign) -> None:
     limit = min(design.attitude[k].bandwidth_rad_s for k in ("roll", "pitch")) / design.spec.separation
-    assert all(r.bandwidth_rad_s <= limit * (1 + 1e-9) for r in design.position.values())
+    assert all(design.position[k].bandwidth_rad_s <= limit * (1 + 1e-9) for k in ("x", "y"))
+    z_limit = 1.0 / (design.motor_time_constant * design.spec.separation)
+    assert design.position["z"].bandwidth_rad_s <= z_limit * (1 + 1e-9)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -274,15 +282,15 @@ def test_a_vertical_acceleration_step_asks_for_the_closed_form_rotor_speed() -> 
 
 def test_the_yaw_loop_takes_the_headroom_the_rotor_speed_limit_leaves() -> None:
     """quad150's weak yaw authority (km / kf = 1.9 cm) limits the yaw loop: with the default 0.5 rad
-    yaw step it is slower than the tilt loops and uses the rotor range up to its ends (thrust-to-
-    weight 2: the hover speed squared is half of max_rotor_speed squared, so both ends bind at
-    once); with a small yaw step, or twice the drag torque per rotor, it is faster."""
+    yaw step it is slower than the tilt loops and, with the z loop before it, uses the rotor range up
+    to its ends (thrust-to-weight 2: the hover speed squared is half of max_rotor_speed squared, so
+    both ends bind at once); with a small yaw step, or twice the drag torque per rotor, it is faster."""
     p = _vehicle("quad150")
     d = design_controller(p)
     assert d.natural_frequency["yaw"] < 0.8 * d.natural_frequency["roll"]
     assert d.saturation.peak_fraction == pytest.approx(1.0, abs=0.01)
     assert d.saturation.min_fraction == pytest.approx(0.0, abs=0.1)
-    assert d.saturation.ok and d.saturation.peak_channel == "yaw"
+    assert d.saturation.ok and d.saturation.peak_channel in ("yaw", "z")
     small = design_controller(p, step=ReferenceStep(yaw=0.05))
     assert small.natural_frequency["yaw"] == pytest.approx(small.natural_frequency["roll"])
     stronger = dataclasses.replace(p, km=2 * p.km)
@@ -411,9 +419,11 @@ def test_bad_spec_is_refused() -> None:
 
 
 def test_violations_are_reported() -> None:
-    d = design_controller(_vehicle("quad150"), spec=DesignSpec(separation=1.0))
-    problems = d.meets_requirements()
-    assert any(msg.startswith("separation") for msg in problems)
+    d = design_controller(_vehicle("quad150"))
+    assert d.meets_requirements() == []
+    problems = dataclasses.replace(d, separation=1.0, motor_time_constant=1.0).meets_requirements()
+    assert any(msg.startswith("separation 1.00") for msg in problems)
+    assert any(msg.startswith("thrust separation") for msg in problems)
 
 
 def test_payload_is_rejected_by_the_sampled_altitude_loop(design: ControllerDesign) -> None:
