@@ -693,3 +693,20 @@ def test_pinned_share_gives_the_whole_way_out_to_the_agent_free_to_take_it(on: b
     assert outs["pinned"][0, 1] >= -1e-9  # the pinned one never moves away along y
     base_free, _ = _level_boxes(OrcaParams(pinned_share=False), pos, vel, pos + 10.0 * vel, vel=vel, bounds=free)
     np.testing.assert_allclose(outs["free"], base_free)  # free to move, both keep their halves
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_ground_beside_holds_a_carrier_whose_box_still_rests_on_the_ground(on: bool):
+    """A carrier at its grasp height (its box, 10 cm under the airframe's centre, on the ground) with no box,
+    structure or obstacle beside it, and one 30 cm up: with ``ground_beside`` the first counts as beside
+    something, so the column rule holds it on its climb; the second never does."""
+    pos = np.array([[1.0, 1.0, 0.121], [2.0, 1.0, 0.3]])
+    box = np.array([0.05, 0.05, 0.05])
+    centres = np.array([[0.0, 0.0, -0.045], [0.0, 0.0, -0.045]])  # union of airframe and hanging box
+    halves = np.array([[0.075, 0.075, 0.075], [0.075, 0.075, 0.075]])
+    far = np.array([[3.0, 3.0, 0.05]])
+    beside = obstacles_beside(pos, centres, halves, far, box[None, :], 0.05, on)
+    assert beside.tolist() == [on, False]
+    assert obstacles_beside(pos, centres, halves, np.zeros((0, 3)), np.zeros((0, 3)), 0.05, on).tolist() == [on, False]
+    params = OrcaParams(ground_beside=on)
+    assert params.ground_beside is on and (Rule.GROUND_BESIDE in params.rules) is on

@@ -90,6 +90,10 @@ The paper's core and our extension rules are kept apart:
     box or the structure, it may only slow down), an agent free to move its way takes the whole way
     out: the neighbour cannot take its half. A carrier lifting off beside an empty agent held over a depot box took
     half and touched it.
+  - ``ground_beside``: the column rule's premise (``column_reach``: a box, the structure or an obstacle
+    beside the agent) counts the ground as well. A carrier held at its grasp height by a neighbour in
+    its wake column, its box still resting on the ground, was stepped sideways: the box dragged, the
+    position integrators wound up and the agent flipped when the box came free.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.

@@ -163,7 +163,7 @@ class OrcaLayer:
         oh = np.ascontiguousarray(obstacles.half_extents, dtype=float)
         beside = None
         if p.column_rule and p.column_reach is not None and p.static_obstacles:
-            beside = obstacles_beside(pos, centre, half, oc, oh, p.column_reach)
+            beside = obstacles_beside(pos, centre, half, oc, oh, p.column_reach, p.ground_beside)
         # bounds around what the command itself asks for (per axis it covers the preferred velocity)
         bounds = velocity_bounds(
             pos,

@@ -193,6 +193,7 @@ class OrcaParams(Params):
     pushed_back: bool = _switch(Rule.PUSHED_BACK)
     passthrough_turns: bool = _switch(Rule.PASSTHROUGH_TURNS)
     pinned_share: bool = _switch(Rule.PINNED_SHARE)
+    ground_beside: bool = _switch(Rule.GROUND_BESIDE)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

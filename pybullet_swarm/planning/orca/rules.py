@@ -52,6 +52,7 @@ class Rule(str, enum.Enum):
     PUSHED_BACK = "pushed_back"
     PASSTHROUGH_TURNS = "passthrough_turns"
     PINNED_SHARE = "pinned_share"
+    GROUND_BESIDE = "ground_beside"
 
     @property
     def doc(self) -> str:
@@ -108,6 +109,8 @@ RULE_DOCS: dict[Rule, str] = {
     "neighbour can reach by turning",
     Rule.PINNED_SHARE: "against a neighbour that its bounds pin on the axis the pair's way out mostly runs along, "
     "an agent takes the whole way out",
+    Rule.GROUND_BESIDE: "the column rule also holds an agent whose airframe or load is within column_reach of the "
+    "ground",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -337,22 +340,28 @@ def obstacles_beside(
     obstacle_centres: NDArray[np.float64],
     obstacle_halves: NDArray[np.float64],
     reach: float,
+    ground: bool = False,
 ) -> NDArray[np.bool_]:
     """(n,) bool: agents with a static obstacle within ``reach`` m of their shape horizontally, not wholly above it.
 
     The column rule's premise: a sideways dodge tilts the airframe (or swings its load) into a box or the
     structure beside or under it. Each agent's shape is its union box (``centres`` offsets (n, 3) m from
-    ``positions``, ``halves`` (n, 3) m); obstacles are axis-aligned boxes (m, 3) / (m, 3) m.
+    ``positions``, ``halves`` (n, 3) m); obstacles are axis-aligned boxes (m, 3) / (m, 3) m. With ``ground``
+    (``GROUND_BESIDE``) an agent whose shape reaches within ``reach`` of the ground (z = 0) counts too: a
+    carrier held at its grasp height by a neighbour in its wake column, its box still on the ground, was
+    stepped sideways; the box dragged and held it, its position integrators wound up, and when the box came
+    free it flipped over (construction, seed 3, stigmergy + orca without downwash).
     """
     n = len(positions)
-    if len(obstacle_centres) == 0 or n == 0:
-        return np.zeros(n, dtype=np.bool_)
     c = positions + centres
+    low = (c[:, 2] - halves[:, 2] < reach) if ground else np.zeros(n, dtype=np.bool_)
+    if len(obstacle_centres) == 0 or n == 0:
+        return np.asarray(low)
     d = np.abs(c[:, None, :2] - obstacle_centres[None, :, :2])
     near = np.all(d < halves[:, None, :2] + obstacle_halves[None, :, :2] + reach, axis=2)
     top = c[:, 2] + halves[:, 2]
     near &= (obstacle_centres[None, :, 2] - obstacle_halves[None, :, 2]) < top[:, None]
-    return np.asarray(near.any(axis=1))
+    return np.asarray(near.any(axis=1) | low)
 
 
 # ----------------------------------------------------------------------------- stalls
