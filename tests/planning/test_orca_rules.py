@@ -28,7 +28,7 @@ from pybullet_swarm.planning.orca import (
 from pybullet_swarm.planning.orca import layer as orca_layer
 from pybullet_swarm.planning.orca.core import box_u
 from pybullet_swarm.planning.orca.rules import (
-    approach_speed,
+    approach_growth,
     clear_paths,
     targets_touching,
     obstacles_beside,
@@ -100,7 +100,8 @@ def test_headway_keeps_a_follower_off_the_tail_of_the_one_ahead():
     # follower touched it a lag later. Here a follower at 0.15 m/s gains on a leader at 0.12 m/s,
     # 10 cm behind it (bare boxes): 0.03 m/s closing grows the pair's boxes by 1.2 cm and the
     # collision is 2.9 s away, past the horizon; with headway the follower's own 0.15 m/s grows
-    # them by 6 cm, 1.3 s away: it must slow down now, not once the leader stops.
+    # them by 11 cm (0.4 s x 0.15 m/s, and 0.4 s x the 0.12 m/s they share: headway_s 0.8 s), more than
+    # the gap their margins leave: it must slow down now, not once the leader stops.
     vm = np.full(3, 0.15)
     pos = np.array([[0.0, 0.0, 0.8], [-0.25, 0.0, 0.8]])  # 0 ahead, 1 following
     vel = np.array([[0.12, 0.0, 0.0], [0.15, 0.0, 0.0]])
@@ -111,12 +112,17 @@ def test_headway_keeps_a_follower_off_the_tail_of_the_one_ahead():
         )
         assert bool(flags[1] & FLAG_FREE) is not on
         assert bool(v[1, 2] > 0.05 or v[1, 0] < 0.14) is on  # the follower passes over or slows down
-    # the growth itself: the faster own speed towards the other, never less than the closing speed
-    assert approach_speed(False, 1.0, 0.15, 0.15) == 0.0
-    assert approach_speed(True, 1.0, 0.15, 0.15) == 0.15  # following: its own speed
-    assert approach_speed(True, -1.0, 0.15, 0.15) == 0.15  # leading: the one behind comes on
-    assert approach_speed(True, 1.0, -0.1, -0.1) == 0.1  # the one ahead flies back towards it
-    assert approach_speed(True, 1.0, 0.1, -0.2) == pytest.approx(0.3)  # head-on: the closing speed
+    # the growth itself: lag_margin_s x the faster of the closing speed and either own speed towards the other,
+    # and (headway_s - lag_margin_s) x the speed a pair flying the same way shares
+    assert approach_growth(True, 0.4, False, 0.8, 1.0, 0.15, 0.15) == 0.0
+    assert approach_growth(True, 0.4, True, 0.8, 1.0, 0.15, 0.15) == pytest.approx(0.12)  # following: 0.8 s x 0.15
+    assert approach_growth(True, 0.4, True, 0.8, -1.0, 0.15, 0.15) == pytest.approx(0.12)  # leading: the same
+    assert approach_growth(True, 0.4, True, 0.8, 1.0, 0.15, 0.0) == pytest.approx(0.06)  # closing on one at rest
+    assert approach_growth(True, 0.4, True, 0.8, 1.0, -0.1, -0.1) == pytest.approx(0.08)  # the one ahead comes back
+    assert approach_growth(True, 0.4, True, 0.8, 1.0, 0.1, -0.2) == pytest.approx(0.12)  # head-on: 0.4 s x 0.3
+    assert approach_growth(True, 0.4, True, 0.4, 1.0, 0.15, 0.15) == pytest.approx(0.06)  # headway_s = lag_margin_s
+    assert approach_growth(True, 0.4, True, 0.2, 1.0, 0.15, 0.15) == pytest.approx(0.06)  # never below that
+    assert approach_growth(False, 0.4, True, 0.8, 1.0, 0.15, 0.15) == 0.0  # lag_margin off: no growth
 
 
 def test_margin_overlap_recovers_along_an_axis_that_keeps_the_pair_apart():

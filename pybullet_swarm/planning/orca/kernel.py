@@ -64,6 +64,7 @@ def rule_settings(params: OrcaParams) -> NDArray[np.void]:
     for r in Rule:
         s[r.value] = params.on(r)
     s["lag_margin_s"] = params.lag_margin_s
+    s["headway_s"] = params.lag_margin_s if params.headway_s is None else params.headway_s
     s["vertical_cost"] = params.vertical_cost
     s["time_horizon"] = params.time_horizon
     s["right_bias"] = params.right_bias
@@ -97,13 +98,13 @@ def pair_u(
     """(n, u) of agent a against agent b; agent b uses (-n, -u)."""
     v = add(row(vel, a), row(vel, b), -1.0)
     m2 = 2.0 * cs.margin
-    on, lag, hw = rs.lag_margin, rs.lag_margin_s, rs.headway
+    on, lag, hw, hws = rs.lag_margin, rs.lag_margin_s, rs.headway, rs.headway_s
     if boxes:
         c = box_offset(a, b, pos, centre)
         g = (
-            rules.lag_growth(on, lag, rules.approach_speed(hw, c[0], vel[a, 0], vel[b, 0])),
-            rules.lag_growth(on, lag, rules.approach_speed(hw, c[1], vel[a, 1], vel[b, 1])),
-            rules.lag_growth(on, lag, rules.approach_speed(hw, c[2], vel[a, 2], vel[b, 2])),
+            rules.approach_growth(on, lag, hw, hws, c[0], vel[a, 0], vel[b, 0]),
+            rules.approach_growth(on, lag, hw, hws, c[1], vel[a, 1], vel[b, 1]),
+            rules.approach_growth(on, lag, hw, hws, c[2], vel[a, 2], vel[b, 2]),
         )
         # the shapes that must not overlap: airframes, loads and the wake column (MARGIN_OVERLAP's bare
         # shapes: a pair in another's wake gets out sideways, not by a vertical half metre), then margins
@@ -118,11 +119,14 @@ def pair_u(
         return core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz, bare if rs.margin_overlap else NO_BARE)
     p = add(row(pos, b), row(pos, a), -1.0)
     speed = math.sqrt(dot(v, v))
-    if hw:
+    grow = rules.lag_growth(on, lag, speed)
+    if hw and on:
         d = math.sqrt(dot(p, p))
         if d > 0.0:
-            speed = max(speed, dot(row(vel, a), p) / d, -dot(row(vel, b), p) / d)
-    R = radius[a] + radius[b] + m2 + rules.lag_growth(on, lag, speed)
+            va, vb = dot(row(vel, a), p) / d, dot(row(vel, b), p) / d  # radial speeds, towards b
+            grow = rules.approach_growth(on, lag, hw, hws, 1.0, va, vb)
+            grow = max(grow, rules.lag_growth(on, lag, speed))
+    R = radius[a] + radius[b] + m2 + grow
     return core.sphere_u(p, v, R, cs.inv_tau, cs.inv_rec)
 
 

@@ -91,8 +91,8 @@ RULE_DOCS: dict[Rule, str] = {
     "another's rotor wake (downwash)",
     Rule.WAKE_SHARE_BY_APPROACH: "a wake conflict is resolved by the agent moving into it, in proportion to "
     "the pair's approach speeds (off: the upper one)",
-    Rule.HEADWAY: "lag_margin also counts either agent's own speed towards the other: the one ahead may stop "
-    "without warning",
+    Rule.HEADWAY: "lag_margin also counts either agent's own speed towards the other (headway_s): the one ahead "
+    "may stop without warning",
     Rule.WAKE_SHARE_ON_COURSE: "a wake pair's unequal shares apply on a collision course only; off it each keeps half "
     "the freedom",
     Rule.MARGIN_OVERLAP: "overlapping boxes recover along the least overlap of the axes on which the bare shapes "
@@ -118,6 +118,7 @@ RULES = np.dtype(
     [(r.value, np.bool_) for r in Rule]
     + [
         ("lag_margin_s", np.float64),  # s, shapes grow by this times the closing speed
+        ("headway_s", np.float64),  # s, and (HEADWAY) by this times either agent's own speed towards the other
         ("vertical_cost", np.float64),  # weight of vertical changes when choosing a box VO's way out
         ("time_horizon", np.float64),  # s, how far ahead a neighbour counts as in the way
         ("right_bias", np.float64),  # fraction of the preferred speed added sideways to a stalled agent
@@ -149,17 +150,28 @@ def lag_growth(on: bool, lag_margin_s: float, closing_speed: float) -> float:
 
 
 @njit
-def approach_speed(headway: bool, d: float, v_self: float, v_other: float) -> float:
-    """LAG_MARGIN's speed along one direction: the closing speed |v_self - v_other|, and with ``HEADWAY``
-    also either agent's own speed towards the other (``d``: the other's side of this one, its sign
-    alone counts). ORCA assumes neighbours keep their velocity; a follower at the same speed closes
-    in at its own speed the moment the one ahead stops for its target, and answers a lag later.
-    """
+def approach_growth(
+    on: bool, lag_margin_s: float, headway: bool, headway_s: float, d: float, v_self: float, v_other: float
+) -> float:
+    """LAG_MARGIN's growth along one direction, m: ``lag_margin_s`` x the closing speed |v_self - v_other|;
+    with ``HEADWAY`` that speed is at least either agent's own speed towards the other (``d``: the other's
+    side of this one, its sign alone counts), and a pair flying the same way, one behind the other, grows
+    by (``headway_s`` - ``lag_margin_s``) x the speed they share besides. ORCA assumes neighbours keep their
+    velocity; a follower at the same speed closes in at its own speed the moment the one ahead stops for
+    its target, and answers a lag later. A line of followers damps such a stop down the line only when
+    their spacing is a time headway of more than twice that lag (string stability of a platoon under a
+    constant time-headway policy): a follower at the speed of the one ahead keeps ``headway_s`` x that
+    speed; one closing on an agent at rest, ``lag_margin_s`` x its speed, as with no line to damp."""
+    if not on:
+        return 0.0
     s = abs(v_self - v_other)
-    if headway:
-        sign = 1.0 if d >= 0.0 else -1.0
-        s = max(s, v_self * sign, -v_other * sign)
-    return s
+    if not headway:
+        return lag_margin_s * s
+    sign = 1.0 if d >= 0.0 else -1.0
+    g = lag_margin_s * max(s, v_self * sign, -v_other * sign)
+    if v_self * v_other > 0.0 and headway_s > lag_margin_s:
+        g += (headway_s - lag_margin_s) * min(abs(v_self), abs(v_other))
+    return g
 
 
 @njit
