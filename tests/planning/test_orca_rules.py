@@ -100,8 +100,8 @@ def test_headway_keeps_a_follower_off_the_tail_of_the_one_ahead():
     # follower touched it a lag later. Here a follower at 0.15 m/s gains on a leader at 0.12 m/s,
     # 10 cm behind it (bare boxes): 0.03 m/s closing grows the pair's boxes by 1.2 cm and the
     # collision is 2.9 s away, past the horizon; with headway the follower's own 0.15 m/s grows
-    # them by 11 cm (0.4 s x 0.15 m/s, and 0.4 s x the 0.12 m/s they share: headway_s 0.8 s), more than
-    # the gap their margins leave: it must slow down now, not once the leader stops.
+    # them by 6 cm, 1.3 s away: it must slow down now, not once the leader stops; with a time headway of
+    # 0.8 s (headway_s) by 11 cm (0.4 s x 0.15 m/s, and 0.4 s x the 0.12 m/s they share).
     vm = np.full(3, 0.15)
     pos = np.array([[0.0, 0.0, 0.8], [-0.25, 0.0, 0.8]])  # 0 ahead, 1 following
     vel = np.array([[0.12, 0.0, 0.0], [0.15, 0.0, 0.0]])
@@ -112,6 +112,15 @@ def test_headway_keeps_a_follower_off_the_tail_of_the_one_ahead():
         )
         assert bool(flags[1] & FLAG_FREE) is not on
         assert bool(v[1, 2] > 0.05 or v[1, 0] < 0.14) is on  # the follower passes over or slows down
+    # at the leader's speed, 25 cm behind: lag_margin_s (the default) grows the boxes by 6 cm and leaves it
+    # free; a time headway of 0.8 s grows them by 12 cm, into each other, and it drops back
+    same = np.array([[0.15, 0.0, 0.0], [0.15, 0.0, 0.0]])
+    for hs, free in ((None, True), (0.8, False)):
+        v, flags = orca_velocities(
+            pos, same, same, params=OrcaParams(headway_s=hs), sensing_radius=1.0, v_max=vm, boxes=(centre, half)
+        )
+        assert bool(flags[1] & FLAG_FREE) is free
+        assert bool(v[1, 0] == pytest.approx(0.15)) is free
     # the growth itself: lag_margin_s x the faster of the closing speed and either own speed towards the other,
     # and (headway_s - lag_margin_s) x the speed a pair flying the same way shares
     assert approach_growth(True, 0.4, False, 0.8, 1.0, 0.15, 0.15) == 0.0

@@ -29,12 +29,6 @@ class Shape(enum.Enum):
 #: (stigmergy + orca, seeds 0..9) 0.3 m left contacts in 2 runs and a stall; 0.5 m, 1.0 m and 1.8 m none.
 DEFAULT_WAKE_DEPTH = 0.5
 
-#: s, the time headway of ``headway``: a line of followers damps a stop down the line only when it exceeds twice
-#: the lag with which each follows a new velocity (the airframe about 0.3 s, the planner period up to 0.1 s), so
-#: 0.8 s; at ``lag_margin_s`` (0.4 s) a convoy from a start grid into a depot squeezed the agents in its middle
-#: between the one ahead and the one behind until their way out had no common velocity (suite, stigmergy + orca:
-#: double_wall seed 4, three_structures_20 seed 3, random_3 seed 3)
-HEADWAY_S = 0.8
 
 #: m, safety margin of each shape when ``safety_margin`` is null: two airframes side by side at the
 #: construction task's 20 cm pitch keep 2 cm of slack with boxes
@@ -84,11 +78,12 @@ class OrcaParams(Params):
         0.4, ge=0.0, le=10.0, description="s, a pair's shapes also grow by this times their closing speed"
     )
     headway_s: float | None = Field(
-        HEADWAY_S,
+        None,
         ge=0.0,
         le=10.0,
-        description="s, with headway: a pair's shapes grow by at least this times either agent's own speed "
-        "towards the other, a time headway (null: lag_margin_s)",
+        description="s, with headway: a pair flying the same way, one behind the other, keeps this time headway "
+        "(its shapes grow by headway_s - lag_margin_s times the speed the two share; null: lag_margin_s). 0.8 s, "
+        "twice the lag, keeps a line of followers string-stable; measured, not the default (README)",
     )
     uncertainty_margin: bool = _switch(Rule.UNCERTAINTY_MARGIN)
     uncertainty_sigmas: float = Field(
