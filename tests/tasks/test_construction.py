@@ -229,25 +229,37 @@ def _drop(sim, seconds=3.0):
     c.update(sim.time)
 
 
-@pytest.mark.parametrize("placement", ["guided", "free"])
-def test_a_box_released_beside_a_placed_one_never_pushes_it(make_sim, placement):
-    # a solid wall: pitch = box size; the second box comes down 8 mm off its slot, towards the first
-    size = 0.1
+SOLID_WALL_BOX = 0.1  # m, the box size of ``_solid_wall_with_one_placed``
+
+
+def _solid_wall_with_one_placed(make_sim, **task):
+    """A solid wall of two slots (pitch = box size) with box 0 placed in the first by agent 0 (``task``:
+    more task fields); the simulation."""
+    size = SOLID_WALL_BOX
     sc = load_scenario(
         "construction_single",
         {
             "agents.start_jitter": 0.0,
             "task.boxes": [[0.4, 0.3, 0.05], [0.4, 0.7, 0.05]],
             "task.structure": [[2.0, 0.5, 0.05], [2.0, 0.5 + size, 0.05]],
-            "task.placement": placement,
+            **{f"task.{k}": v for k, v in task.items()},
         },
     )
     sim = make_sim(sc)
     c = sim.task
-    gh = c.grasp_height
-    _carry(sim, 0, c.slots[0] + [0.0, 0.0, gh + 0.004])
+    _carry(sim, 0, c.slots[0] + [0.0, 0.0, c.grasp_height + 0.004])
     _drop(sim)
     assert c.slot_box[0] == 0
+    return sim
+
+
+@pytest.mark.parametrize("placement", ["guided", "free"])
+def test_a_box_released_beside_a_placed_one_never_pushes_it(make_sim, placement):
+    # a solid wall: pitch = box size; the second box comes down 8 mm off its slot, towards the first
+    size = SOLID_WALL_BOX
+    sim = _solid_wall_with_one_placed(make_sim, placement=placement)
+    c = sim.task
+    gh = c.grasp_height
     first = c.positions[0].copy()
     release_at = c.slots[1] + [0.0, -0.008, gh + 0.004]  # 8 mm towards the first box: the boxes rub on the way
     _carry(sim, 1, release_at + [0.0, 0.0, size])
@@ -268,21 +280,10 @@ def test_a_box_released_beside_a_placed_one_never_pushes_it(make_sim, placement)
 def test_a_carried_box_lowered_off_its_slot_slides_past_its_neighbour(make_sim, guide_carried):
     """guide_carried: a box held 8 mm off a solid wall's slot comes down beside the placed box without
     touching it (the chamfers take it while still held); without, it meets the placed box's edge."""
-    size = 0.1
-    sc = load_scenario(
-        "construction_single",
-        {
-            "agents.start_jitter": 0.0,
-            "task.boxes": [[0.4, 0.3, 0.05], [0.4, 0.7, 0.05]],
-            "task.structure": [[2.0, 0.5, 0.05], [2.0, 0.5 + size, 0.05]],
-            "task.guide_carried": guide_carried,
-        },
-    )
-    sim = make_sim(sc)
+    size = SOLID_WALL_BOX
+    sim = _solid_wall_with_one_placed(make_sim, guide_carried=guide_carried)
     c = sim.task
     gh = c.grasp_height
-    _carry(sim, 0, c.slots[0] + [0.0, 0.0, gh + 0.004])
-    _drop(sim)
     first = c.positions[0].copy()
     box_at = c.slots[1] + [0.0, -0.008, 0.004]  # the held box's centre at the release point
     _carry(sim, 1, box_at + [0.0, 0.0, gh + size])
