@@ -604,9 +604,11 @@ class ConstructionRuntime(TaskBase):
         world = self.world
         for pair in sorted(self._restore):
             a, b = pair
-            if self.guided_slot[a] >= 0 or not world.overlapping(self.bodies[a], self.bodies[b]):
-                if self.guided_slot[a] < 0:  # a box the guide has since taken keeps them off
-                    world.set_pair_collision(self.bodies[a], self.bodies[b], True)
+            slot = int(self.guided_slot[a])
+            if slot >= 0 and b in self._bonded_neighbours(slot):  # the guide has taken it: they stay apart
+                self._restore.discard(pair)
+            elif not world.overlapping(self.bodies[a], self.bodies[b]):
+                world.set_pair_collision(self.bodies[a], self.bodies[b], True)
                 self._restore.discard(pair)
         held = np.flatnonzero(self.state == CARRIED).tolist() if self.spec.guide_carried else []
         for i in set(self._passing) - set(held):  # dropped outside ``release`` (a slipped grip)

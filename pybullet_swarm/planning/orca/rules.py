@@ -118,7 +118,7 @@ RULES = np.dtype(
     [(r.value, np.bool_) for r in Rule]
     + [
         ("lag_margin_s", np.float64),  # s, shapes grow by this times the closing speed
-        ("headway_s", np.float64),  # s, and (HEADWAY) by this times either agent's own speed towards the other
+        ("headway_s", np.float64),  # s, (HEADWAY) the time headway of a pair flying the same way, one behind
         ("vertical_cost", np.float64),  # weight of vertical changes when choosing a box VO's way out
         ("time_horizon", np.float64),  # s, how far ahead a neighbour counts as in the way
         ("right_bias", np.float64),  # fraction of the preferred speed added sideways to a stalled agent
