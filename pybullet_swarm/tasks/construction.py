@@ -573,10 +573,9 @@ class ConstructionRuntime(TaskBase):
         box (it passes the neighbours' edges instead of being pushed off them), friction in the guide, wear.
         """
         p, _ = self.world.body_pose(self.bodies[box])
-        slots = self._guide_slots(np.asarray(p, dtype=float))
-        if slots.size == 0:
+        s = self._guide_slot(np.asarray(p, dtype=float))
+        if s < 0:
             return
-        s = int(slots[0])
         body = self.bodies[box]
         for other in self._bonded_neighbours(s):
             self.world.set_pair_collision(body, self.bodies[other], False)
@@ -584,18 +583,20 @@ class ConstructionRuntime(TaskBase):
         self.guided_slot[box] = s
         self.events.append(Event(t, "guided", f"box{box}", f"slot{s}"))
 
-    def _guide_slots(self, p: NDArray[np.float64]) -> NDArray[np.int64]:
-        """Open slots (no box on its way into them) whose guide reaches a box centred at ``p`` (3,) m,
-        nearest first: within ``guide_capture`` x box_size horizontally, at most ``guide_height`` x box_size
+    def _guide_slot(self, p: NDArray[np.float64]) -> int:
+        """The nearest open slot (no box on its way into it) whose guide reaches a box centred at ``p`` (3,) m,
+        -1 when none: within ``guide_capture`` x box_size horizontally, at most ``guide_height`` x box_size
         above the slot and not below it by more than the reach."""
         open_ = np.flatnonzero(self.slot_open & (self._guided_into() < 0))
         if open_.size == 0:
-            return open_
+            return -1
         rel = self.slots[open_] - p
         reach = self.spec.guide_capture * self.size
         ok = (np.hypot(rel[:, 0], rel[:, 1]) <= reach) & (-rel[:, 2] <= self.spec.guide_height * self.size + 1e-9)
         ok &= rel[:, 2] <= reach  # not captured from below
-        return open_[ok][np.argsort(np.linalg.norm(rel[ok], axis=1), kind="stable")]
+        if not np.any(ok):
+            return -1
+        return int(open_[ok][np.argmin(np.linalg.norm(rel[ok], axis=1))])
 
     def _pass_carried(self) -> None:
         """``guide_carried``: a carried box within a guide's reach slides past the boxes bonded beside and
@@ -610,14 +611,13 @@ class ConstructionRuntime(TaskBase):
             elif not world.overlapping(self.bodies[a], self.bodies[b]):
                 world.set_pair_collision(self.bodies[a], self.bodies[b], True)
                 self._restore.discard(pair)
-        held = np.flatnonzero(self.state == CARRIED).tolist() if self.spec.guide_carried else []
+        held = np.flatnonzero(self.state == CARRIED).tolist()
         for i in set(self._passing) - set(held):  # dropped outside ``release`` (a slipped grip)
             self._restore.update((i, b) for b in self._passing.pop(i))
         for i in held:
-            slots = self._guide_slots(self.positions[i])
+            s = self._guide_slot(self.positions[i])
             want: set[int] = set()
-            if slots.size:
-                s = int(slots[0])
+            if s >= 0:
                 want = {
                     b
                     for b in self._bonded_neighbours(s)
@@ -673,7 +673,7 @@ class ConstructionRuntime(TaskBase):
         (the agents' ``positions`` are not needed)."""
         self.read()
         self._update_slots(t)
-        if self.spec.placement == "guided" and (self._passing or self._restore or self.spec.guide_carried):
+        if self.spec.placement == "guided" and self.spec.guide_carried:  # off: nothing is ever passed
             self._pass_carried()
         if self.completed_at is not None:
             return True

@@ -124,8 +124,7 @@ def pair_u(
         d = math.sqrt(dot(p, p))
         if d > 0.0:
             va, vb = dot(row(vel, a), p) / d, dot(row(vel, b), p) / d  # radial speeds, towards b
-            grow = rules.approach_growth(on, lag, hw, hws, 1.0, va, vb)
-            grow = max(grow, rules.lag_growth(on, lag, speed))
+            grow = max(grow, rules.approach_growth(on, lag, hw, hws, 1.0, va, vb))
     R = radius[a] + radius[b] + m2 + grow
     return core.sphere_u(p, v, R, cs.inv_tau, cs.inv_rec)
 
