@@ -313,6 +313,11 @@ column where a carrier stands to serve it: two carriers nearer than that touch, 
 the lower one down."""
 QUEUE_GAP = 0.05
 """m: ``queue_at_slots``: a carrier waits this much further out than every slot's working square."""
+QUEUE_PATIENCE_S = 40.0
+"""s: default of ``queue_patience_s``: twice ``DESCENT_TIMEOUT_S``. A carrier searching for an open slot at the
+search altitude, where the bottom slots are out of its view, stood in a slot's working square, held by the
+waiting carriers' wake columns, while they waited for it to leave (tower of 5 and ring, stigmergy + orca: no
+progress for 150 s)."""
 """Most phase steps an agent takes in one planner tick (a step that only changes the phase lets the next act)."""
 
 
@@ -465,6 +470,14 @@ class StigmergyParams(Params):
         description="a carrier whose slot's working square (an airframe's width and QUEUE_MARGIN round the "
         "column it serves the slot from) holds another carrier, and which is not in it itself, waits outside "
         "every slot's square until that one is free [false]",
+    )
+    queue_patience_s: float | None = Field(
+        QUEUE_PATIENCE_S,
+        gt=0.0,
+        le=1e4,
+        description="s, with queue_at_slots: a carrier that has held a slot's working square this long is not "
+        "serving it (a descent breaks off after descent_timeout_s), and no longer holds a waiting one out "
+        "[null: it holds it for ever]",
     )
     mark_seen_slots: bool = Field(
         True,
@@ -1034,6 +1047,8 @@ class Stigmergy:
         self.column = np.zeros(2)  # m, where the agent climbs straight up (LIFT, SETTLING, CLIMB, RECLIMB_*)
         self.climb_at: NDArray[np.float64] | None = None  # m, where it latched to climb before a higher zone
         self.watch = ReleaseWatch()
+        self.holders: dict[int, float] = {}  # queue_patience_s: neighbour id -> since when it holds the square
+        self.queue_at: NDArray[np.float64] | None = None  # (x, y, t): the column queued for, and when last
         self.let_go: LetGo | None = None  # the box let go last, watched while SETTLING
         self.retake: LetGo | None = None  # a box let go beside its slot, taken back to serve that slot again
 
@@ -1451,14 +1466,25 @@ class Stigmergy:
         square, so that no waiting carrier holds up another slot (ten carriers round a 3 x 3 slab pushed
         each other about over it for 150 s and none set its box down)."""
         if not self.params.queue_at_slots or len(obs.neighbour_ids) == 0:
+            self.holders.clear()
             return None
         half = math.sqrt(2.0) * self.info.agent_radius + QUEUE_MARGIN
         if np.max(np.abs(obs.position[:2] - column)) < half:
+            self.holders.clear()
             return None
-        q = obs.neighbour_positions[:, :2]
+        inside = np.max(np.abs(obs.neighbour_positions[:, :2] - column), axis=1) < half
         if len(obs.neighbour_carrying) == len(obs.neighbour_ids):
-            q = q[obs.neighbour_carrying]
-        if not np.any(np.max(np.abs(q - column), axis=1) < half):
+            inside &= obs.neighbour_carrying
+        ids = obs.neighbour_ids[inside].tolist()
+        # queue_patience_s: since when each carrier in the square has held it (the wait for one that leaves ends,
+        # and so does every wait when the agent queues for another column or has not queued for a tick)
+        same = self.queue_at is not None and np.allclose(self.queue_at[:2], column) and obs.time_s - self.queue_at[2] < 0.5
+        self.queue_at = np.array([column[0], column[1], obs.time_s])
+        self.holders = {int(j): self.holders.get(int(j), obs.time_s) if same else obs.time_s for j in ids}
+        patience = self.params.queue_patience_s
+        if patience is not None:
+            ids = [j for j in ids if obs.time_s - self.holders[int(j)] < patience]
+        if not ids:
             return None
         return self.geo.off_columns(obs.position[:2], half + QUEUE_GAP)
 

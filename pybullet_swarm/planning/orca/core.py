@@ -348,18 +348,22 @@ def lp4(
     res: Vec,
     SN: NDArray[np.float64],
     SP: NDArray[np.float64],
+    W: NDArray[np.float64],
+    weighted: bool,
 ) -> Vec:
     """Velocity minimising the largest violation of the soft planes [n_hard, m), keeping the hard ones.
 
     For each plane i that is violated more than the current worst, the 3-D problem "go as far as
     possible along i's normal while no earlier plane is violated more than i" is solved on the
-    bisector planes of i and each earlier soft plane (hard planes are kept as they are).
+    bisector planes of i and each earlier soft plane (hard planes are kept as they are). With
+    ``weighted`` a plane's violation counts ``W`` times (the bisectors of the weighted violations).
     """
     worst = 0.0
     for i in range(begin, m):
         ni = row(N, i)
         pi = row(P, i)
-        if dot(ni, add(pi, res, -1.0)) > worst:
+        wi = W[i] if weighted else 1.0
+        if wi * dot(ni, add(pi, res, -1.0)) > worst:
             k = 0
             for j in range(i):
                 nj = row(N, j)
@@ -367,6 +371,19 @@ def lp4(
                 if j < n_hard:
                     set_row(SN, k, nj)
                     set_row(SP, k, pj)
+                    k += 1
+                    continue
+                if weighted:
+                    # W[j] nj.(pj - v) <= wi ni.(pi - v): (W[j] nj - wi ni).v >= W[j] nj.pj - wi ni.pi
+                    nn = add(scale(nj, W[j]), ni, -wi)
+                    n2 = dot(nn, nn)
+                    if n2 <= PARALLEL_EPS * wi * wi:
+                        continue  # the same plane at the same weight: never the worse of the two
+                    nl = math.sqrt(n2)
+                    off = (W[j] * dot(nj, pj) - wi * dot(ni, pi)) / nl
+                    nn = scale(nn, 1.0 / nl)
+                    set_row(SN, k, nn)
+                    set_row(SP, k, scale(nn, off))
                     k += 1
                     continue
                 cr = cross(nj, ni)
@@ -384,7 +401,7 @@ def lp4(
             fail, new = lp3(SN, SP, k, radius, ni, True)
             if fail >= k:  # (failure "should not happen"; keep the previous velocity)
                 res = new
-            worst = dot(ni, add(pi, res, -1.0))
+            worst = wi * dot(ni, add(pi, res, -1.0))
     return res
 
 
@@ -398,24 +415,28 @@ def solve(
     pref: Vec,
     SN: NDArray[np.float64],
     SP: NDArray[np.float64],
+    W: NDArray[np.float64],
+    weighted: bool,
 ) -> tuple[bool, Vec]:
     """One agent's LP over the hard planes [0, n_hard) and the ORCA planes [n_hard, m); returns (feasible, velocity).
 
-    ``SN``, ``SP`` are (m, 3) scratch arrays.
+    ``SN``, ``SP`` are (m, 3) scratch arrays; with ``weighted``, where the planes have no common
+    velocity, the violation of plane i counts ``W[i]`` times (``W`` (m,) > 0).
     """
     fail, res = lp3(N, P, m, radius, pref, False)
     if fail >= m:
         return True, res
-    res = lp4(N, P, m, fail, n_hard, radius, res, SN, SP)
+    res = lp4(N, P, m, fail, n_hard, radius, res, SN, SP, W, weighted)
     # among the least-violating velocities, the one closest to the preferred velocity:
     # shift the soft planes by the smallest achievable violation and solve the LP again
     worst = 0.0
     for i in range(n_hard, m):
-        worst = max(worst, dot(row(N, i), add(row(P, i), res, -1.0)))
+        worst = max(worst, (W[i] if weighted else 1.0) * dot(row(N, i), add(row(P, i), res, -1.0)))
     for i in range(m):
         ni = row(N, i)
         set_row(SN, i, ni)
-        set_row(SP, i, add(row(P, i), ni, -(worst + FALLBACK_SLACK) if i >= n_hard else 0.0))
+        shift = (worst / W[i] if weighted else worst) + FALLBACK_SLACK
+        set_row(SP, i, add(row(P, i), ni, -shift if i >= n_hard else 0.0))
     fail2, res2 = lp3(SN, SP, m, radius, pref, False)
     if fail2 >= m:
         res = res2
@@ -522,6 +543,7 @@ def solve_velocity(
     *,
     v_max: NDArray[np.float64] | None = None,
     max_speed: float | None = None,
+    weights: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], bool]:
     """Velocity closest to ``preferred`` inside the half-spaces, the per-axis box and the speed sphere.
 
@@ -531,6 +553,8 @@ def solve_velocity(
         preferred: (3,) m/s.
         v_max: (3,) m/s per-axis limit (hard), or None.
         max_speed: m/s, radius of the speed sphere (default: |v_max|, or 1 m/s without limits).
+        weights: (m,) > 0, when the half-spaces have no common velocity, half-space i's violation counts
+            this many times (default: all alike, the paper's fallback).
 
     Returns:
         (velocity (3,) m/s, feasible). When infeasible: among the velocities whose largest
@@ -544,6 +568,12 @@ def solve_velocity(
     n_hard = bound_planes(-vm[None, :], vm[None, :], 0, N, P)
     N[n_hard : n_hard + len(normals)] = normals
     P[n_hard : n_hard + len(normals)] = points
+    W = np.ones(m)
+    if weights is not None:
+        w = np.asarray(weights, dtype=float).reshape(-1)
+        if w.shape != (len(normals),) or not np.all(np.isfinite(w)) or not np.all(w > 0.0):
+            raise ValueError(f"weights: expected {len(normals)} positive finite numbers, got {weights!r}")
+        W[n_hard : n_hard + len(normals)] = w
     feasible, res = solve(
         N,
         P,
@@ -553,5 +583,7 @@ def solve_velocity(
         vec3(preferred),
         np.empty((m, 3)),
         np.empty((m, 3)),
+        W,
+        weights is not None,
     )
     return np.array(res), bool(feasible)

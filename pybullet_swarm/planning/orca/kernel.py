@@ -94,8 +94,9 @@ def pair_u(
     boxes: bool,
     cs: np.record,
     rs: np.record,
-) -> tuple[Vec, Vec]:
-    """(n, u) of agent a against agent b; agent b uses (-n, -u)."""
+) -> tuple[Vec, Vec, float]:
+    """(n, u, gap) of agent a against agent b; agent b uses (-n, -u). ``gap`` (m) is how far apart the
+    pair's bare shapes are (boxes: the largest of the per-axis gaps; negative: they overlap)."""
     v = add(row(vel, a), row(vel, b), -1.0)
     m2 = 2.0 * cs.margin
     on, lag, hw, hws = rs.lag_margin, rs.lag_margin_s, rs.headway, rs.headway_s
@@ -116,7 +117,9 @@ def pair_u(
         )
         H = (bare[0] + m2 + g[0], bare[1] + m2 + g[1], bare[2] + m2 + g[2])
         wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
-        return core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz, bare if rs.margin_overlap else NO_BARE)
+        gap = max(abs(c[0]) - bare[0], abs(c[1]) - bare[1], abs(c[2]) - bare[2])
+        nrm, u = core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz, bare if rs.margin_overlap else NO_BARE)
+        return nrm, u, gap
     p = add(row(pos, b), row(pos, a), -1.0)
     speed = math.sqrt(dot(v, v))
     grow = rules.lag_growth(on, lag, speed)
@@ -126,7 +129,8 @@ def pair_u(
             va, vb = dot(row(vel, a), p) / d, dot(row(vel, b), p) / d  # radial speeds, towards b
             grow = max(grow, rules.approach_growth(on, lag, hw, hws, 1.0, va, vb))
     R = radius[a] + radius[b] + m2 + grow
-    return core.sphere_u(p, v, R, cs.inv_tau, cs.inv_rec)
+    nrm, u = core.sphere_u(p, v, R, cs.inv_tau, cs.inv_rec)
+    return nrm, u, math.sqrt(dot(p, p)) - radius[a] - radius[b]
 
 
 @njit
@@ -143,12 +147,14 @@ def agent_planes(
     rs: np.record,
     N: NDArray[np.float64],
     P: NDArray[np.float64],
+    W: NDArray[np.float64],
     k: int,
     lo: NDArray[np.float64],
     hi: NDArray[np.float64],
 ) -> tuple[int, bool]:
     """Append agent i's ORCA planes (one per neighbour in row i of ``nbr``) after row k; returns the new
-    count and whether agent i climbs over a neighbour (``CLIMB_OVER``).
+    count and whether agent i climbs over a neighbour (``CLIMB_OVER``). ``W`` gets each plane's weight
+    in the fallback (``GAP_WEIGHTED_FALLBACK``).
 
     A pair's (n, u) is computed once in index order and negated for the other agent, so both
     halves match to the last bit.
@@ -162,9 +168,9 @@ def agent_planes(
         if j < 0 or j >= n or j == i:
             continue
         if i < j:
-            nrm, u = pair_u(i, j, pos, vel, radius, centre, half, boxes, cs, rs)
+            nrm, u, gap = pair_u(i, j, pos, vel, radius, centre, half, boxes, cs, rs)
         else:
-            nrm, u = pair_u(j, i, pos, vel, radius, centre, half, boxes, cs, rs)
+            nrm, u, gap = pair_u(j, i, pos, vel, radius, centre, half, boxes, cs, rs)
             nrm = scale(nrm, -1.0)
             u = scale(u, -1.0)
         r, up = rules.climb_share(rs.climb_over, nrm, u, vel[i, 2], vel[j, 2], cs.responsibility)
@@ -187,6 +193,7 @@ def agent_planes(
         climbs = climbs or up
         set_row(N, k, nrm)
         set_row(P, k, add(vi, u, r))
+        W[k] = rules.gap_weight(gap)
         k += 1
     return k, climbs
 
@@ -209,6 +216,7 @@ def obstacle_planes(
     rs: np.record,
     N: NDArray[np.float64],
     P: NDArray[np.float64],
+    W: NDArray[np.float64],
     k: int,
 ) -> tuple[int, int]:
     """STATIC_OBSTACLES: append agent i's planes against the static obstacles (``oc``, ``oh``) after row k;
@@ -245,6 +253,7 @@ def obstacle_planes(
             nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, wz, H0 if rs.margin_overlap else NO_BARE)
             set_row(N, k, nrm)
             set_row(P, k, add(vi, u, 1.0))
+            W[k] = rules.gap_weight(max(abs(c[0]) - H0[0], abs(c[1]) - H0[1], abs(c[2]) - H0[2]))
             k += 1
         if not overlapping:
             n_hard = k
@@ -308,6 +317,8 @@ def orca_batch(
     P = np.empty((m_max, 3))
     SN = np.empty((m_max, 3))
     SP = np.empty((m_max, 3))
+    W = np.ones(m_max)
+    weighted = rs.gap_weighted_fallback
     max_speed, right_bias, stuck = cs.max_speed, rs.right_bias, rs.stuck_fraction
     side_on = rs.sidestep and right_bias > 0.0
     stall_on = side_on or rs.make_way
@@ -318,9 +329,9 @@ def orca_batch(
         n_hard = n_static = n_bounds
         if static:
             n_hard, n_static = obstacle_planes(
-                i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, parts, cs, rs, N, P, n_bounds
+                i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, parts, cs, rs, N, P, W, n_bounds
             )
-        m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, n_static, lo, hi)
+        m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, W, n_static, lo, hi)
         up = (FLAG_CLIMB if climbs else 0) | (FLAG_OBSTACLE if n_static > n_bounds else 0)
         vc = row(v_cmd, i)
         if rs.minimal_intervention and dot(vc, vc) <= max_speed * max_speed and not core.violates(N, P, m, vc):
@@ -328,7 +339,7 @@ def orca_batch(
             flags[i] = FLAG_FREE | up
             continue
         pr = row(pref, i)
-        feasible, res = core.solve(N, P, m, n_hard, max_speed, pr, SN, SP)
+        feasible, res = core.solve(N, P, m, n_hard, max_speed, pr, SN, SP, W, weighted)
         f = 0 if feasible else FLAG_INFEASIBLE
         sp = math.sqrt(dot(pr, pr))
         if stall_on and sp > rules.MIN_PREFERRED_SPEED and dot(res, pr) < stuck * sp * sp:
@@ -356,7 +367,7 @@ def orca_batch(
             held = False
             side = (0.0, 0.0, 0.0)
             if make_way:
-                feasible, res = core.solve(N, P, m, n_hard, max_speed, (0.0, 0.0, sp), SN, SP)
+                feasible, res = core.solve(N, P, m, n_hard, max_speed, (0.0, 0.0, sp), SN, SP, W, weighted)
                 f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
             elif j >= 0 and side_on:
                 held = True
@@ -393,14 +404,14 @@ def orca_batch(
                     rs.climb_past,
                 )
             if held:
-                feasible, res = core.solve(N, P, m, n_hard, max_speed, add(pr, side, right_bias * sp), SN, SP)
+                feasible, res = core.solve(N, P, m, n_hard, max_speed, add(pr, side, right_bias * sp), SN, SP, W, weighted)
                 pushed = rs.pushed_back and dot(res, pr) < 0.0 and dot(res, side) < stuck * sp
                 if pushed or dot(res, res) < stuck * stuck * sp * sp:
                     # still held: the bias cancelled what the neighbours' planes left free (a box VO
                     # leaves the axis across the blocking face free; the bias can exactly cancel the
                     # preferred velocity along it), or (PUSHED_BACK) the agent moves backwards and
                     # hardly sideways: ask for the sideways step alone
-                    feasible, res = core.solve(N, P, m, n_hard, max_speed, scale(side, sp), SN, SP)
+                    feasible, res = core.solve(N, P, m, n_hard, max_speed, scale(side, sp), SN, SP, W, weighted)
                 f = FLAG_BIASED | (f & FLAG_WAITING) | (0 if feasible else FLAG_INFEASIBLE)
         set_row(out, i, res)
         flags[i] = f | up

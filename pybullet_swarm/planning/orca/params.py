@@ -203,6 +203,7 @@ class OrcaParams(Params):
     passthrough_turns: bool = _switch(Rule.PASSTHROUGH_TURNS)
     pinned_share: bool = _switch(Rule.PINNED_SHARE)
     ground_beside: bool = _switch(Rule.GROUND_BESIDE)
+    gap_weighted_fallback: bool = _switch(Rule.GAP_WEIGHTED_FALLBACK)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

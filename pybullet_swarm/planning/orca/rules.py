@@ -53,6 +53,7 @@ class Rule(str, enum.Enum):
     PASSTHROUGH_TURNS = "passthrough_turns"
     PINNED_SHARE = "pinned_share"
     GROUND_BESIDE = "ground_beside"
+    GAP_WEIGHTED_FALLBACK = "gap_weighted_fallback"
 
     @property
     def doc(self) -> str:
@@ -111,6 +112,8 @@ RULE_DOCS: dict[Rule, str] = {
     "an agent takes the whole way out",
     Rule.GROUND_BESIDE: "the column rule also holds an agent whose airframe or load is within column_reach of the "
     "ground",
+    Rule.GAP_WEIGHTED_FALLBACK: "with no common velocity, a plane's violation counts 1 / its pair's gap times: "
+    "the nearest is closed on last",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -140,9 +143,21 @@ BESIDE_MIN2 = 1e-4  # m^2, a neighbour horizontally closer than 1 cm is right ab
 MIN_PREFERRED_SPEED = 1e-3  # m/s, an agent that prefers to move slower than this is at rest: never stalled
 PIN_TOL = 1e-9  # m/s, velocity bounds narrower than this on an axis pin the agent on it (PINNED_SHARE)
 GOAL_OVERLAP = 0.005  # m, a part of an agent at its target reaching deeper into an obstacle is inside it
+GAP_FLOOR = 0.01  # m, GAP_WEIGHTED_FALLBACK: a pair closer than this (or overlapping) weighs as if this far apart
 
 
 # ----------------------------------------------------------------------------- margins and the way out
+@njit
+def gap_weight(gap: float) -> float:
+    """GAP_WEIGHTED_FALLBACK: the weight of a plane whose pair's bare shapes are ``gap`` (m) apart, 1/m.
+
+    Violating a plane by dv (m/s) closes the pair's gap dv faster than ORCA allows; weighing it by
+    1/gap makes the fallback maximise the shortest time in which any such extra closing eats up its
+    pair's gap (rather than the paper's, which spreads one violation over near and far alike).
+    """
+    return 1.0 / max(gap, GAP_FLOOR)
+
+
 @njit
 def lag_growth(on: bool, lag_margin_s: float, closing_speed: float) -> float:
     """LAG_MARGIN: m a pair's shapes grow by at ``closing_speed`` m/s (per axis for boxes, radially for spheres)."""
