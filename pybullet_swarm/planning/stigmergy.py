@@ -1478,7 +1478,9 @@ class Stigmergy:
         ids = obs.neighbour_ids[inside].tolist()
         # queue_patience_s: since when each carrier in the square has held it (the wait for one that leaves ends,
         # and so does every wait when the agent queues for another column or has not queued for a tick)
-        same = self.queue_at is not None and np.allclose(self.queue_at[:2], column) and obs.time_s - self.queue_at[2] < 0.5
+        same = (
+            self.queue_at is not None and np.allclose(self.queue_at[:2], column) and obs.time_s - self.queue_at[2] < 0.5
+        )
         self.queue_at = np.array([column[0], column[1], obs.time_s])
         self.holders = {int(j): self.holders.get(int(j), obs.time_s) if same else obs.time_s for j in ids}
         patience = self.params.queue_patience_s

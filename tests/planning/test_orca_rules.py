@@ -725,3 +725,35 @@ def test_ground_beside_holds_a_carrier_whose_box_still_rests_on_the_ground(on: b
     assert obstacles_beside(pos, centres, halves, np.zeros((0, 3)), np.zeros((0, 3)), 0.05, on).tolist() == [on, False]
     params = OrcaParams(ground_beside=on)
     assert params.ground_beside is on and (Rule.GROUND_BESIDE in params.rules) is on
+
+
+def test_gap_weighted_fallback_closes_on_the_nearest_neighbour_last():
+    """An agent in a line leaving the start grid, between one ahead that stopped and one behind still coming,
+    has no common velocity; the paper's fallback violates every plane alike and the agent moved into a third
+    beside it, 3.5 cm from its airframe (the suite's double_wall, seed 4, stigmergy + orca: a contact at 3.3 s).
+    With ``gap_weighted_fallback`` each plane's violation counts 1 / its pair's gap times: it gives way to the
+    one beside far less; a feasible agent is left as it was."""
+    pos = np.array([[0.0, 0.0, 1.0], [0.2, 0.0, 1.0], [-0.21, 0.0, 1.0], [0.0, -0.185, 1.0]])
+    vel = np.array([[0.12, 0.0, 0.0], [0.0, 0.0, 0.0], [0.15, 0.0, 0.0], [0.12, 0.0, 0.0]])
+    pref = np.array([[0.15, -0.1, 0.0], [0.0, 0.0, 0.0], [0.15, 0.0, 0.0], [0.15, 0.0, 0.0]])
+    n = len(pos)
+    out = {}
+    for on in (False, True):
+        v, flags = orca_velocities(
+            pos,
+            vel,
+            pref,
+            params=OrcaParams(gap_weighted_fallback=on),
+            sensing_radius=2.0,
+            v_max=VM,
+            boxes=(np.zeros((n, 3)), np.tile(HALF, (n, 1))),
+            goals=pos + 10.0 * pref,
+            has_goal=np.ones(n, dtype=bool),
+        )
+        assert flags[0] & 1  # FLAG_INFEASIBLE
+        assert flags[3] & FLAG_FREE
+        out[on] = v
+    assert out[False][0, 1] < -0.06  # the paper's: towards the one beside at more than 6 cm/s
+    assert -0.75 * abs(out[False][0, 1]) < out[True][0, 1] <= 0.0
+    np.testing.assert_array_equal(out[True][3], out[False][3])
+    assert OrcaParams(gap_weighted_fallback=False).rules.count(Rule.GAP_WEIGHTED_FALLBACK) == 0

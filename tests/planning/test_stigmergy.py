@@ -900,6 +900,55 @@ def test_queue_at_slots_waits_outside_every_square_while_a_carrier_works_in_its_
             assert np.linalg.norm(cmd.vector[:2] - drop[:2]) < np.linalg.norm(xy - drop[:2]), (carrying, p)
 
 
+@pytest.mark.parametrize("patience", [40.0, None])
+def test_queue_patience_ends_a_wait_for_a_carrier_that_holds_the_square_too_long(patience: float | None):
+    """A carrier searching at the search altitude (the bottom slot out of its view) stood in the slot's working
+    square, held there by the wake columns of the carriers waiting outside for it to leave: no progress for 150 s
+    (the suite's tower5 and ring, seed 2, stigmergy + orca). After ``queue_patience_s`` of one carrier in the
+    square the waiting one goes in; the time counts per carrier, and for the column queued for only."""
+    from pybullet_swarm.planning.stigmergy import QUEUE_GAP, QUEUE_MARGIN
+
+    half = np.sqrt(2.0) * R + QUEUE_MARGIN
+    slot = SLOTS[1]
+    holder = [slot[0], slot[1] + 0.14, 0.6]
+    a = _agent(queue_patience_s=patience)
+    a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.TO_SLOT, Sighting(1, slot.copy())
+    xy = np.array([2.3, 0.4])
+    pos = [xy[0], xy[1], a.geo.altitude(xy)]
+
+    def waits(t: float, ids: list[int]) -> bool:
+        obs = _obs(
+            pos,
+            carrying=3,
+            slots=[slot],
+            slot_ids=[1],
+            nb_ids=ids,
+            nb_pos=[holder] * len(ids),
+            nb_carrying=[True] * len(ids),
+            t=t,
+        )
+        cmd = a.plan(obs, _medium())
+        off = float(np.min(np.max(np.abs(a.geo.columns - cmd.vector[:2]), axis=1)))
+        return bool(off >= half + QUEUE_GAP - 1e-6)
+
+    t = 0.0
+    while t < 39.95:
+        assert waits(t, [1])
+        t += 0.1
+    assert waits(40.0, [1]) is (patience is None)  # 40 s of the same carrier in the square
+    assert waits(40.1, [1, 2]) is True  # another one just came in: its own time starts
+    assert waits(40.2, [2]) is True
+    # a break in the queueing (the agent did something else for a while) starts every wait again
+    assert waits(80.0, [2]) is True
+    if patience is not None:
+        assert waits(120.0, [2]) is True  # not queued since 80 s: a new wait
+        t = 120.1
+        while t < 160.0:
+            waits(t, [2])
+            t += 0.1
+        assert waits(160.05, [2]) is False
+
+
 def test_clear_spent_goals_clears_a_column_seen_from_anywhere_an_agent_arrives_at_its_search_point():
     """A search point beside the structure keeps its column within the task's view from everywhere within
     ``arrive_tol`` of it (the geometry's horizontal margin); clearing a spent mark used a 3 cm margin on top,

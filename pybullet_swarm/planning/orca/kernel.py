@@ -404,7 +404,9 @@ def orca_batch(
                     rs.climb_past,
                 )
             if held:
-                feasible, res = core.solve(N, P, m, n_hard, max_speed, add(pr, side, right_bias * sp), SN, SP, W, weighted)
+                feasible, res = core.solve(
+                    N, P, m, n_hard, max_speed, add(pr, side, right_bias * sp), SN, SP, W, weighted
+                )
                 pushed = rs.pushed_back and dot(res, pr) < 0.0 and dot(res, side) < stuck * sp
                 if pushed or dot(res, res) < stuck * stuck * sp * sp:
                     # still held: the bias cancelled what the neighbours' planes left free (a box VO
