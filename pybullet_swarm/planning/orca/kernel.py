@@ -72,6 +72,7 @@ def rule_settings(params: OrcaParams) -> NDArray[np.void]:
     s["inv_tau_obstacle"] = 1.0 / params.obstacle_horizon
     s["goal_reach"] = params.goal_reach
     s["wake_depth"] = params.wake(downwash=False)  # the layer resolves a null depth against the run
+    s["gap_floor"] = params.gap_floor
     return s
 
 
@@ -193,7 +194,7 @@ def agent_planes(
         climbs = climbs or up
         set_row(N, k, nrm)
         set_row(P, k, add(vi, u, r))
-        W[k] = rules.gap_weight(gap)
+        W[k] = rules.gap_weight(gap, rs.gap_floor)
         k += 1
     return k, climbs
 
@@ -253,7 +254,7 @@ def obstacle_planes(
             nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, wz, H0 if rs.margin_overlap else NO_BARE)
             set_row(N, k, nrm)
             set_row(P, k, add(vi, u, 1.0))
-            W[k] = rules.gap_weight(max(abs(c[0]) - H0[0], abs(c[1]) - H0[1], abs(c[2]) - H0[2]))
+            W[k] = rules.gap_weight(max(abs(c[0]) - H0[0], abs(c[1]) - H0[1], abs(c[2]) - H0[2]), rs.gap_floor)
             k += 1
         if not overlapping:
             n_hard = k

@@ -204,6 +204,13 @@ class OrcaParams(Params):
     pinned_share: bool = _switch(Rule.PINNED_SHARE)
     ground_beside: bool = _switch(Rule.GROUND_BESIDE)
     gap_weighted_fallback: bool = _switch(Rule.GAP_WEIGHTED_FALLBACK)
+    gap_floor: float = Field(
+        0.01,
+        gt=0.0,
+        le=1.0,
+        description="m, with gap_weighted_fallback: pairs whose bare shapes are nearer than this (or overlap) "
+        "weigh alike, as if this far apart",
+    )
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

@@ -129,6 +129,7 @@ RULES = np.dtype(
         ("inv_tau_obstacle", np.float64),  # 1/s, inverse time horizon of static obstacles
         ("goal_reach", np.float64),  # m, an obstacle this close to the agent's shape at its target is the target's
         ("wake_depth", np.float64),  # m, how far below each agent's box its wake is kept clear of others
+        ("gap_floor", np.float64),  # m, (GAP_WEIGHTED_FALLBACK) pairs nearer than this weigh alike
     ],
     align=True,
 )
@@ -143,19 +144,19 @@ BESIDE_MIN2 = 1e-4  # m^2, a neighbour horizontally closer than 1 cm is right ab
 MIN_PREFERRED_SPEED = 1e-3  # m/s, an agent that prefers to move slower than this is at rest: never stalled
 PIN_TOL = 1e-9  # m/s, velocity bounds narrower than this on an axis pin the agent on it (PINNED_SHARE)
 GOAL_OVERLAP = 0.005  # m, a part of an agent at its target reaching deeper into an obstacle is inside it
-GAP_FLOOR = 0.01  # m, GAP_WEIGHTED_FALLBACK: a pair closer than this (or overlapping) weighs as if this far apart
 
 
 # ----------------------------------------------------------------------------- margins and the way out
 @njit
-def gap_weight(gap: float) -> float:
-    """GAP_WEIGHTED_FALLBACK: the weight of a plane whose pair's bare shapes are ``gap`` (m) apart, 1/m.
+def gap_weight(gap: float, floor: float) -> float:
+    """GAP_WEIGHTED_FALLBACK: the weight of a plane whose pair's bare shapes are ``gap`` (m) apart, 1/m;
+    pairs nearer than ``floor`` (m, > 0; overlapping ones too) weigh alike, as if ``floor`` apart.
 
     Violating a plane by dv (m/s) closes the pair's gap dv faster than ORCA allows; weighing it by
     1/gap makes the fallback maximise the shortest time in which any such extra closing eats up its
     pair's gap (rather than the paper's, which spreads one violation over near and far alike).
     """
-    return 1.0 / max(gap, GAP_FLOOR)
+    return 1.0 / max(gap, floor)
 
 
 @njit
