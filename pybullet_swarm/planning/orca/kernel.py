@@ -97,7 +97,8 @@ def pair_u(
     rs: np.record,
 ) -> tuple[Vec, Vec, float]:
     """(n, u, gap) of agent a against agent b; agent b uses (-n, -u). ``gap`` (m) is how far apart the
-    pair's bare shapes are (boxes: the largest of the per-axis gaps; negative: they overlap)."""
+    pair's bare shapes will be ``lag_margin_s`` later at their present closing speed (boxes: along the axis
+    of the largest per-axis gap; negative: they overlap), for ``GAP_WEIGHTED_FALLBACK``."""
     v = add(row(vel, a), row(vel, b), -1.0)
     m2 = 2.0 * cs.margin
     on, lag, hw, hws = rs.lag_margin, rs.lag_margin_s, rs.headway, rs.headway_s
@@ -118,7 +119,9 @@ def pair_u(
         )
         H = (bare[0] + m2 + g[0], bare[1] + m2 + g[1], bare[2] + m2 + g[2])
         wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
-        gap = max(abs(c[0]) - bare[0], abs(c[1]) - bare[1], abs(c[2]) - bare[2])
+        gaps = (abs(c[0]) - bare[0], abs(c[1]) - bare[1], abs(c[2]) - bare[2])
+        k = 0 if gaps[0] >= gaps[1] and gaps[0] >= gaps[2] else (1 if gaps[1] >= gaps[2] else 2)
+        gap = gaps[k] - lag * (v[k] if c[k] > 0.0 else -v[k])  # a lag later: a pair parting weighs less
         nrm, u = core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz, bare if rs.margin_overlap else NO_BARE)
         return nrm, u, gap
     p = add(row(pos, b), row(pos, a), -1.0)
@@ -131,7 +134,9 @@ def pair_u(
             grow = max(grow, rules.approach_growth(on, lag, hw, hws, 1.0, va, vb))
     R = radius[a] + radius[b] + m2 + grow
     nrm, u = core.sphere_u(p, v, R, cs.inv_tau, cs.inv_rec)
-    return nrm, u, math.sqrt(dot(p, p)) - radius[a] - radius[b]
+    d = math.sqrt(dot(p, p))
+    closing = dot(v, p) / d if d > 0.0 else 0.0
+    return nrm, u, d - radius[a] - radius[b] - lag * closing
 
 
 @njit
