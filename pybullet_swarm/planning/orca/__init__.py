@@ -99,11 +99,12 @@ The paper's core and our extension rules are kept apart:
     its wake column, its box still resting on the ground, was stepped sideways: the box dragged, the
     position integrators wound up and the agent flipped when the box came free.
   - ``gap_weighted_fallback``: where an agent's planes have no common velocity, the fallback minimises
-    the largest violation weighted by 1 / the gap between the pair's bare shapes (``gap_floor``
-    at least), not the paper's plain largest violation: it maximises the shortest time in which an
-    extra closing speed eats up a pair's gap. An agent in a line leaving the start grid, squeezed
-    between its planes ahead and behind, otherwise shared the violation with a neighbour 3 cm beside
-    it and touched it.
+    the largest violation weighted by 1 / the gap the pair's bare shapes will have ``lag_margin_s``
+    later at their closing speed (``gap_floor`` at least), not the paper's plain largest violation:
+    it maximises the shortest time in which an extra closing speed eats up a pair's gap. An agent in
+    a line leaving the start grid, squeezed between its planes ahead and behind, otherwise shared
+    the violation with a neighbour 3 cm beside it and touched it; weighed by the present gap, an
+    agent squeezed in a row fled the nearer neighbour into the other, back and forth.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.
