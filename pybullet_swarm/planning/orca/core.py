@@ -128,6 +128,18 @@ def sphere_u(p: Vec, v: Vec, R: float, inv_tau: float, inv_rec: float) -> tuple[
 
 
 @njit
+def box_gap(c: Vec, H: Vec) -> tuple[float, int]:
+    """How far apart two axis-aligned boxes are, m (the largest per-axis gap; negative: they overlap), and the
+    axis of that gap (the first, on a tie); ``c``: the centre offset, ``H``: the summed half extents."""
+    g0, g1, g2 = abs(c[0]) - H[0], abs(c[1]) - H[1], abs(c[2]) - H[2]
+    if g0 >= g1 and g0 >= g2:
+        return g0, 0
+    if g1 >= g2:
+        return g1, 1
+    return g2, 2
+
+
+@njit
 def box_u(c: Vec, H: Vec, v: Vec, inv_tau: float, inv_rec: float, wz: float, bare: Vec) -> tuple[Vec, Vec]:
     """Outward normal n and change u of relative velocity ``v`` for two axis-aligned boxes.
 

@@ -119,9 +119,8 @@ def pair_u(
         )
         H = (bare[0] + m2 + g[0], bare[1] + m2 + g[1], bare[2] + m2 + g[2])
         wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
-        gaps = (abs(c[0]) - bare[0], abs(c[1]) - bare[1], abs(c[2]) - bare[2])
-        k = 0 if gaps[0] >= gaps[1] and gaps[0] >= gaps[2] else (1 if gaps[1] >= gaps[2] else 2)
-        gap = gaps[k] - lag * (v[k] if c[k] > 0.0 else -v[k])  # a lag later: a pair parting weighs less
+        gap, k = core.box_gap(c, bare)
+        gap -= lag * (v[k] if c[k] > 0.0 else -v[k])  # a lag later: a pair parting weighs less
         nrm, u = core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz, bare if rs.margin_overlap else NO_BARE)
         return nrm, u, gap
     p = add(row(pos, b), row(pos, a), -1.0)
@@ -251,7 +250,7 @@ def obstacle_planes(
                 H0[1] + cs.margin + rules.lag_growth(on, lag, abs(vi[1])),
                 H0[2] + cs.margin + rules.lag_growth(on, lag, abs(vi[2])),
             )
-            gap = max(abs(c[0]) - H[0], abs(c[1]) - H[1], abs(c[2]) - H[2])
+            gap, _ = core.box_gap(c, H)
             if gap > reach or (gap <= 0.0) != overlapping:
                 continue
             if has_goal[i] and rules.own_target(i, o, pos, goal, parts, oc, oh, cs.margin + rs.goal_reach):
@@ -259,7 +258,7 @@ def obstacle_planes(
             nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, wz, H0 if rs.margin_overlap else NO_BARE)
             set_row(N, k, nrm)
             set_row(P, k, add(vi, u, 1.0))
-            W[k] = rules.gap_weight(max(abs(c[0]) - H0[0], abs(c[1]) - H0[1], abs(c[2]) - H0[2]), rs.gap_floor)
+            W[k] = rules.gap_weight(core.box_gap(c, H0)[0], rs.gap_floor)
             k += 1
         if not overlapping:
             n_hard = k
