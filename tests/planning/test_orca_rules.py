@@ -362,6 +362,23 @@ def test_floor_and_column_rules_narrow_the_bounds_only_when_on():
     assert lo[0, 2] == pytest.approx(-0.06) and lo[1, 2] == pytest.approx(-0.15)
 
 
+def test_column_tick_lets_through_only_what_reaches_the_column_in_a_planner_tick():
+    """2 mm beside its target's column, a carrier's shaped command asks for sqrt(2 a_max 2 mm) = 6.3 cm/s
+    sideways (for one shaper tick). Held for a 0.1 s planner tick that would carry it 4 mm past the column;
+    with ``column_tick`` the bound is 2 mm / 0.1 s."""
+    pos = np.array([[0.596, 0.3, 0.12]])
+    goals = np.array([[0.598, 0.3, 0.254]])
+    intended = commanded_velocities(
+        np.array([int(CommandKind.POSITION)]), goals, pos, v_max=VM, a_max=np.ones(3), dt=1.0 / 48
+    )
+    assert intended[0, 0] == pytest.approx(np.sqrt(2 * 0.002), rel=1e-6)
+    common = dict(floor_height=0.5, time_horizon=2.0, goals=goals, has_goal=np.ones(1, dtype=bool), column=0.03)
+    lo, hi = velocity_bounds(pos, intended, VM, **common)
+    assert hi[0, 0] == pytest.approx(intended[0, 0]) and lo[0, 0] == 0.0
+    lo, hi = velocity_bounds(pos, intended, VM, column_tick=0.1, **common)
+    assert hi[0, 0] == pytest.approx(0.02) and lo[0, 0] == 0.0 and hi[0, 1] == lo[0, 1] == 0.0
+
+
 def test_the_column_rule_holds_only_beside_an_obstacle():
     """With ``column_reach`` the column rule's premise is checked: an agent low on a vertical leg is held
     (no sideways dodge) only with a box within reach of its shape and not wholly above it."""
@@ -440,6 +457,7 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
             # the column rule's premise (column_reach) is tested against the static obstacles it knows
             assert (kw["beside"] is None) is (off in (Rule.COLUMN_RULE, Rule.STATIC_OBSTACLES))
             assert kw["preferred"] is not None  # floor_preferred (on by default) hands the bounds the preferences
+            assert kw["column_tick"] == layer.planner_dt  # column_tick (on by default): the planner's tick
             assert seen["reference"][0][2] is (off is not Rule.CLIPPED_REFERENCE)
             assert ("clear_paths" in seen) is (off is not Rule.PASSTHROUGH)  # agent 0 is 1 cm from its target
             if "clear_paths" in seen:  # the swept boxes reach the wake depth down unless the wake column is off
@@ -450,6 +468,9 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
             assert out[0].action is Action.GRASP
             # agent 1 flies away from agent 0: nothing to avoid, its command stands unless the rule is off
             assert out[1].kind is (CommandKind.VELOCITY if off is Rule.MINIMAL_INTERVENTION else CommandKind.POSITION)
+        layer.params = OrcaParams(column_tick=False)
+        layer.filter(cmds, sim.perceive(), sim.task.view(sim.time))
+        assert seen["velocity_bounds"][1]["column_tick"] is None
     finally:
         sim.close()
 
@@ -757,3 +778,18 @@ def test_gap_weighted_fallback_closes_on_the_nearest_neighbour_last():
     assert -0.4 * abs(out[False][0, 1]) < out[True][0, 1] <= 0.0
     np.testing.assert_array_equal(out[True][3], out[False][3])
     assert OrcaParams(gap_weighted_fallback=False).rules.count(Rule.GAP_WEIGHTED_FALLBACK) == 0
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_free_side_steps_away_from_a_neighbour_off_to_one_side(on: bool):
+    """Agent 0 flies +y, stalled by a neighbour at rest 14 cm to its right and 20 cm ahead (35 deg off its
+    course: not nearly straight ahead). With the rule it steps to the left, which the neighbour leaves free;
+    without, to the right, into the neighbour's side. Traced (suite layout random_3, stigmergy + orca, seed 2):
+    two agents meeting head-on over a depot column, 15 cm apart across it, each stepped towards the other's
+    side, and three agents in a row held each other for 23 s, touching four times."""
+    pos = np.array([[1.0, 1.0, 0.5], [1.14, 1.2, 0.5]])
+    pref = np.array([[0.0, 0.15, 0.0], [0.0, 0.0, 0.0]])
+    goals = np.array([[1.0, 5.0, 0.5], pos[1]])
+    v, flags = _level_boxes(OrcaParams(free_side=on, wake_depth=0.0), pos, pref, goals)
+    assert flags[0] & FLAG_BIASED and abs(v[0, 0]) > 0.05
+    assert bool(v[0, 0] < 0.0) is on

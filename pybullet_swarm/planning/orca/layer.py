@@ -177,6 +177,7 @@ class OrcaLayer:
             floor=p.floor_rule,
             beside=beside,
             preferred=pref if p.floor_preferred else None,
+            column_tick=self.planner_dt if p.column_tick else None,
         )
         safe, flags = orca_velocities(
             pos,

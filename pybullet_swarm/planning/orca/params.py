@@ -126,6 +126,12 @@ class OrcaParams(Params):
         description="m, the column rule holds an agent only with a box, the structure or an obstacle this close to "
         "its airframe or load horizontally and not wholly above it (null: wherever it is; needs static_obstacles)",
     )
+    column_tick: bool = Field(
+        True,
+        description="with column_rule, the sideways speed let through is at most what reaches the target's column "
+        "in one planner tick (the layer's velocity is held that long) [false: the shaped command's speed, meant "
+        "for one shaper tick]",
+    )
     minimal_intervention: bool = _switch(Rule.MINIMAL_INTERVENTION)
     passthrough: bool = _switch(Rule.PASSTHROUGH)
     capture_radius: float = Field(
@@ -211,6 +217,8 @@ class OrcaParams(Params):
         description="m, with gap_weighted_fallback: pairs whose bare shapes are nearer than this (or overlap) "
         "weigh alike, as if this far apart",
     )
+
+    free_side: bool = _switch(Rule.FREE_SIDE)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

@@ -54,6 +54,7 @@ class Rule(str, enum.Enum):
     PINNED_SHARE = "pinned_share"
     GROUND_BESIDE = "ground_beside"
     GAP_WEIGHTED_FALLBACK = "gap_weighted_fallback"
+    FREE_SIDE = "free_side"
 
     @property
     def doc(self) -> str:
@@ -114,6 +115,8 @@ RULE_DOCS: dict[Rule, str] = {
     "ground",
     Rule.GAP_WEIGHTED_FALLBACK: "with no common velocity, a plane's violation counts 1 / its pair's gap a lag later "
     "times: the nearest is closed on last",
+    Rule.FREE_SIDE: "sidestep takes the side a neighbour in the way leaves free at any bearing (off: within 30 "
+    "deg of ahead, else right)",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -322,6 +325,7 @@ def velocity_bounds(
     floor: bool = True,
     beside: NDArray[np.bool_] | None = None,
     preferred: NDArray[np.float64] | None = None,
+    column_tick: float | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """FLOOR_RULE and COLUMN_RULE: hard per-axis bounds (lower (n, 3), upper (n, 3)) m/s of each agent's velocity.
 
@@ -347,6 +351,11 @@ def velocity_bounds(
         preferred: (n, 3) m/s, the preferred velocities; given, below ``floor_height`` an agent is not pushed
             down faster than the slower of it and ``intended`` (a POSITION target a few centimetres below is
             approached slowly, while the shaped command may still ask for the velocity limit).
+        column_tick: s, given, the column rule lets through no more sideways speed than reaches the target's
+            column in this time: the layer's velocity is held for a planner tick, while the shaped command's
+            speed over a few millimetres (``sqrt(2 a_max |e|)``) is meant for one shaper tick. Held over
+            a box still on the ground, that speed walked the reference off the column, tick after tick,
+            until the carrier tipped over (construction seed 1 without downwash, ``climb_over`` off).
     """
     n = len(positions)
     vm = np.full(3, np.inf) if v_max is None else np.broadcast_to(np.asarray(v_max, dtype=float), (3,)).copy()
@@ -360,8 +369,12 @@ def velocity_bounds(
         leg = has_goal & (np.hypot(e[:, 0], e[:, 1]) <= column) & (positions[:, 2] < floor_height)
         if beside is not None:
             leg &= beside
-        lo[leg, :2] = np.minimum(intended[leg, :2], 0.0)
-        hi[leg, :2] = np.maximum(intended[leg, :2], 0.0)
+        side = intended[leg, :2]
+        if column_tick is not None:
+            reach = np.abs(e[leg, :2]) / column_tick
+            side = np.clip(side, -reach, reach)
+        lo[leg, :2] = np.minimum(side, 0.0)
+        hi[leg, :2] = np.maximum(side, 0.0)
     return lo, hi
 
 
@@ -501,12 +514,13 @@ def climb_is_shorter(c: Vec, H: Vec, wz: float) -> bool:
 
 
 @njit
-def sidestep(d: Vec, rel: Vec) -> Vec:
+def sidestep(d: Vec, rel: Vec, free_side: bool = False) -> Vec:
     """SIDESTEP: horizontal unit direction across unit direction ``d``, to pass a neighbour at ``rel`` m.
 
     To the right (``right_of``): when everyone keeps right, a crowd turns into a roundabout. The
-    exception is a neighbour nearly straight ahead (within 30 deg) but already a little to one
-    side (more than 1 cm): then the side it leaves free, rather than crossing in front of it.
+    exception is a neighbour already a little to one side (more than 1 cm): then the side it leaves
+    free, rather than crossing in front of it; without ``free_side`` (``FREE_SIDE``) only when it is
+    nearly straight ahead (within 30 deg), and to the right beyond, even when the neighbour is there.
     Both agents of a pair see mirrored numbers and so pick opposite sides.
     """
     h2 = d[0] * d[0] + d[1] * d[1]
@@ -515,7 +529,7 @@ def sidestep(d: Vec, rel: Vec) -> Vec:
         across = (-d[1] / hl, d[0] / hl, 0.0)  # left of d
         side = dot(rel, across)
         rh = math.sqrt(rel[0] * rel[0] + rel[1] * rel[1])
-        if SIDE_OFFSET < abs(side) < AHEAD_SIN * rh:
+        if SIDE_OFFSET < abs(side) and (free_side or abs(side) < AHEAD_SIN * rh):
             return scale(across, -1.0 if side > 0.0 else 1.0)
         return right_of(d)
     r2 = rel[0] * rel[0] + rel[1] * rel[1]  # vertical travel: horizontally away
