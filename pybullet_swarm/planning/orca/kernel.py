@@ -385,9 +385,7 @@ def orca_batch(
                 elif rs.side_memory and passing == j:
                     side = (side_dir[i, 0], side_dir[i, 1], side_dir[i, 2])  # the side chosen for j: keep it
                 else:
-                    side = rules.sidestep(
-                        scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0), rs.free_side
-                    )
+                    side = rules.sidestep(scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0), rs.free_side)
                 side_of[i] = j
                 set_row(side_dir, i, side)
             elif side_on and n_static > n_bounds:
