@@ -30,12 +30,13 @@ The paper's core and our extension rules are kept apart:
   - ``column_rule``: low on a vertical leg (within ``column_radius`` of its target) an agent is
     only slowed or lifted: a sideways dodge there tilts it into the box under it (with
     ``static_obstacles``, only where a box, the structure or an obstacle lies within ``column_reach``
-    of its airframe or load: a leg in the open, such as a climb at the structure's edge, dodges);
+    of its airframe or load: a leg in the open, such as a climb at the structure's edge, dodges;
+    ``column_tick``: no faster sideways than reaches the target's column in one planner tick);
   - ``minimal_intervention``: a command that violates no half-space is kept unchanged;
   - ``passthrough``: within ``capture_radius`` of a POSITION/HOLD target the command passes
     unchanged when the swept box is clear (grasp and release need millimetres);
   - ``sidestep``: a stalled agent adds ``right_bias`` of its preferred speed sideways (right, or
-    the side a neighbour nearly straight ahead leaves free): crowds become roundabouts;
+    the side a neighbour already off to one side leaves free): crowds become roundabouts;
   - ``climb_past``: a stalled agent above the one in its way climbs past it instead;
   - ``make_way``: an agent descending onto its goal's occupant rises straight up, the only way the
     one below can leave.
@@ -105,6 +106,10 @@ The paper's core and our extension rules are kept apart:
     a line leaving the start grid, squeezed between its planes ahead and behind, otherwise shared
     the violation with a neighbour 3 cm beside it and touched it; weighed by the present gap, an
     agent squeezed in a row fled the nearer neighbour into the other, back and forth.
+  - ``free_side``: ``sidestep`` takes the side a neighbour in the way leaves free at any bearing,
+    not only within 30 deg of straight ahead (beyond, it went right, even where the neighbour was):
+    two agents held up by each other at about 45 deg over a depot column each stepped towards the
+    other, and with a third beside them the three held each other in a row for 23 s.
 
 * ``kernel``: one compiled (numba) call per planner tick for all agents, composing the two;
   ``params``: ``OrcaParams``; ``layer``: ``OrcaLayer``, the ``--avoidance orca`` layer.
