@@ -105,7 +105,9 @@ extension with its own switch (bold; the table below).
   ``AHEAD_DEG`` of the way block it: an agent may always move away from a neighbour beside or
   behind it), **detour** (after a re-plan the agent keeps to its new search point for as long as a
   mark lasts, 1 s, before going for a seen object again: two agents wanting to pass each other would
-  otherwise block each other for ever).
+  otherwise block each other for ever), **replan_climb** (a re-plan also forgets where the agent
+  latched to climb before a higher zone: two carriers climbing at the structure's edge under a third
+  sinking towards them were re-planned, tick after tick, onto the same blocked climb).
 
 **The thesis preset** (``planner.params.preset: thesis``) switches every extension off:
 
@@ -131,6 +133,7 @@ switch                        default     thesis      source of the thesis's val
 ``footprint``                 true        false       appendix B: the agent marks its own cell only
 ``ahead_cone``                true        false       chapter 6.0.4: "any area they move into"
 ``detour``                    true        false       not in the thesis
+``replan_climb``              true        false       not in the thesis (one altitude: no climb latch)
 ``queue_at_slots``            true        false       not in the thesis (five agents, a gapped wall)
 ``search_near``               true        false       section 5.2.5 (limit the search space); not appendix A
 ============================  ==========  ==========  =================================================
@@ -568,6 +571,11 @@ class LayeredStigmergyParams(StigmergyParams):
         description="after a re-plan keep to the new search point for as long as a mark "
         "lasts before going for a seen object again [false]",
     )
+    replan_climb: bool = Field(
+        True,
+        description="a re-plan also forgets where the agent latched to climb before a higher zone, so the "
+        "new way may climb elsewhere [false: every way climbs at the latched point again]",
+    )
 
     LAYERS: ClassVar[int] = 2
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
@@ -579,6 +587,7 @@ class LayeredStigmergyParams(StigmergyParams):
             "footprint": False,
             "ahead_cone": False,
             "detour": False,
+            "replan_climb": False,
         }
     }
 
@@ -1657,6 +1666,8 @@ class LayeredStigmergy(Stigmergy):
         if self.phase in TRAVELLING and self._blocked(obs, cmd, medium):
             medium.tally("presence_replans")
             self._replan()
+            if self.params.replan_climb:
+                self.climb_at = None
             if self.params.detour:
                 # search elsewhere for as long as a mark lasts before going for a seen object again:
                 # two agents wanting to pass each other would otherwise block each other for ever

@@ -54,6 +54,7 @@ THESIS_LAYERED = {
     "footprint": False,
     "ahead_cone": False,
     "detour": False,
+    "replan_climb": False,
 }
 THESIS_SHORTEST_PATH = {
     "altitude_step": 0.0,
@@ -134,6 +135,7 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "footprint",
         "ahead_cone",
         "detour",
+        "replan_climb",
     ]
     assert extensions(LayeredStigmergyParams)["lookahead"] == (0.1, 0.2)  # (thesis, default)
 
