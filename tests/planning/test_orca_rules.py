@@ -786,7 +786,7 @@ def test_free_side_steps_away_from_a_neighbour_off_to_one_side(on: bool):
     course: not nearly straight ahead). With the rule it steps to the left, which the neighbour leaves free;
     without, to the right, into the neighbour's side. Traced (suite layout random_3, stigmergy + orca, seed 2):
     two agents meeting head-on over a depot column, 15 cm apart across it, each stepped towards the other's
-    side, and three agents in a row held each other for 23 s, touching four times."""
+    side, and three agents in a row held each other for 23 s, touching five times."""
     pos = np.array([[1.0, 1.0, 0.5], [1.14, 1.2, 0.5]])
     pref = np.array([[0.0, 0.15, 0.0], [0.0, 0.0, 0.0]])
     goals = np.array([[1.0, 5.0, 0.5], pos[1]])
