@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import re
+import unicodedata
 from pathlib import Path
 from collections.abc import Mapping
 from typing import Any, TypeVar
@@ -152,6 +153,33 @@ def validate(model: type[M], data: Any, *, source: str | None, prefix: str = "")
         return model.model_validate(data)
     except pydantic.ValidationError as exc:
         raise from_pydantic(exc, source=source, prefix=prefix, data=data) from None
+
+
+#: characters that change the direction of the text around them (bidirectional embeddings, overrides,
+#: isolates and marks): a name holding them is drawn in another order than it reads in the file
+BIDI_CONTROLS = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+
+
+def check_drawable_text(value: str, *, source: str | None, field: str) -> None:
+    """Refuse text that figures, titles and terminals cannot show as written: control characters
+    (Unicode category Cc, line and paragraph separators, surrogates) and bidirectional controls.
+
+    Raises:
+        ConfigError: naming ``field`` and the first such character (as ``U+XXXX``) and where it is.
+    """
+    for i, ch in enumerate(value):
+        if ch in BIDI_CONTROLS:
+            what = "a bidirectional control character"
+        elif unicodedata.category(ch) in ("Cc", "Cs", "Zl", "Zp"):
+            what = "a control character"
+        else:
+            continue
+        raise ConfigError(
+            f"must be text without control or bidirectional-override characters, got {what} "
+            f"U+{ord(ch):04X} at position {i}",
+            source=source,
+            field=field,
+        )
 
 
 def check_plain(data: Any, *, source: str | None, max_depth: int = MAX_DEPTH, finite: bool = True) -> None:

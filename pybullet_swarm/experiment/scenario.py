@@ -24,7 +24,7 @@ from pybullet_swarm.planning.params import NoParams, ParamInfo, ParamRuleError, 
 from pybullet_swarm.planning.params import field_info as describe_field
 from pybullet_swarm.resources import bundled_scenarios, scenarios_dir
 from pybullet_swarm.tasks.waypoints import WaypointsTask
-from pybullet_swarm.validation import _short, check_plain, parse_yaml, read_yaml, validate
+from pybullet_swarm.validation import _short, check_drawable_text, check_plain, parse_yaml, read_yaml, validate
 
 if TYPE_CHECKING:  # pragma: no cover
     from pybullet_swarm.vehicle import VehicleParams
@@ -852,12 +852,19 @@ def _check_budgets(s: Scenario) -> None:
         )
 
 
+def _check_text(f: _ScenarioFile, source: str) -> None:
+    """The scenario's name and description are drawn in figure titles and printed by ``list``."""
+    for field, text in (("name", f.name), ("description", f.description)):
+        check_drawable_text(text, source=source, field=field)
+
+
 def build_scenario(data: Any, *, source: str) -> Scenario:
     """Validate plain scenario data (as read from YAML) into a ``Scenario``."""
     if not isinstance(data, dict):
         raise ConfigError(f"must be a mapping of scenario sections, got {type(data).__name__}", source=source)
     check_plain(data, source=source)
     f = validate(_ScenarioFile, data, source=source)
+    _check_text(f, source)
     kind = f.task.get("kind")
     from pybullet_swarm import tasks as _tasks  # registry of task models, filled by the tasks layer
 
@@ -924,6 +931,7 @@ def check_saved_scenario(data: Any, *, source: str) -> None:
         raise ConfigError(f"must be a mapping of scenario sections, got {type(data).__name__}", source=source)
     check_plain(data, source=source)
     f = validate(_ScenarioFile, data, source=source)
+    _check_text(f, source)
     from pybullet_swarm import tasks as _tasks
     from pybullet_swarm.vehicle import load_vehicle
 

@@ -714,3 +714,12 @@ def test_exit_code_of_the_real_process(tmp_path: Path, args: tuple[str, ...], ex
     assert "Traceback" not in proc.stderr + proc.stdout
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(PREFIX + expected)
     assert not (tmp_path / "runs").exists()  # nothing was run
+
+
+def test_check_refuses_a_bidi_override_in_the_name(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    path = tmp_path / "spoof.yaml"
+    data = copy.deepcopy(BASE)
+    data["name"] = "run\u202egpj.exe"
+    path.write_text(yaml.safe_dump(data, allow_unicode=True), encoding="utf-8")
+    line = assert_one_line_error(*check_file(capsys, path), "spoof.yaml: name: ", "U+202E")
+    assert "\u202e" not in line

@@ -507,3 +507,32 @@ def test_layout_property(count: int, spacing: float) -> None:
         starts = s.start_positions(0.05)
         assert starts.shape == (count, 3)
         assert ((starts[:, :2] > 0) & (starts[:, :2] < 3.0)).all()
+
+
+@pytest.mark.parametrize("field", ["name", "description"])
+@pytest.mark.parametrize(
+    ("char", "what"),
+    [
+        ("\u202e", "bidirectional control character U+202E"),
+        ("\u2066", "bidirectional control character U+2066"),
+        ("\u200f", "bidirectional control character U+200F"),
+        ("\x1b", "control character U+001B"),
+        ("\n", "control character U+000A"),
+        ("\x85", "control character U+0085"),
+        ("\u2028", "control character U+2028"),
+    ],
+)
+def test_text_fields_with_control_or_bidi_characters_are_refused(field: str, char: str, what: str) -> None:
+    data = hover_data()
+    data[field] = f"ab{char}cd"
+    err = bad(data)
+    assert err.field == field
+    assert f"got a {what} at position 2" in str(err)
+
+
+def test_text_fields_in_other_scripts_are_drawable() -> None:
+    data = hover_data()
+    data["name"] = "سرب-群れ-Schwarm"
+    data["description"] = "Ελληνικά, עברית (right to left without overrides), emoji 🛸"
+    s = build_scenario(data, source="ok.yaml")
+    assert s.name == data["name"] and s.description == data["description"]
