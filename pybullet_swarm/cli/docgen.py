@@ -9,6 +9,7 @@ functions return, so that the reference follows the code and no result table is 
   from the pydantic models of ``experiment/scenario.py`` and of each task kind;
 - ``<!-- reference: parameters -->``: ``parameter_reference()``, every parameter of every
   registered planner and avoidance layer, read from their parameter models;
+- ``<!-- reference: presets -->``: ``preset_reference()``, what each preset of those models changes;
 - ``<!-- results-table: NAME -->``: ``results_table(data)`` of ``docs/results/data/NAME.json``;
 - ``<!-- benchmark-table: PATH -->``: the benchmark module's own ``markdown_table`` of a JSON
   file written by ``pybullet-swarm benchmark``.
@@ -187,8 +188,11 @@ def field_description(model: type[pydantic.BaseModel], name: str) -> str:
     if f.description:
         return " ".join(f.description.split())
     for cls in model.__mro__:
-        if isinstance(cls, type) and issubclass(cls, pydantic.BaseModel) and name in _comments(cls):
+        if isinstance(cls, type) and issubclass(cls, pydantic.BaseModel) and _comments(cls).get(name):
             return _comments(cls)[name]
+    for inner in nested_models(f.annotation):  # a section: its model's own docstring
+        if inner.__dict__.get("__doc__"):
+            return " ".join(inspect.cleandoc(inner.__doc__ or "").split("\n\n")[0].split())
     return ""
 
 
@@ -234,7 +238,7 @@ def _field_row(path: str, model: type[pydantic.BaseModel], name: str) -> list[st
     else:
         default = _value(f.get_default(call_default_factory=True))
     kind = "section" if nested_models(f.annotation) and not _is_list(f.annotation) else info.type
-    return [f"`{path}`", _cell(kind), default, info.range_text(), _cell(field_description(model, name))]
+    return [f"`{path}`", _cell(kind), default, _cell(info.range_text()), _cell(field_description(model, name))]
 
 
 def _fields_table(model: type[pydantic.BaseModel], prefix: str = "") -> str:
@@ -258,14 +262,43 @@ def scenario_reference() -> str:
         "",
         _fields_table(_ScenarioFile),
         "",
+        "The `task` section's fields depend on its `kind`, which names the task; every kind has "
+        "`time_limit_s` (s: a run still going then ends as `timeout`).",
+        "",
     ]
     for kind, model in sorted(task_models().items()):
         lines += [f"## `task` of kind `{kind}`", ""]
-        doc = inspect.getdoc(model)
-        if doc and doc != inspect.getdoc(pydantic.BaseModel):
-            lines += [doc.split("\n\n")[0].replace("\n", " "), ""]
-        lines += [_fields_table(model, "task."), ""]
-    return "\n".join(lines).rstrip() + "\n"
+        lines += [*_summary(model), _fields_table(model, "task."), ""]
+    return "\n".join([*lines, *_layout_reference()]).rstrip() + "\n"
+
+
+def _summary(model: type[Any]) -> list[str]:
+    """The first paragraph of a model's own docstring, as one line (none when it has no docstring of its own)."""
+    doc = model.__dict__.get("__doc__")
+    return [" ".join(inspect.cleandoc(doc).split("\n\n")[0].split()), ""] if doc else []
+
+
+def _layout_reference() -> list[str]:
+    """The compact forms of ``task.structure`` and ``task.boxes``: voxels and named shapes."""
+    from pybullet_swarm.tasks.layouts import SHAPES, Voxels
+
+    lines = [
+        "## Structures and depots",
+        "",
+        "`task.structure` and `task.boxes` of a construction task are lists of box centres `[x, y, z]`, "
+        "or written compactly (`pybullet_swarm/tasks/layouts.py`): voxels, a named shape, or a list of "
+        "several; they are expanded to box centres when the scenario loads. "
+        "See [building your own structure](../guides/structures.md).",
+        "",
+        "### Voxels",
+        "",
+        *_summary(Voxels),
+        _fields_table(Voxels, "task.structure.voxels."),
+        "",
+    ]
+    for name, model in SHAPES.items():
+        lines += [f"### Shape `{name}`", "", *_summary(model), _fields_table(model, "task.structure."), ""]
+    return lines
 
 
 # ----------------------------------------------------------------- plug-in parameters
@@ -307,6 +340,33 @@ def parameter_reference() -> str:
     lines += ["## Avoidance layers", ""]
     for name, layer in avoidance_layers().items():
         lines += _params_section(f"`{name}`", layer.description, layer.params, "avoidance_params")
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def preset_reference() -> str:
+    """Every preset of every planner and avoidance layer (Markdown): the parameters it sets to a value other
+    than the default, with both values and the parameter's description."""
+    from pybullet_swarm.planning.params import describe, extensions
+    from pybullet_swarm.planning.registry import avoidance_layers, planners
+
+    plugins = [(name, e.params, "planner.params") for name, e in planners().items()]
+    plugins += [(name, e.params, "avoidance_params") for name, e in avoidance_layers().items()]
+    lines = []
+    for name, model, key in plugins:
+        descriptions = {p.name: p.description for p in describe(model)}
+        for preset in model.PRESETS:
+            changed = extensions(model, preset)
+            lines += [
+                f"### `{name}`: `{key}.preset: {preset.value}`",
+                "",
+                f"{len(changed)} parameters differ from the defaults.",
+                "",
+            ]
+            rows = [
+                [f"`{key}.{field}`", _value(default), _value(value), _cell(descriptions.get(field, ""))]
+                for field, (value, default) in changed.items()
+            ]
+            lines += [_table(["parameter", "default", preset.value, "description"], rows), ""]
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -427,7 +487,12 @@ def render_markers(markdown: str, *, root: Path, data_dir: Path) -> str:
     Raises ``ConfigError`` (one line) for an unknown reference, a missing or malformed results
     file, or a benchmark table when the benchmark module is not there.
     """
-    generators = {"cli": cli_reference, "scenario": scenario_reference, "parameters": parameter_reference}
+    generators = {
+        "cli": cli_reference,
+        "scenario": scenario_reference,
+        "parameters": parameter_reference,
+        "presets": preset_reference,
+    }
 
     def replace(match: re.Match[str]) -> str:
         kind, arg = match.group(1), match.group(2)

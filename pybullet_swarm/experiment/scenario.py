@@ -81,9 +81,11 @@ class Obstacle(_Strict):
     """
 
     shape: Literal["cylinder", "box"]  # an ObstacleShape value
-    size: Annotated[list[Annotated[float, Field(gt=0, le=1e4)]], Field(min_length=2, max_length=3)]
-    position: Annotated[list[Coord], Field(min_length=2, max_length=3)]
-    yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)
+    size: Annotated[
+        list[Annotated[float, Field(gt=0, le=1e4)]], Field(min_length=2, max_length=3)
+    ]  # m, [r, h] | [x, y, z]
+    position: Annotated[list[Coord], Field(min_length=2, max_length=3)]  # m, centre [x, y] (on the ground) or [x, y, z]
+    yaw_deg: float = Field(0.0, ge=-360.0, le=360.0)  # deg, about z
 
     def center(self) -> NDArray[np.float64]:
         """Centre (3,) m (a 2-D position stands the obstacle on the ground)."""
@@ -116,10 +118,13 @@ class Obstacle(_Strict):
 class ArenaSection(_Strict):
     """The flight area: x in [0, Lx], y in [0, Ly], ground at z = 0."""
 
-    size: Annotated[list[Annotated[float, Field(gt=0, le=1e4)]], Field(min_length=2, max_length=2)] = [3.0, 1.0]
+    size: Annotated[list[Annotated[float, Field(gt=0, le=1e4)]], Field(min_length=2, max_length=2)] = [
+        3.0,
+        1.0,
+    ]  # m, [Lx, Ly]: x in [0, Lx], y in [0, Ly]
     height: PosFloat | None = None  # m, ceiling (None: open height)
     walls: bool = False  # add four walls of `wall_height` around the arena
-    wall_height: PosFloat = 2.0
+    wall_height: PosFloat = 2.0  # m
     obstacles: list[Obstacle] = Field(default_factory=list)  # static pillars and boxes
 
     def obstacle_boxes(self) -> Obstacles:
@@ -151,8 +156,8 @@ class ArenaSection(_Strict):
 class AgentsSection(_Strict):
     """The swarm: how many, which vehicle, where they start."""
 
-    count: int = Field(1, ge=1, le=2000)
-    vehicle: str = "quad150"
+    count: int = Field(1, ge=1, le=2000)  # number of agents
+    vehicle: str = "quad150"  # a bundled vehicle (quad150, cf2x) or the path of a vehicle YAML beside its URDF
     start: list[Vec3] | None = None  # m, explicit start positions (count of them)
     layout: Literal["grid", "line"] = "grid"  # used when `start` is not given
     spacing: PosFloat = 0.5  # m, between neighbours of the layout
@@ -272,22 +277,23 @@ class PlannerSection(_Strict):
     value (validated against the planner's parameter model).
     """
 
-    name: str | None = None
-    params: dict[str, Any] = Field(default_factory=dict)
+    name: str | None = None  # a registered planner (default: the task kind's)
+    params: dict[str, Any] = Field(default_factory=dict)  # the planner's parameters (its parameter model)
 
 
 class _ScenarioFile(_Strict):
-    name: str = "scenario"
-    description: str = ""
-    seed: int = Field(0, ge=0, le=2**63 - 1)
+    name: str = "scenario"  # names the run and its directory, shown in figures
+    description: str = ""  # one line, shown by `list`
+    seed: int = Field(0, ge=0, le=2**63 - 1)  # every random stream of the run derives from it
     sim: SimSection = SimSection()
     arena: ArenaSection = ArenaSection()
     agents: AgentsSection = AgentsSection()
     limits: LimitsSection = LimitsSection()
-    task: dict[str, Any]
+    task: dict[str, Any]  # the task section; `kind` chooses its model (below)
     planner: PlannerSection = PlannerSection()
-    avoidance: str = "none"
-    avoidance_params: dict[str, Any] = Field(default_factory=dict)
+    avoidance: str = "none"  # a registered avoidance layer
+    avoidance_params: dict[str, Any] = Field(default_factory=dict)  # the layer's parameters (its parameter model)
+    # ghost: agents and carried boxes pass through each other, their overlaps still counted as contacts
     collisions: Literal["physical", "ghost"] = "physical"
     sensing: SensingSection = SensingSection()
 

@@ -153,13 +153,17 @@ class EstimationErrors:
         """Score one control tick.
 
         Args:
-            kalman: (n, 3) m, fused position estimates; kalman_yaw (n,) rad their headings.
+            kalman: (n, 3) m, fused position estimates.
+            kalman_yaw: (n,) rad, their headings.
             velocity: (n, 3) m/s, fused velocity estimates.
             tilt_error: (n,) rad, angle between estimated and true body z axes.
             position_variance: (n, 3) m^2, the filter's position variance per axis.
-            imu: (n, 3) m, dead-reckoning positions; imu_yaw (n,) rad their headings.
+            imu: (n, 3) m, dead-reckoning positions.
+            imu_yaw: (n,) rad, their headings.
             held_fix: (n, 3) m, the last fix of each agent.
-            true_positions, true_velocities, true_yaw: the truth, (n, 3) m, (n, 3) m/s, (n,) rad.
+            true_positions: (n, 3) m, the true positions.
+            true_velocities: (n, 3) m/s, the true velocities.
+            true_yaw: (n,) rad, the true headings.
         """
         est = np.stack([kalman, imu, held_fix, velocity])  # (4, n, 3)
         truth = np.stack([true_positions, true_positions, true_positions, true_velocities])

@@ -64,10 +64,35 @@ def test_scenario_reference_names_every_field_of_every_model() -> None:
         assert not missing, kind
 
 
+def test_scenario_reference_names_every_field_of_the_structure_forms() -> None:
+    from pybullet_swarm.tasks.layouts import SHAPES, Voxels
+
+    section = _section(docgen.scenario_reference(), "## Structures and depots")
+    assert all(f"| `{p}` |" in section for p in _paths(Voxels, "task.structure.voxels."))
+    for name, model in SHAPES.items():
+        shape = _section(section, f"### Shape `{name}`")
+        assert all(f"| `{p}` |" in shape for p in _paths(model, "task.structure.")), name
+
+
+def test_preset_reference_names_every_parameter_a_preset_changes() -> None:
+    from pybullet_swarm.planning.params import extensions
+
+    ref = docgen.preset_reference()
+    found = 0
+    for key, entries in (("planner.params", planners()), ("avoidance_params", avoidance_layers())):
+        for name, entry in entries.items():
+            for preset in entry.params.PRESETS:
+                section = _section(ref, f"### `{name}`: `{key}.preset: {preset.value}`")
+                changed = extensions(entry.params, preset)
+                assert changed and all(f"| `{key}.{field}` |" in section for field in changed)
+                found += 1
+    assert found >= 2  # the thesis preset of the construction planners, ORCA's paper preset
+
+
 def test_scenario_reference_reads_descriptions_from_the_models() -> None:
     ref = docgen.scenario_reference()
     # a comment beside the field and a comment block above it
-    assert "| `sim.physics_hz` | int | `240` | [60, 10000] | Hz, physics and attitude-loop rate |" in ref
+    assert "| `sim.physics_hz` | int | `240` | \\[60, 10000\\] | Hz, physics and attitude-loop rate |" in ref
     row = next(line for line in ref.splitlines() if line.startswith("| `sim.contact_hz` |"))
     assert "contact and overlap reads for collision counting" in row
 
