@@ -127,6 +127,18 @@ class ArenaSection(_Strict):
     wall_height: PosFloat = 2.0  # m
     obstacles: list[Obstacle] = Field(default_factory=list)  # static pillars and boxes
 
+    def pillars(self) -> NDArray[np.float64]:
+        """(K, 3) [x, y, radius] m of every obstacle as a round pillar: a cylinder as it is, a box as the
+        circle around its footprint (what flocking models avoid)."""
+        rows = [
+            [
+                *ob.center()[:2],
+                float(ob.size[0]) if ob.shape == "cylinder" else 0.5 * math.hypot(ob.size[0], ob.size[1]),
+            ]
+            for ob in self.obstacles
+        ]
+        return np.asarray(rows, dtype=float).reshape(-1, 3)
+
     def obstacle_boxes(self) -> Obstacles:
         """The walls (when ``walls``) and every obstacle as world-axis boxes, for avoidance layers."""
         centres, halves = [], []

@@ -319,6 +319,9 @@ class Simulation:
         extra["downwash"] = bool(sc.sim.downwash)  # whether vehicles' wakes act on each other (rules minding them)
         # whether an avoidance layer keeps agents apart (a planner may share a lane only with one)
         extra["avoidance"] = self.avoidance_factory is not None
+        # the arena as flocking models see it: walls and pillars (a box as the circle around its footprint)
+        extra["arena_walls"] = bool(sc.arena.walls)
+        extra["pillars"] = sc.arena.pillars()
         return TaskInfo(
             arena_size=np.asarray(sc.arena.size, dtype=float),
             n_agents=self.n,

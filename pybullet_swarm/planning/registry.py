@@ -37,7 +37,18 @@ AVOIDANCE_LAYERS: dict[str, AvoidanceEntry] = {"none": AvoidanceEntry(None, "no 
 #: task kind -> default planner
 DEFAULT_PLANNER: dict[str, str] = {}
 
-_MODULES = ("waypoints", "shortest_path", "stigmergy", "orca", "aco_tour", "reynolds", "laplacian", "braitenberg")
+_MODULES = (
+    "waypoints",
+    "shortest_path",
+    "stigmergy",
+    "orca",
+    "aco_tour",
+    "reynolds",
+    "laplacian",
+    "braitenberg",
+    "vasarhelyi",
+    "olfati_saber",
+)
 _loaded = False
 
 

@@ -215,6 +215,6 @@ register_planner(
     ReynoldsPlanner,
     "decentralised Reynolds flocking (separation, alignment, cohesion "
     "within a neighbourhood radius) with a migratory urge along the route, in an altitude band",
-    ("route",),
+    ("route", "flock"),
     default_for=("route",),
 )

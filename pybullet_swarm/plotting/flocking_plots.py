@@ -208,3 +208,97 @@ def plot_route_run(
             plot_formation_error(ts.t, slot_errors(pos, slots), out_dir / "formation_error.png", pass_times=pass_times)
         )
     return files
+
+
+#: order parameters drawn over time (``plot_order_parameters``), each in [0, 1]
+ORDER_CURVES = ("velocity_correlation", "order", "union", "connectivity", "safety")
+
+
+def plot_order_parameters(
+    t: ArrayLike, series: Mapping[str, NDArray[np.float64]], path: Path | str, *, warmup_s: float = 0.0
+) -> Path:
+    """The flock's order parameters (T,) over time (T,) s, the warm-up shaded."""
+    t = np.asarray(t, dtype=float)
+    fig = Figure(figsize=(9, 4.5), layout="constrained")
+    ax = fig.subplots()
+    for name in ORDER_CURVES:
+        ax.plot(t, series[name], lw=1.0, label=name)
+    ax.axvspan(float(t[0]) if t.size else 0.0, warmup_s, color="0.9", label="warm-up")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("order parameter [-]")
+    ax.set_ylim(-0.05, 1.05)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower right", fontsize=8)
+    ax.set_title("order parameters of the flock")
+    return save_figure(fig, path)
+
+
+def plot_min_distance(t: ArrayLike, min_distance: ArrayLike, r_coll: float, path: Path | str) -> Path:
+    """The closest pair's distance (T,) m over time (T,) s, with the collision distance ``r_coll`` m."""
+    t = np.asarray(t, dtype=float)
+    d = np.asarray(min_distance, dtype=float)
+    fig = Figure(figsize=(9, 4), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(t, d, lw=1.0, color="C0", label=f"closest pair (min {np.min(d):.2f} m)")
+    ax.axhline(r_coll, color="C3", ls="--", lw=1.2, label=f"r_coll = {r_coll:g} m")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("distance [m]")
+    ax.set_ylim(0.0, max(float(np.max(d)) * 1.05, 2.0 * r_coll))
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", fontsize=8)
+    ax.set_title("minimum pair distance")
+    return save_figure(fig, path)
+
+
+def plot_flock_trajectories(
+    positions: ArrayLike, path: Path | str, *, arena_size: ArrayLike, obstacles: list[dict[str, Any]]
+) -> Path:
+    """Top view of the paths (T, n, 3) m inside the walls of the arena (2,) m, pillars drawn, last position dotted."""
+    p = np.asarray(positions, dtype=float)
+    lx, ly = (float(v) for v in np.asarray(arena_size, dtype=float)[:2])
+    fig = Figure(figsize=(7, 7), layout="constrained")
+    ax = fig.subplots()
+    ax.add_patch(Rectangle((0, 0), lx, ly, fill=False, ec="k", lw=2.0))
+    for ob in obstacles:
+        _draw_obstacle(ax, ob)
+    for i in range(p.shape[1]):
+        ax.plot(p[:, i, 0], p[:, i, 1], lw=0.6, alpha=0.7, color=f"C{i % 10}")
+        ax.plot(p[-1, i, 0], p[-1, i, 1], "o", ms=3, color=f"C{i % 10}")
+    ax.set_xlim(-0.05 * lx, 1.05 * lx)
+    ax.set_ylim(-0.05 * ly, 1.05 * ly)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title("trajectories and walls")
+    return save_figure(fig, path)
+
+
+#: s, the trajectories figure shows this last stretch of the run
+TRAJECTORY_WINDOW_S = 60.0
+
+
+def plot_flock_run(ts: Any, out_dir: Path, scenario: Mapping[str, Any]) -> list[Path]:
+    """Every flock figure of a run from its saved results: order parameters, closest pair, trajectories."""
+    from pybullet_swarm.metrics.flock import order_series
+
+    task = scenario["task"]
+    arena = scenario.get("arena", {})
+    size = arena.get("size", [3.0, 1.0])
+    t = np.asarray(ts.t, dtype=float)
+    pos = ts.positions.astype(float)
+    s = order_series(
+        pos,
+        ts.velocities.astype(float),
+        arena_size=size,
+        r_coll=float(task["r_coll"]),
+        connection_range=float(task["connection_range_m"]),
+    )
+    out_dir = Path(out_dir)
+    last = t >= t[-1] - TRAJECTORY_WINDOW_S
+    return [
+        plot_order_parameters(t, s, out_dir / "order_parameters.png", warmup_s=float(task.get("warmup_s", 0.0))),
+        plot_min_distance(t, s["min_distance_m"], float(task["r_coll"]), out_dir / "min_distance.png"),
+        plot_flock_trajectories(
+            pos[last], out_dir / "trajectories.png", arena_size=size, obstacles=list(arena.get("obstacles", []))
+        ),
+    ]

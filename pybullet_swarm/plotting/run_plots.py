@@ -163,6 +163,10 @@ def _swarm_figures(
         from pybullet_swarm.plotting.flocking_plots import plot_route_run
 
         files += plot_route_run(ts, out_dir, metrics, scenario, events)
+    if task.get("kind") == "flock":
+        from pybullet_swarm.plotting.flocking_plots import plot_flock_run
+
+        files += plot_flock_run(ts, out_dir, scenario)
     if task.get("kind") == "construction":
         boxes = np.asarray(task["boxes"], dtype=float)
         slots = np.asarray(task["structure"], dtype=float)

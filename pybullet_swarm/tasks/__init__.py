@@ -20,7 +20,7 @@ TASK_MODELS: dict[str, Any] = {}
 # kind -> runtime factory(spec, TaskContext) -> TaskRuntime
 TASK_RUNTIMES: dict[str, Callable[..., Any]] = {}
 
-_MODULES = ("waypoints", "construction", "tour", "route")
+_MODULES = ("waypoints", "construction", "tour", "route", "flock")
 
 
 def task_models() -> dict[str, Any]:

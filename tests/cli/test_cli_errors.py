@@ -289,13 +289,13 @@ EXPLICIT: list[tuple[str, Callable[[], str], list[str], str | tuple[str, ...]]] 
         "unknown_task_kind",
         _mut(task__kind="dance"),
         [],
-        "bad.yaml: task.kind: must be one of construction, route, tour, waypoints, got 'dance'",
+        "bad.yaml: task.kind: must be one of construction, flock, route, tour, waypoints, got 'dance'",
     ),
     (
         "task_kind_list",
         _mut(task__kind=["waypoints"]),
         [],
-        "bad.yaml: task.kind: must be one of construction, route, tour, waypoints, got ['waypoints']",
+        "bad.yaml: task.kind: must be one of construction, flock, route, tour, waypoints, got ['waypoints']",
     ),
     (
         "control_50",
