@@ -281,6 +281,47 @@ class SensingSection(_Strict):
     range: RangeSensing = RangeSensing()  # fan of horizontal range rays per agent
 
 
+class CommSection(_Strict):
+    """Flight condition: what agents learn of their neighbours comes by radio (``pybullet_swarm.sensing.comm``).
+
+    Off by default (every field at its default: neighbours are perceived directly, at once, exactly).
+    """
+
+    radio_range_m: PosFloat | None = None  # m, messages reach only this far (None: agents.sensing_radius alone)
+    delay_s: float = Field(0.0, ge=0.0, le=60.0)  # s, a message is received this long after it was sent
+    packet_loss: float = Field(0.0, ge=0.0, lt=1.0)  # chance that one message to one neighbour is lost
+    gps_rate_hz: float | None = Field(
+        None, gt=0.0, le=1000.0
+    )  # Hz, rate of the broadcast position fixes (None: every tick)
+    gps_noise_std_m: float = Field(0.0, ge=0.0, le=100.0)  # m per axis, noise of a broadcast position fix
+    gps_velocity_noise_std: float = Field(0.0, ge=0.0, le=100.0)  # m/s per axis, noise of a broadcast velocity
+
+    @property
+    def enabled(self) -> bool:
+        """True when any field differs from its default."""
+        return self != CommSection()
+
+
+class WindSection(_Strict):
+    """Flight condition: wind as aerodynamic drag on every vehicle and box (``pybullet_swarm.vehicle.wind``).
+
+    Off by default (no wind, no gusts).
+    """
+
+    velocity: Annotated[list[Annotated[float, Field(ge=-100.0, le=100.0)]], Field(min_length=3, max_length=3)] = [
+        0.0,
+        0.0,
+        0.0,
+    ]  # m/s, steady wind (world frame)
+    turbulence: float = Field(0.0, ge=0.0, le=50.0)  # m/s, standard deviation of the Dryden gusts per axis
+    length_scale_m: float = Field(8.0, gt=0.0, le=1e4)  # m, Dryden scale length of the gusts
+
+    @property
+    def enabled(self) -> bool:
+        """True when there is any wind or gust."""
+        return any(v != 0.0 for v in self.velocity) or self.turbulence > 0.0
+
+
 class PlannerSection(_Strict):
     """Which planner issues the agents' commands, and its parameters.
 
@@ -308,6 +349,8 @@ class _ScenarioFile(_Strict):
     # ghost: agents and carried boxes pass through each other, their overlaps still counted as contacts
     collisions: Literal["physical", "ghost"] = "physical"
     sensing: SensingSection = SensingSection()
+    comm: CommSection = CommSection()
+    wind: WindSection = WindSection()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -339,6 +382,8 @@ class Scenario:
     sensing: SensingSection = SensingSection()
     planner_params: Params = NoParams()
     avoidance_params: Params = NoParams()
+    comm: CommSection = CommSection()
+    wind: WindSection = WindSection()
 
     def start_positions(self, rest_height: float) -> NDArray[np.float64]:
         """Start positions (n, 3) m; layouts rest on the ground at ``rest_height`` m."""
@@ -593,6 +638,24 @@ def _check_sensing(sim: SimSection, sensing: SensingSection, source: str) -> Non
                 source=source,
                 field=f"sensing.positioning.outages[{i}]",
             )
+
+
+def _check_conditions(s: Scenario, source: str) -> None:
+    """Flight conditions that cannot work: wind beside the controller's linear drag (the air would be counted
+    twice), position fixes broadcast faster than the planner ticks that send them."""
+    if s.wind.enabled and s.sim.drag_coefficient > 0.0:
+        raise ConfigError(
+            f"must be 0 with wind (the vehicle file's drag coefficients act in the wind), got {s.sim.drag_coefficient:g}",
+            source=source,
+            field="sim.drag_coefficient",
+        )
+    rate = s.comm.gps_rate_hz
+    if rate is not None and rate > s.sim.planner_hz:
+        raise ConfigError(
+            f"must be at most sim.planner_hz ({s.sim.planner_hz}): fixes are broadcast at planner ticks, got {rate:g}",
+            source=source,
+            field="comm.gps_rate_hz",
+        )
 
 
 def _load_vehicle(s: Scenario, source: str) -> VehicleParams:
@@ -919,7 +982,10 @@ def build_scenario(data: Any, *, source: str) -> Scenario:
         sensing=f.sensing,
         planner_params=planner_params,
         avoidance_params=avoidance_params,
+        comm=f.comm,
+        wind=f.wind,
     )
+    _check_conditions(s, source)
     vehicle = _load_vehicle(s, source)
     with np.errstate(all="ignore"):  # huge finite values may overflow in the geometry: refused, never warned
         _check_agents(s, vehicle, source)

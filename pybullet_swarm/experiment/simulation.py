@@ -235,9 +235,57 @@ class Simulation:
             neighbour_noise=(lambda k: self.estimation.neighbour_noise(k))
             if self.flying_on_estimate and n > 1
             else None,
+            radio=self._make_radio(),
         )
+        self.wind = self._make_wind()
         self.task_view: TaskView = self.task.view(0.0)
         self.perception: Perception | None = None
+
+    def _make_radio(self) -> Any:
+        """The radio of the ``comm`` flight condition, or None when it is off (neighbours perceived directly)."""
+        sc = self.scenario
+        if not sc.comm.enabled:
+            return None
+        from pybullet_swarm.sensing.comm import CommParams, Radio
+
+        return Radio(
+            self.n,
+            CommParams(**sc.comm.model_dump()),
+            sensing_radius=float(sc.agents.sensing_radius),
+            planner_dt=1.0 / sc.sim.planner_hz,
+            loss_rng=named_rng(self.seed, "comm/loss"),
+            gps_rng=named_rng(self.seed, "comm/gps"),
+        )
+
+    def _make_wind(self) -> Any:
+        """The ``wind`` flight condition on every vehicle and every movable box, or None when it is off."""
+        sc = self.scenario
+        if not sc.wind.enabled:
+            return None
+        from pybullet_swarm.vehicle.wind import Wind, WindParams
+
+        boxes = self.world.dynamic_boxes
+        self.wind_boxes = list(boxes)
+        areas = np.array([(a * b + b * c + a * c) / 3.0 for a, b, c in boxes.values()], dtype=float)  # mean face, m^2
+        self._box_velocities = np.zeros((len(boxes), 6))
+        w = sc.wind
+        return Wind(
+            WindParams(tuple(w.velocity), w.turbulence, w.length_scale_m),  # type: ignore[arg-type]
+            self.n,
+            self.params.drag_coefficients,
+            areas,
+            self.dt,
+            named_rng(self.seed, "wind"),
+        )
+
+    def _blow(self, state: NDArray[np.float64], forces: NDArray[np.float64]) -> None:
+        """One physics period of wind: gusts advance, drag on the vehicles (into ``forces``) and the boxes."""
+        wind = self.wind
+        wind.step()
+        wind.add_to(state, forces)
+        if self.wind_boxes:
+            self.world.read_body_velocities(self.wind_boxes, self._box_velocities)
+            self.world.apply_body_forces(self.wind_boxes, wind.box_forces(self._box_velocities[:, :3]))
 
     def enable_range_sensors(self) -> None:
         """Give every agent the fan of range rays of ``sensing.range`` (idempotent; avoidance layers
@@ -698,6 +746,7 @@ class Simulation:
         args = ctrl.physics_args(state)
         forces, torques = ctrl.forces, ctrl.torques
         interact = self.downwash.add_to if self.downwash is not None else None
+        blow = self._blow if self.wind is not None else None
         rotor_speeds = ctrl.rotor_speeds
         apply, advance, read, contact_pairs = (
             world.apply_agent_wrenches,
@@ -729,6 +778,8 @@ class Simulation:
             worst = tick(*args)
             if interact is not None:
                 interact(state, rotor_speeds, forces)
+            if blow is not None:
+                blow(state, forces)
             apply(forces, torques)
             advance()
             k += 1

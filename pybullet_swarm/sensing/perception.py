@@ -9,7 +9,7 @@ positioning noise when the swarm flies on estimates) and velocity.
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,6 +17,18 @@ from scipy.spatial import cKDTree
 
 from pybullet_swarm.control.rotations import quat_to_euler
 from pybullet_swarm.types import Perception
+
+
+class Radio(Protocol):
+    """What carries neighbour information when it comes by radio (``pybullet_swarm.sensing.comm.Radio``)."""
+
+    def send(self, t: float, true_positions: NDArray[np.float64], velocities: NDArray[np.float64]) -> None:
+        """Every agent broadcasts at time t s."""
+
+    def receive(
+        self,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """``(i, j, d, positions, velocities)`` of the messages received now."""
 
 #: swarms up to this size are searched exhaustively (one vectorised distance matrix)
 BRUTE_FORCE_MAX = 48
@@ -65,6 +77,8 @@ class PerceptionStage:
         position_std: m, per-axis standard deviation of an agent's own position estimate (0 on true state).
         neighbour_noise: draws (k, 3) m of sensing noise for k neighbour measurements (the positioning
             noise, when the swarm flies on estimates), or None: neighbours are seen where they are.
+        radio: neighbours are what reaches each agent by radio (``pybullet_swarm.sensing.comm``), or None:
+            they are perceived directly.
     """
 
     def __init__(
@@ -74,8 +88,10 @@ class PerceptionStage:
         *,
         position_std: float = 0.0,
         neighbour_noise: Callable[[int], NDArray[np.float64]] | None = None,
+        radio: Radio | None = None,
     ) -> None:
         self.n = int(n)
+        self.radio = radio
         self.radius = float(sensing_radius)
         self.position_std = float(position_std)
         self.neighbour_noise = neighbour_noise
@@ -102,15 +118,20 @@ class PerceptionStage:
                 planner without an avoidance layer): the neighbour arrays are then empty.
         """
         true_pos = true_state[:, :3]
-        if neighbours:
+        if self.radio is not None:  # every tick, heard or not: the radio's messages are sent on time
+            self.radio.send(float(t), true_pos, sensed_state[:, 7:10])
+        if neighbours and self.radio is not None:
+            i, j, d, nb_pos, nb_vel = self.radio.receive()
+        elif neighbours:
             i, j, d = neighbour_pairs(true_pos, self.radius)
+            nb_pos, nb_vel = true_pos[j], sensed_state[j, 7:10].copy()
+            if self.neighbour_noise is not None and j.size:
+                nb_pos = nb_pos + self.neighbour_noise(j.size)
         else:
             i, j, d = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
+            nb_pos, nb_vel = np.zeros((0, 3)), np.zeros((0, 3))
         start = self._start.copy()
         np.cumsum(np.bincount(i, minlength=self.n), out=start[1:])
-        nb_pos = true_pos[j]
-        if self.neighbour_noise is not None and j.size:
-            nb_pos = nb_pos + self.neighbour_noise(j.size)
         return Perception(
             time_s=float(t),
             positions=sensed_state[:, :3].copy(),
@@ -121,7 +142,7 @@ class PerceptionStage:
             nb_start=start,
             nb_ids=j,
             nb_positions=nb_pos,
-            nb_velocities=sensed_state[j, 7:10].copy(),
+            nb_velocities=nb_vel,
             nb_distances=d,
             ranges=np.array(ranges, dtype=float),
             carrying=np.asarray(carrying, dtype=np.int64).copy(),

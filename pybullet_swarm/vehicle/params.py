@@ -26,6 +26,14 @@ _UpTo1000 = Annotated[float, pydantic.Field(gt=0, le=1000.0)]
 _UpTo1e5 = Annotated[float, pydantic.Field(gt=0, le=1e5)]
 
 
+#: m/s^2, standard gravity (weights of the drag scaling)
+G0 = 9.81
+#: s/m, the Crazyflie's linear drag near hover per newton of weight, (xy, z): gym-pybullet-drones' cf2x.urdf
+#: drag_coeff_xy 9.1785e-7 and drag_coeff_z 10.311e-7 N/((rad/s) (m/s)), times the four rotors' summed hover
+#: speed 6064 rad/s, over the 0.027 kg x 9.81 m/s^2 weight
+CF2X_DRAG_PER_WEIGHT = (9.1785e-7 * 6063.6 / (0.027 * G0), 10.311e-7 * 6063.6 / (0.027 * G0))
+
+
 class _VehicleFile(pydantic.BaseModel):
     """The parameter file beside a URDF; physical ranges wide enough for any small multirotor."""
 
@@ -50,6 +58,9 @@ class _VehicleFile(pydantic.BaseModel):
     downwash_eta: Annotated[float, pydantic.Field(ge=-10.0, le=10.0)] | None = None  # m
     downwash_min_width: _UpTo10 | None = None  # m
     downwash_momentum_fraction: Annotated[float, pydantic.Field(gt=0, le=2.0)] | None = None  # -
+    # Linear rotor drag near hover (``pybullet_swarm.vehicle.wind``); absent: the Crazyflie's scaled by weight
+    drag_xy: Annotated[float, pydantic.Field(ge=0, le=100.0)] | None = None  # N/(m/s)
+    drag_z: Annotated[float, pydantic.Field(ge=0, le=100.0)] | None = None  # N/(m/s)
 
     @pydantic.model_validator(mode="after")
     def _rotors_fit(self) -> _VehicleFile:
@@ -145,6 +156,16 @@ class VehicleParams:
     param_file: Path | None = None  # the YAML these parameters were read from (for error messages)
     rotor_radius: float | None = None  # m (None: 0.6 arm_length, see ``rotor_radius_m``)
     downwash: DownwashParams | None = None  # None: the Crazyflie's constants scaled (``downwash_params``)
+    drag_xy: float | None = None  # N/(m/s), horizontal rotor drag near hover (None: ``drag_coefficients``)
+    drag_z: float | None = None  # N/(m/s), vertical rotor drag near hover
+
+    @property
+    def drag_coefficients(self) -> NDArray[np.float64]:
+        """(3,) N/(m/s), linear drag near hover along x, y, z: the file's ``drag_xy`` and ``drag_z``, else the
+        Crazyflie's (``CF2X_DRAG_PER_WEIGHT``) times this airframe's weight (rotor drag grows with thrust)."""
+        xy = self.drag_xy if self.drag_xy is not None else CF2X_DRAG_PER_WEIGHT[0] * self.mass * G0
+        z = self.drag_z if self.drag_z is not None else CF2X_DRAG_PER_WEIGHT[1] * self.mass * G0
+        return np.array([xy, xy, z], dtype=float)
 
     @property
     def rotor_radius_m(self) -> float:

@@ -134,6 +134,7 @@ class World:
         self._ghost_plan: _GhostPlan | None = None  # the last broad phase over a horizon
         self.ghost_bound_exceeded = 0  # broad phases that found a body beyond its bound (see _plan_ghosts)
         self._reach: dict[int, float] = {}  # m, per body: farthest point of its shape from its base position
+        self._box_sizes: dict[int, tuple[float, float, float]] = {}  # m, edges of every dynamic box
 
     # ------------------------------------------------------------------ bodies
     def add_ground(self) -> int:
@@ -171,6 +172,7 @@ class World:
         )
         pb.changeDynamics(body, -1, lateralFriction=friction, physicsClientId=cid)
         if mass > 0.0:
+            self._box_sizes[body] = (float(size[0]), float(size[1]), float(size[2]))
             # resting boxes fall asleep and cost nothing until something touches them
             pb.changeDynamics(body, -1, activationState=pb.ACTIVATION_STATE_ENABLE_SLEEPING, physicsClientId=cid)
         self._register(body, kind, name or f"{kind.value}{body}")
@@ -322,6 +324,17 @@ class World:
         for b, f, pos, t in zip(self._agents, forces.tolist(), self._poses, torques.tolist()):
             af(b, -1, f, pos, wf, cid)
             at(b, -1, t, wf, cid)
+
+    @property
+    def dynamic_boxes(self) -> dict[int, tuple[float, float, float]]:
+        """Every box with a mass (a task's movable object): body handle -> edges (3,) m."""
+        return dict(self._box_sizes)
+
+    def apply_body_forces(self, bodies: Sequence[int], forces: NDArray[np.float64]) -> None:
+        """Apply one world-frame force (k, 3) N at the centre of mass of each of ``bodies``, for the next step."""
+        cid, af, wf, gp = self._cid, self._apply_force, pb.WORLD_FRAME, self._get_pose
+        for b, f in zip(bodies, forces.tolist()):
+            af(b, -1, f, gp(b, cid)[0], wf, cid)
 
     def step(self) -> None:
         """Advance the physics by one time step."""
