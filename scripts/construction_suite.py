@@ -9,7 +9,8 @@ The layouts (``LAYOUTS``; ``--list`` prints them) are the thesis's, walls and a 
 boxes side by side (pitch = box size), a slab, towers of 5, two and three structures, 3 to 20
 agents and arenas up to 6 x 3 m: each a structure placed by hand, composed into a scenario by
 ``pybullet_swarm.experiment.layouts.compose_layout`` (a swarm at the near end, a depot grid of as
-many boxes as slots), and two drawn by ``random_layout``. Each is written to
+many boxes as slots), and two drawn by ``random_layout`` (frozen in ``scenarios/suites/construction.yaml``,
+whose ``dev`` split holds these layouts; ``pybullet-swarm benchmark construction --split dev`` runs them). Each is written to
 ``OUT/layouts/<name>.yaml`` and run as one sweep (``pybullet_swarm.experiment.sweep``: planners x
 avoidance x seeds) in ``OUT/<name>/``: resumable, run it again to add seeds or finish an
 interrupted batch (the table holds the runs this invocation plans, not older runs of a directory
@@ -35,8 +36,9 @@ from typing import Any, Mapping, Sequence
 
 import yaml
 
-from pybullet_swarm.experiment.layouts import compose_layout, random_layout
+from pybullet_swarm.experiment.layouts import compose_layout
 from pybullet_swarm.experiment.scenario import resolve_scenario_path
+from pybullet_swarm.experiment.suites import load_suite
 from pybullet_swarm.experiment.sweep import Sweep, plan_sweep, run_sweep
 from pybullet_swarm.validation import read_yaml
 
@@ -113,8 +115,8 @@ LAYOUTS: dict[str, tuple[str, Any, int, list[float]] | None] = {
         20,
         [6.0, 3.0],
     ),
-    "random_3": None,  # random_layout(3)
-    "random_8": None,  # random_layout(8)
+    "random_3": None,  # random_layout(3) of the suite file's dev split
+    "random_8": None,  # random_layout(8) of the suite file's dev split
 }
 
 
@@ -122,8 +124,10 @@ def layout_data(name: str) -> dict[str, Any]:
     """Scenario data of a suite layout."""
     if name == "thesis":
         return read_yaml(resolve_scenario_path("construction"))
-    if name.startswith("random_"):
-        return random_layout(int(name.removeprefix("random_")))
+    if name.startswith("random_"):  # as the generator drew them when the suite was written (frozen in the suite file)
+        suite = load_suite("construction")
+        dev = suite.split("dev")
+        return suite.layout_data(next(lay for lay in dev.layouts if lay.name == name), dev)
     spec = LAYOUTS[name]
     assert spec is not None
     description, structure, agents, arena = spec

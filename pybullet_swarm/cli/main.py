@@ -1,5 +1,5 @@
-"""``pybullet-swarm``: run, check, design, plot, sweep, compare, replay, report, list (and the subcommands later
-layers add).
+"""``pybullet-swarm``: run, check, layout, design, plot, sweep, compare, replay, report, list, benchmark (and
+the subcommands later layers add).
 
 Exit codes: 0 when the command did its work (a simulation's outcome is in ``exit_status``),
 2 for bad input (one line on stderr naming the file, the field and the expectation), 1 for an
@@ -329,7 +329,13 @@ def _add_layout(sub: Any) -> None:
         "layout", help="write a random construction scenario (structure, depot, swarm, arena) drawn from a seed"
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the layout (and of the scenario)")
-    p.add_argument("--agents", type=_agents, default=None, metavar="N", help="swarm size, 1..20 (default: drawn)")
+    p.add_argument(
+        "--agents",
+        type=_agents,
+        default=None,
+        metavar="N|LO:HI",
+        help="swarm size 1..20, or the range it is drawn in (default: drawn in 1..20)",
+    )
     p.add_argument(
         "--arena",
         type=float,
@@ -338,7 +344,18 @@ def _add_layout(sub: Any) -> None:
         metavar=("LX", "LY"),
         help="arena size in m (default: drawn in 2..6 x 1..3 m)",
     )
+    p.add_argument(
+        "--max-arena",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("LX", "LY"),
+        help="largest arena drawn, m (default 6 x 3; at most 20 x 10)",
+    )
     p.add_argument("--shape", choices=SHAPES, default=None, help="structure shape (default: drawn)")
+    p.add_argument(
+        "--depots", type=int, choices=(1, 2), default=1, help="depot grids: 1, or 2 along the long sides (default 1)"
+    )
     p.add_argument(
         "--collisions", choices=("ghost", "physical"), default=None, help="default: the construction scenario's"
     )
@@ -346,14 +363,15 @@ def _add_layout(sub: Any) -> None:
     p.set_defaults(func=_cmd_layout)
 
 
-def _agents(text: str) -> int:
+def _agents(text: str) -> int | tuple[int, int]:
+    """``N`` or ``LO:HI`` within 1..20."""
     try:
-        n = int(text)
+        parts = tuple(int(v) for v in text.split(":"))
     except ValueError:
-        n = 0
-    if not 1 <= n <= 20:
-        raise argparse.ArgumentTypeError(f"must be an integer in 1..20, got {text!r}")
-    return n
+        parts = ()
+    if len(parts) not in (1, 2) or not all(1 <= v <= 20 for v in parts) or parts[0] > parts[-1]:
+        raise argparse.ArgumentTypeError(f"must be an integer in 1..20 or a range LO:HI within it, got {text!r}")
+    return parts[0] if len(parts) == 1 else (parts[0], parts[1])
 
 
 def _cmd_layout(args: argparse.Namespace) -> int:
@@ -365,7 +383,13 @@ def _cmd_layout(args: argparse.Namespace) -> int:
     if args.arena is not None and not all(0.5 <= v <= 100.0 for v in args.arena):
         raise ConfigError(f"each side must be in 0.5..100 m, got {args.arena}", source="--arena")
     data = random_layout(
-        _seed(args.seed, "--seed"), agents=args.agents, arena=args.arena, shape=args.shape, collisions=args.collisions
+        _seed(args.seed, "--seed"),
+        agents=args.agents,
+        arena=args.arena,
+        shape=args.shape,
+        depots=args.depots,
+        collisions=args.collisions,
+        **({} if args.max_arena is None else {"max_arena": tuple(args.max_arena)}),
     )
     text = f"# pybullet-swarm layout --seed {args.seed}: {data['description']}\n" + yaml.safe_dump(
         data, sort_keys=False, default_flow_style=None
@@ -845,6 +869,9 @@ def build_parser() -> argparse.ArgumentParser:
         _add_list,
     ):
         add(sub)
+    from pybullet_swarm.cli import benchmark
+
+    benchmark.register(sub)
     try:
         from pybullet_swarm.cli import tsp
     except ImportError:

@@ -18,7 +18,7 @@ import pydantic
 from numpy.typing import NDArray
 from pydantic import Field
 
-from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.errors import ConfigError, LayoutNeedError
 from pybullet_swarm.planning.base import Obstacles
 from pybullet_swarm.planning.params import NoParams, ParamInfo, ParamRuleError, Params, PlanContext
 from pybullet_swarm.planning.params import field_info as describe_field
@@ -939,8 +939,47 @@ def _check_text(f: _ScenarioFile, source: str) -> None:
         check_drawable_text(text, source=source, field=field)
 
 
+MAX_DERIVATIONS = 4
+"""Most times one build derives a field a layout check needs (each derivation validates again)."""
+
+
 def build_scenario(data: Any, *, source: str) -> Scenario:
-    """Validate plain scenario data (as read from YAML) into a ``Scenario``."""
+    """Validate plain scenario data (as read from YAML) into a ``Scenario``.
+
+    A task field the file leaves unset (null) and that a planner's or avoidance layer's layout check
+    finds insufficient (``LayoutNeedError``: e.g. ``task.view_radius``, so that every slot is in an
+    agent's view) is derived from the layout: the least value that passes is written into the
+    scenario, which is validated again (the resolved scenario holds it, so a run reproduces it). A
+    value the user set is refused instead, with the least value that would work.
+    """
+    derived: set[str] = set()
+    for _ in range(MAX_DERIVATIONS):
+        try:
+            return _build_scenario(data, source=source)
+        except LayoutNeedError as need:
+            fixed = _derive(data, need, derived)
+            if fixed is None:
+                raise
+            data = fixed
+    return _build_scenario(data, source=source)
+
+
+def _derive(data: Any, need: LayoutNeedError, derived: set[str]) -> dict[str, Any] | None:
+    """``data`` with the task field ``need`` names set to its least working value (recorded in ``derived``),
+    or None when the user set that field (their value stands and is refused) or it is no task field."""
+    section, _, key = (need.field or "").partition(".")
+    task = data.get("task") if isinstance(data, dict) else None
+    if section != "task" or not key or "." in key or not isinstance(task, dict):
+        return None
+    was = task.get(key)
+    if was is not None and (key not in derived or need.least <= float(was)):
+        return None  # the user's value, or no progress: refused rather than looped
+    derived.add(key)
+    return {**data, "task": {**task, key: need.least}}
+
+
+def _build_scenario(data: Any, *, source: str) -> Scenario:
+    """``build_scenario`` without deriving fields."""
     if not isinstance(data, dict):
         raise ConfigError(f"must be a mapping of scenario sections, got {type(data).__name__}", source=source)
     check_plain(data, source=source)

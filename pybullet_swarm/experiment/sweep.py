@@ -53,7 +53,19 @@ from pybullet_swarm.experiment.results import (
 from pybullet_swarm.experiment.jobs import RunSpec, cpu_count, execute_run, failure_row, make_row
 from pybullet_swarm.experiment.summary import CIMethod, SummaryRow, format_table, summarize, write_summary
 
-__all__ = ["RunSpec", "Sweep", "SweepResult", "cpu_count", "execute_run", "failure_row", "make_row", "run_sweep"]
+__all__ = [
+    "Execution",
+    "RunSpec",
+    "Sweep",
+    "SweepResult",
+    "cpu_count",
+    "execute_run",
+    "execute_runs",
+    "failure_row",
+    "make_row",
+    "recover_runs",
+    "run_sweep",
+]
 
 Worker = Callable[["RunSpec"], Row]
 
@@ -482,7 +494,7 @@ def run_sweep(
     Raises:
         ConfigError: bad sweep, a directory that holds another sweep, or an executor that cannot start.
     """
-    from pybullet_swarm.experiment.executors import ExecutorKind, check_executor, make_executor, prestart
+    from pybullet_swarm.experiment.executors import ExecutorKind, check_executor, prestart
 
     t0 = time.perf_counter()
     if check_executor(executor, workers=workers, address=address) is ExecutorKind.LOCAL:
@@ -512,7 +524,7 @@ def run_sweep(
             ]
             if table.drop(failed):
                 table.save()
-        n_recovered = _recover(plan, table)
+        n_recovered = recover_runs(plan.runs, table)
         _fill_grid_cells(plan, table)
         todo = [s for s in plan.runs if table.get(s.run_id) is None]
         n_skipped = len(plan.runs) - len(todo)
@@ -523,31 +535,18 @@ def run_sweep(
                 + (f" ({n_bad} failed; --retry-failed runs them again)" if n_bad else "")
                 + (f"; {n_recovered} recovered from their run directories" if n_recovered else "")
             )
-        interrupted = False
-        n_run = 0
-        busy = 0.0
-        t_runs = t_last = time.perf_counter()
+        ran = Execution()
         try:
-            if todo:
-                with (
-                    make_executor(
-                        executor, workers=workers, address=address, worker=worker, retries=retries, quiet=quiet
-                    ) as ex,
-                    _progress(len(todo), quiet) as bar,
-                ):
-                    for row in ex.imap_unordered(todo):
-                        table.append(row)
-                        n_run += 1
-                        busy += float(row.get("worker_time_s") or 0.0)
-                        t_last = time.perf_counter()
-                        bar.record(row.get("exit_status") == RunStatus.ERROR.value)
-        except KeyboardInterrupt:
-            interrupted = True
+            execute_runs(
+                todo, table, ran, executor=executor, workers=workers, address=address, worker=worker,
+                retries=retries, quiet=quiet,
+            )  # fmt: skip
         finally:
             rows = _ordered(table.rows, manifest)
             summary = summarize(rows, _group_by(manifest), ci=ci)
             write_summary(out / SUMMARY_CSV, summary)
             write_parquet(out / RUNS_PARQUET, rows, table.columns)
+        interrupted, n_run, busy, t_runs, t_last = ran.interrupted, ran.n_run, ran.busy_s, ran.t_start, ran.t_last
         files: list[Path] = []
         if figures and not interrupted and rows:
             files = draw_comparison(rows, _group_by(manifest), out / "plots")
@@ -576,10 +575,65 @@ def run_sweep(
     )
 
 
-def _recover(plan: Plan, table: RunsTable) -> int:
+@dataclasses.dataclass
+class Execution:
+    """What ``execute_runs`` did (filled as it goes, so an interrupted call still tells).
+
+    Attributes:
+        n_run: runs executed (rows appended).
+        busy_s: the runs' own time in their workers, summed, s.
+        t_start: ``time.perf_counter()`` when the first run was submitted.
+        t_last: ``time.perf_counter()`` when the last row was received.
+        interrupted: stopped by Ctrl-C (the rows received are kept).
+    """
+
+    n_run: int = 0
+    busy_s: float = 0.0
+    t_start: float = dataclasses.field(default_factory=time.perf_counter)
+    t_last: float = dataclasses.field(default_factory=time.perf_counter)
+    interrupted: bool = False
+
+
+def execute_runs(
+    todo: Sequence[RunSpec],
+    table: RunsTable,
+    ran: Execution,
+    *,
+    executor: str = "local",
+    workers: int | None = None,
+    address: str | None = None,
+    worker: Worker | None = None,
+    retries: int = 2,
+    quiet: bool = True,
+) -> None:
+    """Run ``todo`` on an executor, appending each row to ``table`` as its run finishes (the sweep
+    machinery shared by sweeps and benchmarks). A Ctrl-C stops it with ``ran.interrupted`` set."""
+    from pybullet_swarm.experiment.executors import make_executor
+
+    ran.t_start = ran.t_last = time.perf_counter()
+    if not todo:
+        return
+    try:
+        with (
+            make_executor(
+                executor, workers=workers, address=address, worker=worker, retries=retries, quiet=quiet
+            ) as ex,
+            _progress(len(todo), quiet) as bar,
+        ):
+            for row in ex.imap_unordered(todo):
+                table.append(row)
+                ran.n_run += 1
+                ran.busy_s += float(row.get("worker_time_s") or 0.0)
+                ran.t_last = time.perf_counter()
+                bar.record(row.get("exit_status") == RunStatus.ERROR.value)
+    except KeyboardInterrupt:
+        ran.interrupted = True
+
+
+def recover_runs(runs: Sequence[RunSpec], table: RunsTable) -> int:
     """Record runs that finished (``metrics.json`` written) but whose row never reached ``runs.csv``."""
     n = 0
-    for spec in plan.runs:
+    for spec in runs:
         if table.get(spec.run_id) is None and (Path(spec.run_dir) / "metrics.json").is_file():
             try:
                 metrics = read_metrics(Path(spec.run_dir))

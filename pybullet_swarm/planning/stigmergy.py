@@ -182,7 +182,7 @@ from numpy.typing import NDArray
 
 from pydantic import Field
 
-from pybullet_swarm.errors import ConfigError
+from pybullet_swarm.errors import ConfigError, LayoutNeedError
 from pybullet_swarm.planning.base import Action, Command, CommandKind, Observation, TaskInfo, view_distance
 from pybullet_swarm.planning.params import Params, PlanContext, Preset, check_memory
 from pybullet_swarm.planning.pheromone_grid import DepositRule, LayerSpec, PheromoneGrid
@@ -804,12 +804,14 @@ class FlightGeometry:
         if cruise - lowest > view - VIEW_MARGIN:
             s = int(np.flatnonzero(in_hidden & np.isclose(slot_grasp, lowest))[0])
             q = info.slots[s]
-            raise ConfigError(
+            least = math.ceil((cruise - lowest + VIEW_MARGIN - gh) * 1e3 + 1e-6) / 1e3  # m, up to the millimetre
+            raise LayoutNeedError(
                 f"slot {s} at ({q[0]:g}, {q[1]:g}, {q[2]:g}) is out of view both from beside the structure (at the "
                 f"floor altitude {floor:.3f} m) and from above it (at the cruise altitude {cruise:.3f} m, which "
-                f"clears the finished structure); an agent sees {view:.3f} m around it: a larger view_radius "
-                f"(at least {cruise - lowest + VIEW_MARGIN - gh:.3f} m) lets agents see it from above",
+                f"clears the finished structure); an agent sees {view:.3f} m around it: a view_radius of at least "
+                f"{least:.3f} m lets agents see it from above (unset, it is derived from the layout)",
                 field="task.view_radius",
+                least=least,
             )
         structure = Zone(geo.structure.lo, geo.structure.hi, float(cruise))
         return dataclasses.replace(geo, structure=structure, hidden=cols[hidden_cols])

@@ -536,3 +536,40 @@ def test_text_fields_in_other_scripts_are_drawable() -> None:
     data["description"] = "Ελληνικά, עברית (right to left without overrides), emoji 🛸"
     s = build_scenario(data, source="ok.yaml")
     assert s.name == data["name"] and s.description == data["description"]
+
+
+# ------------------------------------------------------------ parameters that follow the layout
+def _hidden_slot_layout() -> dict:
+    """A generated layout (two structures) with a slot that agents at the default view radius see neither
+    from beside the structure nor from above it."""
+    from pybullet_swarm.experiment.layouts import random_layout
+
+    return random_layout(1006, agents=(3, 20), max_arena=(6.0, 4.0), shape="several")
+
+
+def test_an_unset_view_radius_is_derived_from_the_layout_for_every_planner():
+    from pybullet_swarm.experiment.runner import build_run
+    from pybullet_swarm.experiment.scenario import apply_choices
+
+    data = _hidden_slot_layout()
+    assert data["task"].get("view_radius") is None
+    for planner in ("stigmergy", "layered_stigmergy"):
+        s = build_scenario(apply_choices(copy.deepcopy(data), planner=planner, source="t"), source="t")
+        assert s.task.view_radius == pytest.approx(0.496)  # more than the default two agent radii
+        assert s.data["task"]["view_radius"] == pytest.approx(0.496)  # the resolved scenario reproduces it
+        build_run(build_scenario(copy.deepcopy(s.data), source="again"))
+    s = build_scenario(apply_choices(copy.deepcopy(data), planner="shortest_path", source="t"), source="t")
+    assert s.task.view_radius is None  # a planner that needs no more keeps the default
+
+
+def test_a_view_radius_the_user_set_too_small_is_refused_saying_what_would_work():
+    from pybullet_swarm.experiment.scenario import apply_choices
+
+    data = apply_choices(_hidden_slot_layout(), planner="stigmergy", source="t")
+    data["task"]["view_radius"] = 0.2
+    with pytest.raises(ConfigError) as err:
+        build_scenario(copy.deepcopy(data), source="mine.yaml")
+    assert err.value.field == "task.view_radius" and "at least 0.496 m" in str(err.value)
+    assert str(err.value).startswith("mine.yaml: task.view_radius: ")
+    data["task"]["view_radius"] = 0.5
+    assert build_scenario(data, source="mine.yaml").task.view_radius == 0.5
