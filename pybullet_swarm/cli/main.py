@@ -377,7 +377,7 @@ def _agents(text: str) -> int | tuple[int, int]:
 def _cmd_layout(args: argparse.Namespace) -> int:
     import yaml
 
-    from pybullet_swarm.experiment.layouts import random_layout
+    from pybullet_swarm.experiment.layouts import MAX_ARENA, random_layout
     from pybullet_swarm.experiment.scenario import _seed
 
     if args.arena is not None and not all(0.5 <= v <= 100.0 for v in args.arena):
@@ -389,7 +389,7 @@ def _cmd_layout(args: argparse.Namespace) -> int:
         shape=args.shape,
         depots=args.depots,
         collisions=args.collisions,
-        **({} if args.max_arena is None else {"max_arena": tuple(args.max_arena)}),
+        max_arena=MAX_ARENA if args.max_arena is None else (args.max_arena[0], args.max_arena[1]),
     )
     text = f"# pybullet-swarm layout --seed {args.seed}: {data['description']}\n" + yaml.safe_dump(
         data, sort_keys=False, default_flow_style=None
