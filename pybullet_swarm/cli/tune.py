@@ -34,14 +34,16 @@ def register(subparsers: Any) -> None:
         default=[],
         metavar="KEY.PATH=LOW:HIGH[:log][:int]",
         help="a tuned scenario field and its range (repeatable), e.g. "
-        "planner.params.trail_pheromone=0:1 or planner.params.fatigue=0.001:0.1:log",
+        "planner.params.trail_pheromone=0:1 or planner.params.fatigue=0.001:0.1:log (default: the planner's "
+        "own search space, where it declares one: vasarhelyi's eleven parameters)",
     )
     obj = p.add_mutually_exclusive_group()
     obj.add_argument(
         "--objective",
         default=None,
         metavar="EXPR",
-        help=f"objective over a run's metrics (default: {DEFAULT_OBJECTIVE})",
+        help=f"objective over a run's metrics (default: the task's, e.g. flock.fitness maximised for a flock; "
+        f"else {DEFAULT_OBJECTIVE})",
     )
     obj.add_argument(
         "--objectives",
@@ -58,9 +60,9 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--penalty",
         type=float,
-        default=DEFAULT_PENALTY,
+        default=None,
         help="added to each objective of a run that does not complete, after its completion_time_s "
-        f"is taken as its simulated time (default {DEFAULT_PENALTY:g})",
+        f"is taken as its simulated time (default {DEFAULT_PENALTY:g}; 0 for a task that never completes)",
     )
     p.add_argument("--trials", type=int, default=50, metavar="N", help="finished trials the study holds (default 50)")
     p.add_argument(
@@ -75,7 +77,7 @@ def register(subparsers: Any) -> None:
         "--sampler",
         choices=("tpe", "nsga2", "cmaes", "random"),
         default=None,
-        help="Optuna sampler (default: tpe; nsga2 with --objectives)",
+        help="Optuna sampler (default: tpe; nsga2 with --objectives; cmaes on the planner's own search space)",
     )
     p.add_argument("--sampler-seed", type=int, default=0, help="seed of the sampler (default 0)")
     p.add_argument(
@@ -124,29 +126,42 @@ def run(args: argparse.Namespace) -> int:
 
     if importlib.util.find_spec("optuna") is None:
         raise ConfigError("needs the tune extra (Optuna): pip install 'pybullet_swarm[tune]'", source="tune")
-    from pybullet_swarm.tuning.objective import DEFAULT_OBJECTIVE
+    from pybullet_swarm.tuning.objective import DEFAULT_OBJECTIVE, DEFAULT_PENALTY
     from pybullet_swarm.tuning.study import TuneSpec, run_tuning
 
     if args.workers is not None and args.workers < 1:
         raise ConfigError(f"must be >= 1, got {args.workers}", source="--workers")
     if args.address is not None and args.executor != "ray":
         raise ConfigError("needs --executor ray", source="--address")
-    objectives = args.objectives or args.objective or DEFAULT_OBJECTIVE
+    task_default = _task_objective(args.scenario)
+    params: list[Any] = list(args.params)
+    if not params:  # the planner's own search space (vasarhelyi: its eleven parameters)
+        from pybullet_swarm.tuning.space import planner_search_space
+
+        params = list(planner_search_space(args.planner))
+    directions = args.directions
+    penalty = args.penalty if args.penalty is not None else DEFAULT_PENALTY
+    if args.objectives is None and args.objective is None and task_default is not None:
+        objectives: str = task_default[0]
+        directions = directions or task_default[1]
+        penalty = args.penalty if args.penalty is not None else task_default[2]
+    else:
+        objectives = args.objectives or args.objective or DEFAULT_OBJECTIVE
     multi = args.objectives is not None
-    sampler = args.sampler or ("nsga2" if multi else "tpe")
+    sampler = args.sampler or ("nsga2" if multi else "cmaes" if not args.params and params else "tpe")
     spec = TuneSpec(
         args.scenario,
-        params=args.params,
+        params=params,
         planner=args.planner,
         avoidance=args.avoidance,
         objectives=objectives if multi else [objectives],
-        directions=args.directions,
+        directions=directions,
         trials=args.trials,
         seeds_per_trial=args.seeds_per_trial,
         seed_start=args.seed_start,
         sampler=sampler,
         sampler_seed=args.sampler_seed,
-        penalty=args.penalty,
+        penalty=penalty,
         overrides=args.overrides,
         study_name=args.study,
     )
@@ -176,6 +191,21 @@ def run(args: argparse.Namespace) -> int:
         for f in result.files:
             print(f)
     return 0
+
+
+def _task_objective(scenario: str) -> tuple[str, str, float] | None:
+    """The default (objective, direction, penalty) the scenario's task kind declares (``TUNE_OBJECTIVE``), if any."""
+    from pybullet_swarm import tasks
+    from pybullet_swarm.experiment.scenario import resolve_scenario_path
+    from pybullet_swarm.validation import read_yaml
+
+    try:
+        data = read_yaml(resolve_scenario_path(scenario))
+    except ConfigError:
+        return None  # the study reports the scenario's problem itself
+    kind = data.get("task", {}).get("kind") if isinstance(data, dict) and isinstance(data.get("task"), dict) else None
+    model = tasks.task_models().get(kind) if isinstance(kind, str) else None
+    return getattr(model, "TUNE_OBJECTIVE", None)
 
 
 def format_best(result: Any) -> str:

@@ -30,6 +30,7 @@ class Radio(Protocol):
     ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """``(i, j, d, positions, velocities)`` of the messages received now."""
 
+
 #: swarms up to this size are searched exhaustively (one vectorised distance matrix)
 BRUTE_FORCE_MAX = 48
 

@@ -19,7 +19,7 @@ Metrics (``metrics.json``): ``flock`` with exactly the keys of ``FLOCK_KEYS``, a
 from __future__ import annotations
 
 import math
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import pydantic
@@ -56,6 +56,10 @@ class FlockTask(pydantic.BaseModel):
     """
 
     model_config = pydantic.ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
+
+    #: what a tuning study of this task optimises by default: (objective, direction, penalty of a run that does
+    #: not complete; a flock never completes, so none)
+    TUNE_OBJECTIVE: ClassVar[tuple[str, str, float]] = ("flock.fitness", "maximize", 0.0)
 
     kind: Literal["flock"]
     time_limit_s: float = Field(gt=0.0, le=1e5)

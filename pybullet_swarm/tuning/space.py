@@ -143,3 +143,16 @@ def check_ranges(params: Sequence[ParamSpec], lookup: Callable[[str], ParamInfo 
 
 
 __all__ = ["ParamSpec", "check_params", "check_ranges", "parse_param"]
+
+
+def planner_search_space(planner: str) -> list[ParamSpec]:
+    """The default search space a planner's parameter model declares (``TUNED``: field -> (low, high, log)),
+    as ``planner.params.*`` keys; empty when it declares none."""
+    from pybullet_swarm.planning.registry import planners
+
+    entry = planners().get(planner)
+    tuned = getattr(entry.params, "TUNED", None) if entry is not None else None
+    return [
+        ParamSpec(key=f"planner.params.{k}", low=float(lo), high=float(hi), log=bool(log))
+        for k, (lo, hi, log) in (tuned or {}).items()
+    ]
