@@ -822,17 +822,33 @@ def _cmd_list(args: argparse.Namespace) -> int:
         except ConfigError:
             desc = "(invalid)"
         print(f"  {name:18s} {desc}")
-    from pybullet_swarm.planning.registry import avoidance_layers, planners
+    from pybullet_swarm import tasks
+    from pybullet_swarm.planning import registry
 
+    print("tasks:")
+    for kind, task in tasks.task_entries().items():
+        print(f"  {kind:18s} {_from(task.origin)}")
     print("planners (parameters: name, type, default, range, description; set them in planner.params):")
     for name, text in available_planners().items():
-        print(f"  {name:18s} {text}")
-        _print_params(planners()[name].params)
+        entry = registry.planners()[name]
+        print(f"  {name:18s} {text}{_from(entry.origin)}")
+        _print_params(entry.params)
     print("avoidance (parameters in avoidance_params):")
     for name, text in available_avoidance().items():
-        print(f"  {name:18s} {text}")
-        _print_params(avoidance_layers()[name].params)
+        layer = registry.avoidance_layers()[name]
+        print(f"  {name:18s} {text}{_from(layer.origin)}")
+        _print_params(layer.params)
+    refusals = {**tasks.refused(), **registry.refused()}
+    if refusals:
+        print("refused plug-ins:")
+        for exc in refusals.values():
+            print(f"  {exc}")
     return 0
+
+
+def _from(origin: Any) -> str:
+    """' [plug-in from DIST VERSION (module:Class)]' for a plug-in, '' for what pybullet_swarm brings."""
+    return "" if origin.builtin else f" [plug-in from {origin}]"
 
 
 def _print_params(model: Any) -> None:

@@ -91,11 +91,9 @@ class SwarmEpisode:
         self.sim: Simulation = Simulation(scenario, seed=scenario.seed, record=config.record)
         self._pristine = True  # self.sim is fresh (not stepped): a reset with its seed may use it
         self.n = self.sim.n
-        ranges = getattr(self.sim, "ranges", None)  # (n, r) m, readings of the last planner tick
-        self.n_ranges = int(ranges.shape[1]) if ranges is not None else 0
-        sensor = getattr(self.sim, "range_sensor", None)
-        fan = getattr(sensor, "fan", None)
-        range_bound = float(fan.range_m) if self.n_ranges and fan is not None else RANGE_BOUND
+        self.n_ranges = int(self.sim.ranges.shape[1])  # (n, r) m, readings of the last planner tick
+        sensor = self.sim.range_sensor
+        range_bound = float(sensor.fan.range_m) if self.n_ranges and sensor is not None else RANGE_BOUND
         self.mapper = ActionMapper(self.sim, config)
         self.builder = ObservationBuilder(
             self.sim,
@@ -227,12 +225,12 @@ class SwarmEpisode:
 
         sim = self.sim
         if self._camera is None:  # one camera per episode, framing the flight volume as the run's video does
-            height = max(1.0, float(np.max(sim.starts[:, 2])) + 0.5)
-            targets = sim.task.view(sim.time).targets
-            if len(targets):
-                height = max(height, float(np.max(targets[:, 2])) + 0.3)
-            if "search_height" in sim.info.extra:
-                height = max(0.6, float(sim.info.extra["search_height"]) + 0.2)
+            height = sim.task.framing().height
+            if height is None:
+                height = max(1.0, float(np.max(sim.starts[:, 2])) + 0.5)
+                targets = sim.task.view(sim.time).targets
+                if len(targets):
+                    height = max(height, float(np.max(targets[:, 2])) + 0.3)
             self._camera = camera_for_arena(self.scenario.arena.size, height)
         w, h = self.config.render_size
         return render_frame(sim.world, self._camera, (w, h))

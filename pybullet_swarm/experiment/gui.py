@@ -36,6 +36,7 @@ TAB10 = (
 )
 BOX_FREE = (0.76, 0.60, 0.42)
 BOX_PLACED = (0.42, 0.62, 0.33)
+PLACED_STATE = 2  # ``TaskView.object_state`` of an object in its place
 GUI_ASPECT = 4.0 / 3.0  # width / height of Bullet's default GUI window
 GUI_FOV_DEG = 90.0  # vertical field of view of Bullet's GUI camera (its frustum's top is its near distance)
 TRAIL_S = 3.0  # s of simulated time a trail point stays
@@ -49,12 +50,6 @@ def agent_rgb(n: int) -> list[tuple[float, float, float]]:
     if n <= len(TAB10):
         return list(TAB10[:n])
     return [colorsys.hsv_to_rgb(i / n, 1.0, 1.0) for i in range(n)]
-
-
-def _box_task(sim: Any) -> Any:
-    """The simulation's task when it has boxes (the construction runtime), else None."""
-    task = getattr(sim, "task", None)
-    return task if all(hasattr(task, a) for a in ("bodies", "carried_by", "slot_box", "boxes_placed")) else None
 
 
 class Pacer:
@@ -120,10 +115,10 @@ class GuiViewer:
         self.colors = agent_rgb(sim.n)
         arena = tuple(float(v) for v in sim.scenario.arena.size)
         self.arena = arena
-        self.height = max(1.0, float(np.max(sim.state_array[:, 2])) + 0.5)
-        boxes = _box_task(sim)
-        if boxes is not None:
-            self.height = max(0.6, float(boxes.spec.search_height) + 0.2)
+        framing = sim.task.framing()
+        self.height = (
+            framing.height if framing.height is not None else max(1.0, float(np.max(sim.state_array[:, 2])) + 0.5)
+        )
         self.camera = camera_for_arena(arena, self.height, aspect=GUI_ASPECT, fov_deg=GUI_FOV_DEG)
         self.world.set_camera(self.camera.target, self.camera.distance, self.camera.yaw, self.camera.pitch)
         corners = [(0.0, 0.0, 0.0), (arena[0], 0.0, 0.0), (arena[0], arena[1], 0.0), (0.0, arena[1], 0.0)]
@@ -159,9 +154,9 @@ class GuiViewer:
         """Simulated time, boxes placed, contacts so far and the pace."""
         sim = self.sim
         parts = [f"t = {sim.time:6.1f} s"]
-        boxes = _box_task(sim)
-        if boxes is not None:
-            parts.append(f"boxes placed {boxes.boxes_placed}/{boxes.S}")
+        status = sim.task.framing().status
+        if status:
+            parts.append(status)
         parts.append(f"contacts {sum(int(v) for v in sim.contacts.counts.values())}")
         parts.append(f"x{self.pacer.speed:g}")
         return "   ".join(parts)
@@ -189,13 +184,18 @@ class GuiViewer:
             )
 
     def _colour_boxes(self) -> None:
-        c = _box_task(self.sim)
-        if c is None:
+        """The task's bodies in their carrier's colour, placed ones green, free ones brown."""
+        bodies = self.sim.task.framing().bodies
+        if not bodies:
             return
-        placed = set(int(b) for b in c.slot_box if b >= 0)
-        for i, body in enumerate(c.bodies):
-            carrier = int(c.carried_by[i])
-            rgb = self.colors[carrier] if carrier >= 0 else BOX_PLACED if i in placed else BOX_FREE
+        view = self.sim.task_view
+        carrier = np.full(len(bodies), -1)
+        holding = np.nonzero((view.carrying >= 0) & (view.carrying < len(bodies)))[0]
+        carrier[view.carrying[holding]] = holding
+        placed = view.object_state == PLACED_STATE
+        for i, body in enumerate(bodies):
+            c = int(carrier[i])
+            rgb = self.colors[c] if c >= 0 else BOX_PLACED if i < len(placed) and placed[i] else BOX_FREE
             if self._box_color.get(i) != rgb:
                 self.world.set_color(body, (*rgb, 1.0))
                 self._box_color[i] = rgb

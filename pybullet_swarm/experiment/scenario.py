@@ -567,6 +567,10 @@ def _resolve_plugins(f: _ScenarioFile, task: Any, source: str) -> tuple[str, Par
             f"is required: task kind {kind!r} has no default planner", source=source, field="planner.name"
         )
     if name not in registry:
+        from pybullet_swarm.planning.registry import refused
+
+        if f"planner {name}" in refused():  # an installed plug-in that did not satisfy its protocol
+            raise ConfigError(str(refused()[f"planner {name}"]), source=source, field="planner.name")
         raise ConfigError(
             f"must be one of {', '.join(sorted(registry))}, got {_short(name)}", source=source, field="planner.name"
         )
@@ -577,10 +581,9 @@ def _resolve_plugins(f: _ScenarioFile, task: Any, source: str) -> tuple[str, Par
             source=source,
             field="planner.name",
         )
-    check_task = getattr(entry.factory, "check_task", None)  # what a planner needs of its task (a formation ...)
-    if callable(check_task):
+    if entry.check_task is not None:  # what a planner needs of its task (a formation ...)
         try:
-            check_task(task)
+            entry.check_task(task)
         except ConfigError as exc:
             raise exc.with_source(source) from None
     layers = avoidance_layers()
@@ -814,8 +817,9 @@ def _check_waypoints(s: Scenario, task: WaypointsTask, vehicle: VehicleParams, s
 def _check_layout(s: Scenario, vehicle: VehicleParams, source: str) -> None:
     """The planner's and the avoidance layer's ``check_layout`` on the layout the agents will be told (a task
     model with ``plan_info(vehicle)``): what the planners would refuse when the run starts is refused here."""
-    plan_info = getattr(s.task, "plan_info", None)
-    if not callable(plan_info):
+    from pybullet_swarm.tasks import task_entries
+
+    if not task_entries()[s.task.kind].publishes_plan_info:
         return
     from pybullet_swarm.planning.base import TaskInfo
 
@@ -826,7 +830,7 @@ def _check_layout(s: Scenario, vehicle: VehicleParams, source: str) -> None:
         agent_radius=float(vehicle.radius),
         v_max=np.full(3, np.inf) if v is None else v,
         a_max=s.acceleration_limits(),
-        **plan_info(vehicle),
+        **s.task.plan_info(vehicle),
     )
     for model in (s.planner_params, s.avoidance_params):
         try:
@@ -904,16 +908,18 @@ def _check_budgets(s: Scenario) -> None:
         source=src,
         field="sim.record_hz",
     )
-    points = getattr(s.task, "points", None)
-    if points is None:
+    from pybullet_swarm.planning.aco_tour import AcoTourParams
+    from pybullet_swarm.tasks.tour import TourTask
+
+    if not isinstance(s.task, TourTask):
         return
-    w = len(points)
+    w = len(s.task.points)
     memory.check_budget(
         8.0 * 3 * 4 * n * w, f"the tour task's distances of {n} agents to {w} points", source=src, field="task.points"
     )
     p = s.planner_params
-    if s.planner.name == "aco_tour" and all(hasattr(p, k) for k in ("ants", "iterations", "candidates")):
-        ants, iterations, cand = int(p.ants), int(p.iterations), p.candidates  # type: ignore[attr-defined]
+    if isinstance(p, AcoTourParams):
+        ants, iterations, cand = int(p.ants), int(p.iterations), p.candidates
         matrices = 8.0 * 16 * w * w  # the (W, W, 3) differences of the cost matrix and their temporaries
         colony = memory.colony_bytes(
             w, ants=ants, iterations=iterations, candidates=None if cand is None else int(cand)
@@ -1031,9 +1037,8 @@ def _build_scenario(data: Any, *, source: str) -> Scenario:
         _check_obstacles(s, vehicle, source)
         if isinstance(task, WaypointsTask):
             _check_waypoints(s, task, vehicle, source)
-        check = getattr(task, "check", None)
-        if callable(check):
-            check(s, source)
+        if _tasks.task_entries()[kind].checks_scenario:
+            task.check(s, source)
         _check_layout(s, vehicle, source)
     _check_flight(s, vehicle, source)
     _check_budgets(s)

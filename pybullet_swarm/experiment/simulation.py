@@ -196,8 +196,9 @@ class Simulation:
         self.ranges = np.zeros((n, 0))  # (n, r) m, range readings of the last planner tick
         from pybullet_swarm.planning.registry import avoidance_layers
 
-        self.avoidance_factory = avoidance_layers()[self.avoidance_name].factory  # None: no avoidance layer
-        if sc.sensing.range.enabled or getattr(self.avoidance_factory, "needs_range_sensors", False):
+        self.avoidance_entry = avoidance_layers()[self.avoidance_name]
+        self.avoidance_factory = self.avoidance_entry.factory  # None: no avoidance layer
+        if sc.sensing.range.enabled or self.avoidance_entry.needs_range_sensors:
             self.enable_range_sensors()
         self.position_std = self._expected_position_std()
         self.task: TaskRuntime = task_runtimes()[sc.task.kind](
@@ -219,7 +220,7 @@ class Simulation:
         )
         self.info = self._task_info()
         # stall detection: the task's progress count and when (and where the agents were) it last changed
-        self.stall_time: float | None = getattr(self.task, "stall_time_s", None)
+        self.stall_time: float | None = self.task.stall_time_s
         self._progress: int | None = None
         self._progress_at = 0.0
         self._progress_positions = self.starts.copy()
@@ -403,19 +404,18 @@ class Simulation:
         )
 
     def _make_planner(self) -> None:
-        from pybullet_swarm.planning.registry import planners
+        from pybullet_swarm.planning.registry import make_medium, planners
 
-        factory = planners()[self.planner_name].factory
+        self.planner_entry = entry = planners()[self.planner_name]
+        factory = entry.factory
         params = self.scenario.planner_params  # validated when the scenario was loaded
-        # A planner may bring a shared medium (e.g. a pheromone grid): ``make_medium(params, info) -> medium``.
-        make_medium = getattr(factory, "make_medium", None)
-        self.medium = make_medium(params, self.info) if callable(make_medium) else None
+        self.medium = make_medium(entry, params, self.info)  # a medium shared by every agent (a pheromone grid)
         av_factory = self.avoidance_factory
         self.avoidance_layer = (
             av_factory(self._avoidance_setup(), self.scenario.avoidance_params) if av_factory is not None else None
         )
         try:
-            if getattr(factory, "centralized", False):
+            if entry.centralized:
                 self.planner = factory(params)
                 self.planner.reset(self.n, named_rng(self.seed, "planner"), self.info)
                 self.agent_planners = None
@@ -441,9 +441,8 @@ class Simulation:
                 field="sim.physics_hz",
             )
         self.video_every = self.physics_hz // self.VIDEO_SIM_HZ
-        height = max(1.0, float(np.max(self.starts[:, 2])) + 0.5)
-        if "search_height" in self.info.extra:
-            height = max(0.6, float(self.info.extra["search_height"]) + 0.2)
+        framing = self.task.framing()
+        height = framing.height if framing.height is not None else max(1.0, float(np.max(self.starts[:, 2])) + 0.5)
         self.camera = camera_for_arena(self.scenario.arena.size, height)
         total = int(self.time_limit * self.VIDEO_SIM_HZ) + 1
         self.video = VideoWriter(path, fps=self.VIDEO_FPS, size=(480, 270), progress_total=total, quiet=quiet)
@@ -600,11 +599,12 @@ class Simulation:
 
     def activities(self) -> list[str]:
         """What each agent's planner says it is doing (its phase and target), '' where it says nothing."""
-        if self.planner is not None:
-            report = getattr(self.planner, "activities", None)
-            out = list(report()) if callable(report) else []
+        if not self.planner_entry.reports_activity:
+            out: list[str] = []
+        elif self.planner is not None:
+            out = list(self.planner.activities())
         else:
-            out = [pl.activity() if callable(getattr(pl, "activity", None)) else "" for pl in self.agent_planners or []]
+            out = [pl.activity() for pl in self.agent_planners or []]
         return (out + [""] * self.n)[: self.n]
 
     def _apply(self, commands: list[Command]) -> None:
@@ -858,10 +858,9 @@ class Simulation:
             m.update(flight_metrics(ts, self.params.km))
             m.update(self._swarm_metrics(ts))
         m.update(self.task.metrics(ts, self.planner_artefacts()))
-        for part in (self.medium, self.avoidance_layer):
-            report = getattr(part, "metrics", None)
-            if callable(report):
-                m.update(report())
+        for part in (self.medium, self.avoidance_layer):  # both protocols report metrics
+            if part is not None:
+                m.update(part.metrics())
         if self.estimation is not None:
             m["estimation"] = self.estimation_errors.metrics(
                 {"state": self.scenario.sensing.state.value, **self.estimation.summary()}
@@ -870,8 +869,9 @@ class Simulation:
 
     def planner_artefacts(self) -> dict[str, Any]:
         """What the planner publishes as data (e.g. a tour planner's ``tour_plan``)."""
-        report = getattr(self.planner, "artefacts", None)
-        return dict(report()) if callable(report) else {}
+        if self.planner is None or not self.planner_entry.publishes_artefacts:
+            return {}
+        return dict(self.planner.artefacts())
 
     def _swarm_metrics(self, ts: TimeSeries) -> dict[str, Any]:
         from pybullet_swarm.metrics.construction import proximity_metrics, thesis_proximity_metrics, utility_of_space
@@ -893,10 +893,10 @@ class Simulation:
     def artifacts(self) -> dict[str, Any]:
         """Files for the run directory as data by file name: the medium's, the task's, the layer's."""
         out: dict[str, Any] = dict(self.task.artefacts(self.planner_artefacts()))
-        for part in (self.medium, self.avoidance_layer):
-            files = getattr(part, "artefacts", None)
-            if callable(files):
-                out.update(files())
+        if self.medium is not None:
+            out.update(self.medium.artefacts())
+        if self.avoidance_layer is not None and self.avoidance_entry.publishes_artefacts:
+            out.update(self.avoidance_layer.artefacts())
         return out
 
     def all_events(self) -> list[Event]:

@@ -70,8 +70,40 @@ class ScenarioLike(Protocol):
         """Start positions (n, 3) m."""
 
 
+@runtime_checkable
+class ChecksScenario(Protocol):
+    """A task model that refuses, at load, layouts that cannot work (boxes outside the arena ...)."""
+
+    def check(self, scenario: ScenarioLike, source: str) -> None:
+        """Raise ``ConfigError`` naming ``source`` and the field."""
+
+
+@runtime_checkable
+class PublishesPlanInfo(Protocol):
+    """A task model that tells, before a run, the static layout the planners will be told."""
+
+    def plan_info(self, vehicle: Any) -> dict[str, Any]:
+        """Keyword arguments of ``TaskInfo`` (``depot``, ``slots``, ...) for the vehicle flown."""
+
+
 #: what ``contact_class`` returns for a body the task does not own
 NOT_MINE = "not_mine"
+
+
+@dataclasses.dataclass(frozen=True)
+class Framing:
+    """How pictures of the task frame and annotate it (the GUI, a run's video, an environment's render).
+
+    Attributes:
+        height: m, height of the working volume a camera frames, None to frame the agents' starts.
+        bodies: Bullet body ids of the task's movable objects, in the order of ``TaskView.objects``
+            (the GUI colours them by ``TaskView.object_state`` and who carries them).
+        status: one line of the task's progress for a heads-up display ('' when none).
+    """
+
+    height: float | None = None
+    bodies: tuple[int, ...] = ()
+    status: str = ""
 
 
 @runtime_checkable
@@ -136,6 +168,9 @@ class TaskRuntime(Protocol):
     def artefacts(self, planner_artefacts: dict[str, Any]) -> dict[str, Any]:
         """Files the run directory gets, as data by file name (``.json``: plain data, ``.npz``: arrays)."""
 
+    def framing(self) -> Framing:
+        """How pictures frame the task now: the camera's height, the bodies to colour, a status line."""
+
 
 class TaskBase:
     """Defaults for the optional parts of the protocol (a task without objects, actions or files)."""
@@ -179,6 +214,10 @@ class TaskBase:
     def artefacts(self, planner_artefacts: dict[str, Any]) -> dict[str, Any]:
         """No files."""
         return {}
+
+    def framing(self) -> Framing:
+        """Frame the agents' starts; no bodies, no status."""
+        return Framing()
 
 
 TaskFactory = Callable[[Any, TaskContext], TaskRuntime]

@@ -27,8 +27,8 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.collisions import CollisionClass
 from pybullet_swarm.metrics.construction import task_lower_bound
 from pybullet_swarm.planning.base import Action, LocalView, Obstacles, TaskView, view_distance
-from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
-from pybullet_swarm.tasks.base import NOT_MINE, ScenarioLike, TaskBase, TaskContext
+from pybullet_swarm.tasks import register_task
+from pybullet_swarm.tasks.base import NOT_MINE, Framing, ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.tasks.build_order import REACH_MARGIN, Reach, build_order, prerequisites
 from pybullet_swarm.tasks.layouts import expand_boxes
 from pybullet_swarm.types import Event, TimeSeries
@@ -709,6 +709,14 @@ class ConstructionRuntime(TaskBase):
         """Depot, slots, box size and grasp height; view and search settings as extras."""
         return layout_info(self.spec, agent_half_height=self.agent_half_height, agent_radius=self.agent_radius)
 
+    def framing(self) -> Framing:
+        """The camera frames the cruise altitude; the boxes are coloured; the status counts placed boxes."""
+        return Framing(
+            height=max(0.6, float(self.spec.search_height) + 0.2),
+            bodies=tuple(int(b) for b in self.bodies),
+            status=f"boxes placed {self.boxes_placed}/{self.S}",
+        )
+
     def view(self, t: float) -> TaskView:
         """Boxes, their states, slots and who carries what."""
         state, filled = self.state.copy(), self.slot_box.copy()
@@ -819,5 +827,4 @@ class ConstructionRuntime(TaskBase):
         return out
 
 
-TASK_MODELS["construction"] = ConstructionTask
-TASK_RUNTIMES["construction"] = ConstructionRuntime.build
+register_task("construction", ConstructionTask, ConstructionRuntime)

@@ -29,7 +29,7 @@ from pydantic import Field
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.flock import FLOCK_KEYS, FitnessTolerances, flock_metrics, order_series
 from pybullet_swarm.planning.base import TaskView
-from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
+from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.types import Event, TimeSeries
 
@@ -184,5 +184,4 @@ class FlockRuntime(TaskBase):
         }
 
 
-TASK_MODELS["flock"] = FlockTask
-TASK_RUNTIMES["flock"] = FlockRuntime.build
+register_task("flock", FlockTask, FlockRuntime)

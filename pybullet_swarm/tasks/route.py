@@ -33,7 +33,7 @@ from pydantic import Field
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.flocking import route_fitness_series, time_average
 from pybullet_swarm.planning.base import TaskView
-from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
+from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.types import Event, TimeSeries
 
@@ -271,5 +271,4 @@ class RouteRuntime(TaskBase):
         return out
 
 
-TASK_MODELS["route"] = RouteTask
-TASK_RUNTIMES["route"] = RouteRuntime.build
+register_task("route", RouteTask, RouteRuntime)

@@ -25,7 +25,7 @@ from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import TaskView, TourPlan
-from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
+from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.types import Event, TimeSeries
 
@@ -292,5 +292,4 @@ def _plan_of(planner_artefacts: dict[str, Any] | None) -> TourPlan | None:
     return plan if isinstance(plan, TourPlan) else None
 
 
-TASK_MODELS["tour"] = TourTask
-TASK_RUNTIMES["tour"] = TourRuntime.build
+register_task("tour", TourTask, TourRuntime)

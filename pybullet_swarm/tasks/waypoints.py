@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.planning.base import TaskView
-from pybullet_swarm.tasks import TASK_MODELS, TASK_RUNTIMES
+from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import TaskBase, TaskContext
 from pybullet_swarm.types import Event, TimeSeries
 
@@ -99,5 +99,4 @@ class WaypointsRuntime(TaskBase):
         return {}
 
 
-TASK_MODELS["waypoints"] = WaypointsTask
-TASK_RUNTIMES["waypoints"] = WaypointsRuntime.build
+register_task("waypoints", WaypointsTask, WaypointsRuntime)
