@@ -827,7 +827,8 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
     print("tasks:")
     for kind, task in tasks.task_entries().items():
-        print(f"  {kind:18s} {_from(task.origin)}")
+        doc = (task.model.__doc__ or "").strip().partition("\n")[0]
+        print(f"  {kind:18s} {doc}{_from(task.origin)}")
     print("planners (parameters: name, type, default, range, description; set them in planner.params):")
     for name, text in available_planners().items():
         entry = registry.planners()[name]

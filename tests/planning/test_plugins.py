@@ -259,3 +259,9 @@ def test_protocol_methods_are_listed_without_data_members() -> None:
 
     assert plugins.methods(Planner) == ["plan", "reset"]
     assert plugins.methods(AvoidanceLayer) == ["filter", "metrics"]
+
+
+def test_the_guide_shows_the_example_as_it_is() -> None:
+    guide = (REPO / "docs" / "guides" / "plugins.md").read_text(encoding="utf-8")
+    for name in ("pyproject.toml", "plugin_planner/__init__.py", "plugin_planner/planner.py"):
+        assert (EXAMPLE / name).read_text(encoding="utf-8") in guide, name
