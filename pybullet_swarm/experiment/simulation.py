@@ -874,7 +874,7 @@ class Simulation:
         return dict(self.planner.artefacts())
 
     def _swarm_metrics(self, ts: TimeSeries) -> dict[str, Any]:
-        from pybullet_swarm.metrics.construction import proximity_metrics, thesis_proximity_metrics, utility_of_space
+        from pybullet_swarm.metrics.proximity import proximity_metrics, thesis_proximity_metrics, utility_of_space
 
         pos = ts.positions.astype(float)
         out = proximity_metrics(ts.t, pos, self.diameter)

@@ -137,11 +137,8 @@ def plot_saved_artifacts(run_dir: Path, out_dir: Path) -> list[Path]:
 def _swarm_figures(
     ts: TimeSeries, out_dir: Path, metrics: dict[str, Any], scenario: Mapping[str, Any], events: list[Any]
 ) -> list[Path]:
-    from pybullet_swarm.metrics.construction import (
-        acceleration_series,
-        box_to_goal_distance,
-        nearest_neighbour_distances,
-    )
+    from pybullet_swarm.metrics.construction import acceleration_series, box_to_goal_distance
+    from pybullet_swarm.metrics.proximity import nearest_neighbour_distances
     from pybullet_swarm.plotting import construction_plots as cp
     from pybullet_swarm.vehicle import load_vehicle
 
