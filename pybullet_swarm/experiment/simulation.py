@@ -27,7 +27,6 @@ from pybullet_swarm.metrics.collisions import COLLISION_CLASSES, CollisionClass,
 from pybullet_swarm.metrics.flight import flight_metrics
 from pybullet_swarm.rng import named_rng
 from pybullet_swarm.planning.base import (
-    NOTHING_IN_VIEW,
     Action,
     AvoidanceSetup,
     Command,
@@ -659,7 +658,7 @@ class Simulation:
         t = pc.time_s
         for i in range(self.n):
             nb = pc.neighbours(i)
-            lv = local[i] if local is not None else NOTHING_IN_VIEW
+            seen = local[i] if local is not None else None
             out.append(
                 Observation(
                     i,
@@ -671,10 +670,7 @@ class Simulation:
                     pc.nb_ids[nb],
                     pc.nb_positions[nb],
                     pc.nb_velocities[nb],
-                    lv.boxes,
-                    lv.box_ids,
-                    lv.slots,
-                    lv.slot_ids,
+                    seen,
                     ranges=pc.ranges[i],
                     neighbour_carrying=pc.carrying[pc.nb_ids[nb]] >= 0,
                 )

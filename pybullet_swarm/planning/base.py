@@ -1,8 +1,9 @@
 """The planner protocol: what a planner sees, what it returns, and the decentralisation contract.
 
 A decentralised planner gets one ``Observation`` per agent (own state, neighbours within the
-sensing radius, task objects within its view radius, elapsed time) and the shared pheromone
-medium, nothing else. A centralised planner (a baseline) declares ``centralized = True`` and
+sensing radius, elapsed time, and what it sees of the task: ``seen``, of the task's own local view
+type, e.g. ``planning.views.construction.ConstructionLocalView``) and the shared pheromone medium,
+nothing else. A centralised planner (a baseline) declares ``centralized = True`` and
 receives a ``WorldView`` with everything; the type it receives is what enforces the difference.
 """
 
@@ -10,13 +11,17 @@ from __future__ import annotations
 
 import dataclasses
 import enum
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import Any, ClassVar, Generic, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pybullet_swarm.types import Perception
 from pybullet_swarm.vehicle.downwash import DownwashParams
+
+
+#: what an agent sees of its task (a task kind's local view type; None for a task without objects)
+V = TypeVar("V")
 
 
 class Action(enum.IntEnum):
@@ -80,7 +85,7 @@ class TaskInfo:
     """What every agent knows before the run: the arena and the task's static layout.
 
     The thesis's agents are told where the boxes start and where the structure goes; what the
-    boxes are doing now they only learn by seeing them (``Observation.boxes``).
+    boxes are doing now they only learn by seeing them (``Observation.seen``).
 
     Attributes:
         arena_size: (2,) m, the arena is [0, Lx] x [0, Ly].
@@ -110,8 +115,12 @@ class TaskInfo:
 
 
 @dataclasses.dataclass(frozen=True)
-class Observation:
+class Observation(Generic[V]):
     """What one agent knows at a planner tick (local information only).
+
+    The core is the same for every task; what the agent sees of the task is ``seen``, of the task's
+    own type (``Observation[ConstructionLocalView]`` in a construction run; None when the task has
+    no objects to see).
 
     Attributes:
         agent_id: index of the agent.
@@ -119,17 +128,14 @@ class Observation:
         position: (3,) m (true or estimated, as the scenario says).
         velocity: (3,) m/s.
         yaw: rad.
-        carrying: id of the box held, or -1.
+        carrying: id of the object held, or -1.
         neighbour_ids: (k,) ids of agents within the sensing radius.
         neighbour_positions: (k, 3) m.
         neighbour_velocities: (k, 3) m/s.
-        neighbour_carrying: (k,) True where the neighbour carries a box (a box hanging under a
-            vehicle is seen with it); empty when the perception does not say.
-        boxes: (b, 3) m, free boxes within the view radius (not carried, not placed).
-        box_ids: (b,) ids of those boxes.
-        slots: (s, 3) m, open slots within the view radius (empty and supported).
-        slot_ids: (s,) ids of those slots.
+        seen: the task's objects within the agent's view, in its own frame (the task's local view).
         ranges: (r,) m, range readings when the agent has range sensors, else empty.
+        neighbour_carrying: (k,) True where the neighbour carries an object (a box hanging under a
+            vehicle is seen with it); empty when the perception does not say.
     """
 
     agent_id: int
@@ -141,10 +147,7 @@ class Observation:
     neighbour_ids: NDArray[np.int64]
     neighbour_positions: NDArray[np.float64]
     neighbour_velocities: NDArray[np.float64]
-    boxes: NDArray[np.float64]
-    box_ids: NDArray[np.int64]
-    slots: NDArray[np.float64]
-    slot_ids: NDArray[np.int64]
+    seen: V
     ranges: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(0))
     neighbour_carrying: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
 
@@ -234,27 +237,6 @@ class TaskView:
     points: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
     points_done: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=bool))
     obstacles: Obstacles = dataclasses.field(default_factory=Obstacles)
-
-
-@dataclasses.dataclass(frozen=True)
-class LocalView:
-    """The task objects one agent sees now (within its view), in the agent's own frame of reference.
-
-    Attributes:
-        boxes: (b, 3) m, free objects in view.
-        box_ids: (b,) their ids.
-        slots: (s, 3) m, open slots in view.
-        slot_ids: (s,) their ids.
-    """
-
-    boxes: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
-    box_ids: NDArray[np.int64] = dataclasses.field(default_factory=_empty_ids)
-    slots: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
-    slot_ids: NDArray[np.int64] = dataclasses.field(default_factory=_empty_ids)
-
-
-#: an agent that sees no task object
-NOTHING_IN_VIEW = LocalView()
 
 
 @dataclasses.dataclass(frozen=True)

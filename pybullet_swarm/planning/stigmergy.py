@@ -183,7 +183,8 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError, LayoutNeedError
-from pybullet_swarm.planning.base import Action, Command, CommandKind, Observation, TaskInfo, view_distance
+from pybullet_swarm.planning.base import Action, Command, CommandKind, TaskInfo, view_distance
+from pybullet_swarm.planning.views.construction import ConstructionObservation
 from pybullet_swarm.planning.params import Params, PlanContext, Preset, check_memory
 from pybullet_swarm.planning.pheromone_grid import DepositRule, LayerSpec, PheromoneGrid
 from pybullet_swarm.planning.placing import release_clearances
@@ -1087,10 +1088,10 @@ class Stigmergy:
         """(3,) m, the held box's centre relative to the agent (straight under it when not holding)."""
         return self.carry.offset if self.carry is not None else np.array([0.0, 0.0, -self.info.grasp_height])
 
-    def plan(self, obs: Observation, medium: PheromoneGrid | None) -> Command:
+    def plan(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command:
         """The agent's command for the next planner period."""
         self._sync(obs, medium)
-        if self.params.mark_seen_slots and medium is not None and len(obs.slot_ids):
+        if self.params.mark_seen_slots and medium is not None and len(obs.seen.slot_ids):
             self._mark_seen_slot(obs, medium)
         for _ in range(MAX_STEPS):  # a step returns None when it changed the phase and the next one should act now
             cmd = self._steps[self.phase](obs, medium)
@@ -1099,7 +1100,7 @@ class Stigmergy:
         return Command.goto(obs.position)
 
     # ------------------------------------------------------------- outcome of the last action
-    def _sync(self, obs: Observation, medium: PheromoneGrid | None) -> None:
+    def _sync(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> None:
         """Notice the outcome of the last GRASP or RELEASE (the task applies them between ticks)."""
         if obs.carrying >= 0 and self.carry is None:
             self._grasped(obs, medium)
@@ -1110,7 +1111,7 @@ class Stigmergy:
         elif self.phase is Phase.RELEASING:  # the box is still held: keep at it
             self.phase = Phase.DESCEND_SLOT
 
-    def _grasped(self, obs: Observation, medium: PheromoneGrid | None) -> None:
+    def _grasped(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> None:
         """GRASPING -> LIFT (+1 in the agent's cell), or -> TO_SLOT with a box taken back from beside its slot."""
         self.carry = Carry(int(obs.carrying), self.grasp_offset if self.phase is Phase.GRASPING else self.offset)
         self.column = obs.position[:2].copy()
@@ -1125,7 +1126,7 @@ class Stigmergy:
         self.retake = None
         self.let_go = None
 
-    def _let_go(self, obs: Observation, medium: PheromoneGrid | None) -> None:
+    def _let_go(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> None:
         """RELEASING -> SETTLING (-1 in the agent's cell); a box that slipped out of the grip -> CHOOSE_BOX."""
         assert self.carry is not None
         if self.phase is Phase.RELEASING:
@@ -1139,14 +1140,14 @@ class Stigmergy:
         self.slot = Sighting(-1, self.slot.pos)
         self.watch.clear()
 
-    def _mark_seen_slot(self, obs: Observation, medium: PheromoneGrid) -> None:
+    def _mark_seen_slot(self, obs: ConstructionObservation, medium: PheromoneGrid) -> None:
         """``mark_seen_slots``: an open slot in the view of an empty agent leaves a goal mark in the agent's own
         cell (where a carrier will see the slot again), unless the cell holds a goal or a box mark already.
         Without it only a placement marks a goal, and a slot seen by empty agents alone is found by a
         carrier's random search only (the last open slot of a build, in a corner, for minutes)."""
         if self.holding:
             return  # a carrier goes for an open slot it sees, and marks it when it places its box there
-        if not self._in_window(obs, obs.slots).any():
+        if not self._in_window(obs, obs.seen.slots).any():
             return
         v = medium.sample(Layer.TASK.value, obs.position)
         if v <= self.params.goal_pheromone or v >= self.params.box_pheromone:
@@ -1165,19 +1166,19 @@ class Stigmergy:
         self.slot = Sighting(-1, self.slot.pos)
 
     # ------------------------------------------------------------- search (thesis states 0-3)
-    def _step_choose_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_choose_box(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """CHOOSE_BOX -> SEEK_BOX: the next search point for a box."""
         self._choose(obs, medium, +1)
         self.phase = Phase.SEEK_BOX
         return None
 
-    def _step_choose_goal(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_choose_goal(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """CHOOSE_GOAL -> SEEK_GOAL: the next search point for an open slot."""
         self._choose(obs, medium, -1)
         self.phase = Phase.SEEK_GOAL
         return None
 
-    def _choose(self, obs: Observation, medium: PheromoneGrid | None, sign: int) -> None:
+    def _choose(self, obs: ConstructionObservation, medium: PheromoneGrid | None, sign: int) -> None:
         """Next search point by the thesis's cycle: random, strongest pheromone, local random, random, ..."""
         p = obs.position
         ties = self.params.ties
@@ -1223,12 +1224,12 @@ class Stigmergy:
     def _arrived(self, p: NDArray[np.float64], xy: NDArray[np.float64]) -> bool:
         return bool(np.hypot(*(p[:2] - xy)) <= self.params.arrive_tol and abs(p[2] - self.geo.altitude(xy)) <= 0.05)
 
-    def _step_seek_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_seek_box(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """SEEK_BOX -> TO_BOX (a free box in view) | CHOOSE_BOX (search point reached); trail 0.2 on the way."""
         p = obs.position
-        b = self._pick(obs, obs.box_ids, obs.boxes, np.zeros(3), boxes=True)
+        b = self._pick(obs, obs.seen.box_ids, obs.seen.boxes, np.zeros(3), boxes=True)
         if b >= 0:
-            self.box = Sighting(int(obs.box_ids[b]), obs.boxes[b].copy())
+            self.box = Sighting(int(obs.seen.box_ids[b]), obs.seen.boxes[b].copy())
             self.phase = Phase.TO_BOX
             return None
         trail = self.params.trail_pheromone
@@ -1239,13 +1240,15 @@ class Stigmergy:
             return None
         return self._travel(p, self.target)
 
-    def _step_seek_goal(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_seek_goal(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """SEEK_GOAL -> TO_SLOT (an open, empty slot in view) | CHOOSE_GOAL (search point reached)."""
         p = obs.position
-        loose = [self._occupied(obs, q) for q in obs.slots] if self.params.loose_box_check else []
-        s = self._pick(obs, obs.slot_ids, obs.slots, self.offset, skip=np.array(loose, dtype=bool) if loose else None)
+        loose = [self._occupied(obs, q) for q in obs.seen.slots] if self.params.loose_box_check else []
+        s = self._pick(
+            obs, obs.seen.slot_ids, obs.seen.slots, self.offset, skip=np.array(loose, dtype=bool) if loose else None
+        )
         if s >= 0:
-            self.slot = Sighting(int(obs.slot_ids[s]), obs.slots[s].copy())
+            self.slot = Sighting(int(obs.seen.slot_ids[s]), obs.seen.slots[s].copy())
             self.phase = Phase.TO_SLOT
             return None
         if self._arrived(p, self.target):
@@ -1254,11 +1257,11 @@ class Stigmergy:
             return None
         return self._travel(p, self.target)
 
-    def _clear_spent_goals(self, obs: Observation, medium: PheromoneGrid | None) -> None:
+    def _clear_spent_goals(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> None:
         """``clear_spent_goals``: with no open slot in view (claimed ones included), clear the goal marks
         over the columns whose every slot the agent sees from here (a mark over no slot: when its cell's
         centre is in view horizontally)."""
-        if medium is None or not self.params.clear_spent_goals or len(obs.slot_ids):
+        if medium is None or not self.params.clear_spent_goals or len(obs.seen.slot_ids):
             return
         layer = Layer.TASK.value
         idx = np.argwhere(medium.values[layer] < 0.0)  # (k, 3) cells with a goal mark
@@ -1291,13 +1294,13 @@ class Stigmergy:
         if cleared:
             medium.tally("goal_marks_cleared", cleared)
 
-    def _ignoring_objects(self, obs: Observation) -> bool:
+    def _ignoring_objects(self, obs: ConstructionObservation) -> bool:
         """True while the agent keeps to its search point whatever it sees (none in 3-D stigmergy)."""
         return False
 
     def _pick(
         self,
-        obs: Observation,
+        obs: ConstructionObservation,
         ids: NDArray[np.int64],
         where: NDArray[np.float64],
         shift: NDArray[np.float64],
@@ -1325,7 +1328,7 @@ class Stigmergy:
         d[~free] = np.inf
         return int(np.argmin(d))
 
-    def _in_window(self, obs: Observation, where: NDArray[np.float64]) -> NDArray[np.bool_]:
+    def _in_window(self, obs: ConstructionObservation, where: NDArray[np.float64]) -> NDArray[np.bool_]:
         """(k,) bool: which objects at ``where`` (k, 3) m the agent notices: every one the task shows it with
         ``wide_view``, else those in the thesis's window (object centre to agent centre, largest horizontal
         difference within ``view_window``)."""
@@ -1333,7 +1336,7 @@ class Stigmergy:
             return np.ones(len(where), dtype=np.bool_)
         return np.asarray(np.max(np.abs(where[:, :2] - obs.position[:2]), axis=1) <= self.params.view_window)
 
-    def _claimed(self, obs: Observation, xy: NDArray[np.float64], *, by_carrier: bool) -> bool:
+    def _claimed(self, obs: ConstructionObservation, xy: NDArray[np.float64], *, by_carrier: bool) -> bool:
         """True when a neighbour works over the column at ``xy`` (2,) m: within one agent radius of
         it and lower than this agent, or level with it and nearer (a tie goes to the lower id). With
         ``claims_by_load``, only a neighbour that can serve the object counts: one carrying a box
@@ -1361,12 +1364,12 @@ class Stigmergy:
         )
 
     # ------------------------------------------------------------- a box: over it, down, grasp, up
-    def _box_lost(self, obs: Observation, *, claims: bool) -> bool:
+    def _box_lost(self, obs: ConstructionObservation, *, claims: bool) -> bool:
         """-> SEEK_BOX when the box is gone from where it should be seen, or (with ``claims``) a
         neighbour works over it; otherwise its position is updated from what is seen."""
-        seen = np.flatnonzero(obs.box_ids == self.box.id)
+        seen = np.flatnonzero(obs.seen.box_ids == self.box.id)
         if seen.size:
-            self.box.pos = obs.boxes[seen[0]].copy()
+            self.box.pos = obs.seen.boxes[seen[0]].copy()
         if (not seen.size and self._gone(obs.position, self.box.pos)) or (
             claims and self.params.claims and self._claimed(obs, self.box.pos[:2], by_carrier=False)
         ):
@@ -1378,26 +1381,26 @@ class Stigmergy:
     def _grasp_point(self) -> NDArray[np.float64]:
         return self.box.pos + [0.0, 0.0, self.info.grasp_height]
 
-    def _step_to_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_to_box(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """TO_BOX -> DESCEND_BOX (over it at the flying altitude) | SEEK_BOX (lost)."""
         if self._box_lost(obs, claims=True):
             return None
         return self._approach_box(obs)
 
-    def _approach_box(self, obs: Observation) -> Command:
+    def _approach_box(self, obs: ConstructionObservation) -> Command:
         grasp = self._grasp_point()
         if self._over(obs, grasp[:2]):
             self.phase = Phase.DESCEND_BOX
             return self._grasp(obs, grasp)
         return self._travel(obs.position, grasp[:2])
 
-    def _step_reclimb_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_reclimb_box(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """RECLIMB_BOX -> TO_BOX (back at the flying altitude) | SEEK_BOX (lost)."""
         if self._box_lost(obs, claims=True):
             return None
         return self._reclimb(obs, Phase.TO_BOX) or self._approach_box(obs)
 
-    def _step_descend_box(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_descend_box(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """DESCEND_BOX -> GRASPING (at the grasp point, steady) | RECLIMB_BOX (pushed off the column) | SEEK_BOX."""
         if self._box_lost(obs, claims=False):
             return None
@@ -1407,7 +1410,7 @@ class Stigmergy:
             return self._reclimb(obs, Phase.TO_BOX) or self._approach_box(obs)
         return self._grasp(obs, grasp)
 
-    def _grasp(self, obs: Observation, grasp: NDArray[np.float64]) -> Command:
+    def _grasp(self, obs: ConstructionObservation, grasp: NDArray[np.float64]) -> Command:
         """Down to the grasp point (3,) m; GRASP there once steady (-> GRASPING)."""
         p = obs.position
         steady = self.dwell == 0.0 or np.linalg.norm(obs.velocity) < SETTLED_SPEED  # a tilted grasp skews the offset
@@ -1417,15 +1420,15 @@ class Stigmergy:
             return Command.goto(grasp, Action.GRASP)
         return Command.goto(grasp)
 
-    def _step_lift(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_lift(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """LIFT -> CHOOSE_GOAL: straight up from the grasp to the flying altitude."""
         return self._rise(obs, Phase.CHOOSE_GOAL)
 
     # ------------------------------------------------------------- a slot: over it, down, release, up
-    def _slot_lost(self, obs: Observation, *, claims: bool) -> bool:
+    def _slot_lost(self, obs: ConstructionObservation, *, claims: bool) -> bool:
         """-> SEEK_GOAL when the slot is no longer open where it should be seen, or (with ``claims``)
         a neighbour works over it."""
-        seen = bool(np.any(obs.slot_ids == self.slot.id))
+        seen = bool(np.any(obs.seen.slot_ids == self.slot.id))
         if (not seen and self._gone(obs.position, self.slot.pos)) or (
             claims and self.params.claims and self._claimed(obs, self.slot.pos[:2] - self.offset[:2], by_carrier=True)
         ):
@@ -1434,7 +1437,7 @@ class Stigmergy:
             return True
         return False
 
-    def _slot_blocked(self, obs: Observation, *, descending: bool) -> bool:
+    def _slot_blocked(self, obs: ConstructionObservation, *, descending: bool) -> bool:
         """-> SEEK_GOAL when a loose box lies in the slot (``loose_box_check``), or (``descending``) the
         box could not be set down within ``descent_timeout_s``."""
         timeout = self.params.descent_timeout_s
@@ -1453,13 +1456,13 @@ class Stigmergy:
         c = self.clearances[k] if 0 <= k < len(self.clearances) else self.clearance
         return self.slot.pos + [0.0, 0.0, c] - self.offset
 
-    def _step_to_slot(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_to_slot(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """TO_SLOT -> DESCEND_SLOT (over it at the flying altitude) | SEEK_GOAL (lost, or a loose box in it)."""
         if self._slot_lost(obs, claims=True) or self._slot_blocked(obs, descending=False):
             return None
         return self._approach_slot(obs)
 
-    def _approach_slot(self, obs: Observation) -> Command:
+    def _approach_slot(self, obs: ConstructionObservation) -> Command:
         drop = self._drop_point()
         hold = self._queue_point(obs, drop[:2])
         if hold is not None:
@@ -1470,7 +1473,7 @@ class Stigmergy:
             return self._release(obs, drop)
         return self._travel(obs.position, drop[:2])
 
-    def _queue_point(self, obs: Observation, column: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    def _queue_point(self, obs: ConstructionObservation, column: NDArray[np.float64]) -> NDArray[np.float64] | None:
         """``queue_at_slots``: where the agent waits (2,) m for its turn at the slot it serves from ``column``
         (2,) m, or None when it goes on: when it is in that slot's working square itself (an airframe's width
         and ``QUEUE_MARGIN`` per axis), or no other carrier is. It waits ``QUEUE_GAP`` outside every slot's
@@ -1501,13 +1504,13 @@ class Stigmergy:
             return None
         return self.geo.off_columns(obs.position[:2], half + QUEUE_GAP)
 
-    def _step_reclimb_slot(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_reclimb_slot(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """RECLIMB_SLOT -> TO_SLOT (back at the flying altitude) | SEEK_GOAL."""
         if self._slot_lost(obs, claims=True) or self._slot_blocked(obs, descending=False):
             return None
         return self._reclimb(obs, Phase.TO_SLOT) or self._approach_slot(obs)
 
-    def _step_descend_slot(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_descend_slot(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """DESCEND_SLOT -> RELEASING (settled at the drop point) | RECLIMB_SLOT (pushed off) | SEEK_GOAL."""
         if self._slot_lost(obs, claims=False) or self._slot_blocked(obs, descending=True):
             return None
@@ -1517,14 +1520,14 @@ class Stigmergy:
             return self._reclimb(obs, Phase.TO_SLOT) or self._approach_slot(obs)
         return self._release(obs, drop)
 
-    def _release(self, obs: Observation, drop: NDArray[np.float64]) -> Command:
+    def _release(self, obs: ConstructionObservation, drop: NDArray[np.float64]) -> Command:
         """Down to the drop point (3,) m; RELEASE there once settled (-> RELEASING)."""
         if self._settled_at(obs, drop):
             self.phase = Phase.RELEASING
             return Command.goto(drop, Action.RELEASE)
         return Command.goto(drop)
 
-    def _settled_at(self, obs: Observation, drop: NDArray[np.float64]) -> bool:
+    def _settled_at(self, obs: ConstructionObservation, drop: NDArray[np.float64]) -> bool:
         """True when the agent may let go at ``drop`` (3,) m: slower than ``RELEASE_SPEED`` and, averaged
         over the last ``dwell`` s (an estimate's jitter averages out, a drift does not), within
         ``release_tol`` per axis of it, while never more than twice that off during the dwell."""
@@ -1544,23 +1547,23 @@ class Stigmergy:
         mean = np.mean([q for _, q in w.window], axis=0)
         return bool(np.all(np.abs(mean - drop) <= tol))
 
-    def _occupied(self, obs: Observation, slot: NDArray[np.float64]) -> bool:
+    def _occupied(self, obs: ConstructionObservation, slot: NDArray[np.float64]) -> bool:
         """True when a loose box (seen, free) lies in the space of the slot centred at ``slot`` (3,) m."""
-        if len(obs.box_ids) == 0:
+        if len(obs.seen.box_ids) == 0:
             return False
-        d = np.abs(obs.boxes - slot)
+        d = np.abs(obs.seen.boxes - slot)
         return bool(np.any(np.all(d[:, :2] < self.info.box_size, axis=1) & (d[:, 2] < self.info.box_size)))
 
-    def _step_settling(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_settling(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """SETTLING -> DESCEND_BOX (the box lies loose beside its slot: take it back) | CLIMB | CHOOSE_BOX.
 
         The agent climbs from where it let go; after ``SETTLE_S`` it looks whether the box came to rest.
         """
         assert self.let_go is not None
         if obs.time_s - self.let_go.time_s >= SETTLE_S - 1e-9:
-            seen = np.flatnonzero(obs.box_ids == self.let_go.box)
+            seen = np.flatnonzero(obs.seen.box_ids == self.let_go.box)
             if seen.size and self.let_go.slot.id >= 0:  # the box lies loose beside its slot: take it back
-                self.box = Sighting(self.let_go.box, obs.boxes[seen[0]].copy())
+                self.box = Sighting(self.let_go.box, obs.seen.boxes[seen[0]].copy())
                 self.retake = self.let_go
                 self.phase = Phase.DESCEND_BOX  # straight down: the agent is over it
                 return None
@@ -1568,12 +1571,12 @@ class Stigmergy:
             self.phase = Phase.CLIMB
         return self._rise(obs, Phase.CHOOSE_BOX)
 
-    def _step_climb(self, obs: Observation, medium: PheromoneGrid | None) -> Command | None:
+    def _step_climb(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """CLIMB -> CHOOSE_BOX: straight up from the release to the flying altitude."""
         return self._rise(obs, Phase.CHOOSE_BOX)
 
     # ------------------------------------------------------------- straight up and down
-    def _rise(self, obs: Observation, then: Phase) -> Command | None:
+    def _rise(self, obs: ConstructionObservation, then: Phase) -> Command | None:
         """Climb straight up over ``column`` to the flying altitude there; at it -> ``then``."""
         h = self.geo.altitude(self.column)
         if abs(obs.position[2] - h) <= ALTITUDE_TOL:
@@ -1586,7 +1589,7 @@ class Stigmergy:
         (never without ``drift_breakoff``: the descent goes on towards its point)."""
         return self.params.drift_breakoff and bool(np.hypot(*(p[:2] - xy)) > DRIFT_TOL)
 
-    def _break_off(self, obs: Observation, then: Phase) -> None:
+    def _break_off(self, obs: ConstructionObservation, then: Phase) -> None:
         """Break off a descent pushed off its column (by a neighbour's avoidance, a gust, a snagged box):
         the agent climbs straight back from where it is (``then``: a RECLIMB phase) and comes over the
         object again (a diagonal way back would sweep its box through a neighbouring stack)."""
@@ -1595,7 +1598,7 @@ class Stigmergy:
         self.column = obs.position[:2].copy()
         self.phase = then
 
-    def _reclimb(self, obs: Observation, then: Phase) -> Command | None:
+    def _reclimb(self, obs: ConstructionObservation, then: Phase) -> Command | None:
         """RECLIMB_*: straight up over ``column`` to the flying altitude; once there -> ``then`` and None."""
         h = self.geo.altitude(self.column)
         if obs.position[2] >= h - ALTITUDE_TOL:
@@ -1603,7 +1606,7 @@ class Stigmergy:
             return None
         return Command.goto([self.column[0], self.column[1], h])
 
-    def _over(self, obs: Observation, xy: NDArray[np.float64]) -> bool:
+    def _over(self, obs: ConstructionObservation, xy: NDArray[np.float64]) -> bool:
         """True when the agent hovers over ``xy`` (2,) m at its flying altitude, ready to descend."""
         p = obs.position
         return bool(
@@ -1660,7 +1663,7 @@ class LayeredStigmergy(Stigmergy):
         assert isinstance(p, LayeredStigmergyParams)
         return [*super().layer_specs(p), LayerSpec(Layer.PRESENCE.value, fatigue=p.presence_fatigue)]
 
-    def plan(self, obs: Observation, medium: PheromoneGrid | None) -> Command:
+    def plan(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command:
         """The 3-D stigmergy command, unless another agent's mark lies ahead; then mark own position."""
         cmd = super().plan(obs, medium)
         if medium is None:
@@ -1682,11 +1685,11 @@ class LayeredStigmergy(Stigmergy):
             )
         return cmd
 
-    def _ignoring_objects(self, obs: Observation) -> bool:
+    def _ignoring_objects(self, obs: ConstructionObservation) -> bool:
         """True during a detour after a presence re-plan (the agent keeps to its new search point)."""
         return obs.time_s < self.detour_until
 
-    def _blocked(self, obs: Observation, cmd: Command, medium: PheromoneGrid) -> bool:
+    def _blocked(self, obs: ConstructionObservation, cmd: Command, medium: PheromoneGrid) -> bool:
         """True when another agent's presence mark lies in the area the agent is about to move into:
         its footprint (one agent radius around its centre, and around its box when it carries one)
         swept along the way to the command's target for ``lookahead``, in cells ahead of it (within

@@ -12,12 +12,13 @@ run directory. The learning environments call the same methods.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from typing import Any, Callable, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.planning.base import Action, LocalView, TaskView
+from pybullet_swarm.planning.base import Action, TaskView
 from pybullet_swarm.types import Event, TimeSeries
 from pybullet_swarm.world import World
 
@@ -141,8 +142,8 @@ class TaskRuntime(Protocol):
 
     def local_views(
         self, true_positions: NDArray[np.float64], sensed_positions: NDArray[np.float64]
-    ) -> list[LocalView] | None:
-        """The objects each agent sees (seen from where its airframe truly is, expressed in the agent's
+    ) -> Sequence[Any] | None:
+        """The objects each agent sees (one of the task's own local view type per agent, ``Observation.seen``) (seen from where its airframe truly is, expressed in the agent's
         own, possibly estimated, frame), or None when the task has no objects to see."""
 
     def apply(self, agent: int, action: Action, t: float, position: NDArray[np.float64]) -> float | None:
@@ -184,8 +185,8 @@ class TaskBase:
 
     def local_views(
         self, true_positions: NDArray[np.float64], sensed_positions: NDArray[np.float64]
-    ) -> list[LocalView] | None:
-        """No objects to see."""
+    ) -> Sequence[Any] | None:
+        """No objects to see (``Observation.seen`` is None)."""
         return None
 
     def refresh(self) -> None:

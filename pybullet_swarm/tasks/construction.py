@@ -26,7 +26,8 @@ from pydantic import Field
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.collisions import CollisionClass
 from pybullet_swarm.metrics.construction import task_lower_bound
-from pybullet_swarm.planning.base import Action, LocalView, Obstacles, TaskView, view_distance
+from pybullet_swarm.planning.base import Action, Obstacles, TaskView, view_distance
+from pybullet_swarm.planning.views.construction import ConstructionLocalView
 from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import NOT_MINE, Framing, ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.tasks.build_order import REACH_MARGIN, Reach, build_order, prerequisites
@@ -740,7 +741,7 @@ class ConstructionRuntime(TaskBase):
 
     def local_views(
         self, true_positions: NDArray[np.float64], sensed_positions: NDArray[np.float64]
-    ) -> list[LocalView]:
+    ) -> list[ConstructionLocalView]:
         """Free boxes and open slots in each agent's view (measured from where the airframe truly is).
 
         Boxes are seen relative to the airframe, so they appear in the agent's own (possibly
@@ -760,7 +761,7 @@ class ConstructionRuntime(TaskBase):
         b_lo = np.searchsorted(ab, rows).tolist()
         s_lo = np.searchsorted(at, rows).tolist()
         return [
-            LocalView(box_pos[b0:b1], boxes[b0:b1], slot_pos[s0:s1], slots[s0:s1])
+            ConstructionLocalView(box_pos[b0:b1], boxes[b0:b1], slot_pos[s0:s1], slots[s0:s1])
             for b0, b1, s0, s1 in zip(b_lo, b_lo[1:], s_lo, s_lo[1:])
         ]
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from pybullet_swarm.planning.base import Action, Observation, TaskInfo, WorldView
+from pybullet_swarm.planning.views.construction import ConstructionLocalView
 from pybullet_swarm.planning.shortest_path import Phase as SPPhase
 from pybullet_swarm.planning.shortest_path import ShortestPath, ShortestPathParams
 from pybullet_swarm.planning.stigmergy import CLEARANCE_SIGMAS, Carry, Phase, Sighting, Stigmergy
@@ -60,10 +61,12 @@ def _obs(p, *, t, carrying=-1, boxes=NO3, box_ids=NOI, slots=NO3, slot_ids=NOI) 
         NOI,
         NO3,
         NO3,
-        np.asarray(boxes, dtype=float).reshape(-1, 3),
-        np.asarray(box_ids, dtype=np.int64),
-        np.asarray(slots, dtype=float).reshape(-1, 3),
-        np.asarray(slot_ids, dtype=np.int64),
+        ConstructionLocalView(
+            np.asarray(boxes, dtype=float).reshape(-1, 3),
+            np.asarray(box_ids, dtype=np.int64),
+            np.asarray(slots, dtype=float).reshape(-1, 3),
+            np.asarray(slot_ids, dtype=np.int64),
+        ),
     )
 
 
@@ -195,10 +198,10 @@ def test_on_estimated_state_boxes_are_seen_relative_to_the_airframe_and_agents_k
         sim.state_array[0, :3] = c.positions[4] + [0.0, 0.0, c.grasp_height + 0.03]
         sim.estimation.state_array[0, :3] = sim.state_array[0, :3] + [0.008, -0.004, 0.002]
         obs = sim.observations()[0]
-        k = int(np.flatnonzero(obs.box_ids == 4)[0])
-        seen = obs.boxes[k] - obs.position
+        k = int(np.flatnonzero(obs.seen.box_ids == 4)[0])
+        seen = obs.seen.boxes[k] - obs.position
         assert np.allclose(seen, c.positions[4] - sim.state_array[0, :3])  # the true relative position
-        assert np.allclose(obs.slots, c.slots[obs.slot_ids])  # slots: planned coordinates
+        assert np.allclose(obs.seen.slots, c.slots[obs.seen.slot_ids])  # slots: planned coordinates
     with ps.Simulation(ps.load_scenario("construction"), seed=2, planner="stigmergy") as sim:
         assert "position_std" not in sim.info.extra
 

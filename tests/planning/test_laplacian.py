@@ -19,8 +19,6 @@ from pybullet_swarm.tasks.route import SEED_FORMATION
 
 def _obs(i: int, pos: np.ndarray) -> Observation:
     others = np.array([j for j in range(len(pos)) if j != i], dtype=np.int64)
-    z3 = np.zeros((0, 3))
-    zi = np.zeros(0, dtype=np.int64)
     return Observation(
         i,
         0.0,
@@ -31,10 +29,7 @@ def _obs(i: int, pos: np.ndarray) -> Observation:
         others,
         pos[others].copy(),
         np.zeros((len(others), 3)),
-        z3,
-        zi,
-        z3,
-        zi,
+        None,  # a route has no objects to see
     )
 
 

@@ -64,7 +64,7 @@ def _planner() -> OlfatiSaberPlanner:
 
 def _obs(t: float, p: list[float], v: list[float]) -> Observation:
     e3, e = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
-    return Observation(0, t, np.array(p, float), np.array(v, float), 0.0, -1, e, e3, e3, e3, e, e3, e)
+    return Observation(0, t, np.array(p, float), np.array(v, float), 0.0, -1, e, e3, e3, None)
 
 
 def test_on_the_virtual_leader_the_input_is_zero() -> None:

@@ -46,8 +46,6 @@ def test_altitude_band_and_limits() -> None:
 
 def _obs(pos: list[float], nb: list[list[float]] | None = None) -> Observation:
     nbp = np.asarray(nb if nb else np.zeros((0, 3)), dtype=float).reshape(-1, 3)
-    z3 = np.zeros((0, 3))
-    zi = np.zeros(0, dtype=np.int64)
     return Observation(
         0,
         0.0,
@@ -58,10 +56,7 @@ def _obs(pos: list[float], nb: list[list[float]] | None = None) -> Observation:
         np.arange(1, len(nbp) + 1),
         nbp,
         np.zeros_like(nbp),
-        z3,
-        zi,
-        z3,
-        zi,
+        None,  # a route has no objects to see
     )
 
 

@@ -12,6 +12,7 @@ import pytest
 import pybullet_swarm
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import Action, CommandKind, Observation, TaskInfo
+from pybullet_swarm.planning.views.construction import ConstructionLocalView
 from pybullet_swarm.planning.pheromone_grid import DepositRule, PheromoneGrid
 from pybullet_swarm.planning.registry import planners
 from pybullet_swarm.planning.stigmergy import (
@@ -90,10 +91,12 @@ def _obs(
         np.asarray(nb_ids, dtype=np.int64),
         np.asarray(nb_pos, dtype=float).reshape(-1, 3),
         np.zeros((len(nb_ids), 3)),
-        np.asarray(boxes, dtype=float).reshape(-1, 3),
-        np.asarray(box_ids, dtype=np.int64),
-        np.asarray(slots, dtype=float).reshape(-1, 3),
-        np.asarray(slot_ids, dtype=np.int64),
+        ConstructionLocalView(
+            np.asarray(boxes, dtype=float).reshape(-1, 3),
+            np.asarray(box_ids, dtype=np.int64),
+            np.asarray(slots, dtype=float).reshape(-1, 3),
+            np.asarray(slot_ids, dtype=np.int64),
+        ),
         neighbour_carrying=np.zeros(0, dtype=bool) if nb_carrying is None else np.asarray(nb_carrying, dtype=bool),
     )
 

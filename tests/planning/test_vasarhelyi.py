@@ -85,10 +85,7 @@ def _obs(
         np.arange(k),
         np.array(nb_p, float).reshape(k, 3),
         np.array(nb_v, float).reshape(k, 3),
-        np.zeros((0, 3)),
-        np.zeros(0, dtype=np.int64),
-        np.zeros((0, 3)),
-        np.zeros(0, dtype=np.int64),
+        None,  # a flock has no objects to see
     )
 
 
