@@ -39,6 +39,7 @@ def register(sub: Any) -> None:
         default=None,
         help="benchmark directory (default runs/benchmark-<suite>-v<version>-<split>); with compare: JSON file",
     )
+    p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as errors")
     p.add_argument("--no-figure", action="store_true", help="skip benchmark.png")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no table")
     p.set_defaults(func=_cmd_benchmark)
@@ -81,6 +82,7 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
         address=args.address,
         quiet=args.quiet,
         figure=not args.no_figure,
+        retry_failed=args.retry_failed,
         command=" ".join(["pybullet-swarm", *(sys.argv[1:] if sys.argv[1:2] == ["benchmark"] else ["benchmark"])]),
     )
     if result.interrupted:
@@ -90,6 +92,7 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 130
+    failed = sum(c["error"] for c in result.data["configurations"])
     if not args.quiet:
         print(benchmark.markdown_table(result.data))
         print(
@@ -97,6 +100,13 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
             f"{result.n_skipped} skipped; {result.wall_time_s:.1f} s)"
         )
         print("\n".join(str(f) for f in result.files))
+    if failed:
+        print(
+            f"pybullet-swarm: error: {failed} runs failed to run (exit_status=error in {result.out / 'runs.csv'}; "
+            "--retry-failed runs them again)",
+            file=sys.stderr,
+        )
+        return 1
     return 0
 
 

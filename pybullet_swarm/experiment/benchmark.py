@@ -221,6 +221,7 @@ def run_benchmark(
     address: str | None = None,
     quiet: bool = True,
     figure: bool = True,
+    retry_failed: bool = False,
     command: str | None = None,
     worker: Any = None,
 ) -> BenchmarkResult:
@@ -235,6 +236,7 @@ def run_benchmark(
         address: Ray cluster address.
         quiet: no progress bar.
         figure: draw ``benchmark.png``.
+        retry_failed: run again the runs recorded with ``exit_status = error`` (they failed to run).
         command: the command line recorded in the JSON (default: this process's).
         worker: the function that runs one spec (tests; default ``jobs.execute_run``).
 
@@ -260,6 +262,10 @@ def run_benchmark(
     with exclusive_directory(plan.out, "benchmark"):
         write_json(manifest_path, _manifest(plan, old))
         table = RunsTable(plan.out / RUNS_CSV)
+        if retry_failed and table.drop(
+            [s.run_id for s in plan.runs if (table.get(s.run_id) or {}).get("exit_status") == "error"]
+        ):
+            table.save()
         recover_runs(plan.runs, table)
         todo = [s for s in plan.runs if table.get(s.run_id) is None]
         if not quiet and len(todo) < len(plan.runs):

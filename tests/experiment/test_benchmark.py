@@ -18,6 +18,7 @@ import yaml
 from pybullet_swarm.cli.main import main
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment import benchmark
+from pybullet_swarm.experiment.jobs import RunSpec, make_row
 from pybullet_swarm.experiment.results import RUNS_CSV, RunsTable
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -116,6 +117,24 @@ def test_a_tiny_benchmark_writes_json_table_and_figure_and_resumes(tmp_path):
     assert (out / "benchmark.png").stat().st_size > 1000
     again = benchmark.run_benchmark(tiny_suite(tmp_path), "dev", out, workers=1, figure=False)
     assert again.n_run == 0 and again.n_skipped == 2
+
+
+def failing_worker(spec: RunSpec) -> dict[str, Any]:
+    """A worker whose every run fails to run (recorded with exit_status = error)."""
+    return make_row(spec, None, error="ConfigError: no such vehicle field")
+
+
+def test_failed_runs_are_kept_on_resume_and_run_again_when_asked(tmp_path, capsys):
+    suite, out = tiny_suite(tmp_path), tmp_path / "bench"
+    first = benchmark.run_benchmark(suite, "dev", out, workers=1, worker=failing_worker, figure=False)
+    assert first.data["configurations"][0]["error"] == 2
+    assert benchmark.run_benchmark(suite, "dev", out, workers=1, figure=False).n_run == 0
+    argv = ["benchmark", str(suite), "--split", "dev", "--workers", "1", "--out", str(out), "--no-figure"]
+    assert main([*argv, "--quiet"]) == 1  # failed runs make the command fail, saying how to retry them
+    assert "--retry-failed" in capsys.readouterr().err
+    assert main([*argv, "--quiet", "--retry-failed"]) == 0
+    data = json.loads((out / benchmark.RESULT).read_text())
+    assert data["configurations"][0]["error"] == 0 and data["configurations"][0]["timeout"] == 2
 
 
 def test_a_directory_of_another_split_is_refused(tmp_path):
