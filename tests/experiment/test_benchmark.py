@@ -266,3 +266,12 @@ def test_median_ci_is_deterministic_and_brackets_the_median():
     ci = benchmark.bootstrap_ci(values)
     assert ci == benchmark.bootstrap_ci(values) and ci[0] <= 101.0 <= ci[1]
     assert benchmark.bootstrap_ci([5.0]) is None
+
+
+@pytest.mark.ray
+def test_ray_executor_runs_a_tiny_benchmark(tmp_path):
+    pytest.importorskip("ray")
+    res = benchmark.run_benchmark(
+        tiny_suite(tmp_path), "dev", tmp_path / "bench", executor="ray", workers=1, figure=False
+    )
+    assert res.n_run == 2 and res.data["configurations"][0]["timeout"] == 2
