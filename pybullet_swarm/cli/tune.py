@@ -135,10 +135,12 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("needs --executor ray", source="--address")
     task_default = _task_objective(args.scenario)
     params: list[Any] = list(args.params)
-    if not params:  # the planner's own search space (vasarhelyi: its eleven parameters)
+    baseline = None
+    if not params:  # the planner's own search space (vasarhelyi: its eleven parameters), its defaults first
         from pybullet_swarm.tuning.space import planner_search_space
 
         params = list(planner_search_space(args.planner))
+        baseline = _defaults(args.planner, params) or None
     directions = args.directions
     penalty = args.penalty if args.penalty is not None else DEFAULT_PENALTY
     if args.objectives is None and args.objective is None and task_default is not None:
@@ -162,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
         sampler=sampler,
         sampler_seed=args.sampler_seed,
         penalty=penalty,
+        baseline=baseline,
         overrides=args.overrides,
         study_name=args.study,
     )
@@ -191,6 +194,19 @@ def run(args: argparse.Namespace) -> int:
         for f in result.files:
             print(f)
     return 0
+
+
+def _defaults(planner: str, params: list[Any]) -> dict[str, float]:
+    """The planner's default values of the tuned ``planner.params.*`` keys that lie within their ranges (all or none)."""
+    from pybullet_swarm.planning.registry import planners
+
+    entry = planners().get(planner)
+    if entry is None:
+        return {}
+    values = entry.params().model_dump()
+    out = {p.key: values.get(p.key.removeprefix("planner.params.")) for p in params}
+    ok = all(isinstance(v, (int, float)) and p.low <= v <= p.high for p, v in zip(params, out.values()))
+    return {k: float(v) for k, v in out.items()} if ok else {}  # type: ignore[arg-type]
 
 
 def _task_objective(scenario: str) -> tuple[str, str, float] | None:

@@ -42,6 +42,7 @@ from pydantic import Field
 from pybullet_swarm.planning.arena import ArenaGeometry, altitude_velocity, cap_speed
 from pybullet_swarm.planning.base import Command, Observation, TaskInfo
 from pybullet_swarm.planning.params import Params
+from pybullet_swarm.planning.reynolds import scale_to_limits
 
 #: s, planner period assumed at the first tick (later: the time between ticks)
 FIRST_DT = 0.1
@@ -233,8 +234,7 @@ class OlfatiSaberPlanner:
         out[2] = altitude_velocity(float(obs.position[2]), self.altitude, self.params.altitude_gain)
         if obs.position[2] >= 0.5 * self.altitude:  # below it: taking off, climb first
             out[:2] = cap_speed(obs.velocity[:2] + self.control(obs) * dt, self.v_cap)
-        ratio = np.where(np.abs(out) > self.axis_limits, self.axis_limits / np.maximum(np.abs(out), 1e-12), 1.0)
-        return out * float(np.min(ratio))
+        return scale_to_limits(out, self.axis_limits)
 
     def plan(self, obs: Observation, medium: Any | None) -> Command:
         """A VELOCITY command."""

@@ -32,3 +32,10 @@ def test_vasarhelyi_declares_its_eleven_parameters_within_their_ranges() -> None
 def test_a_flock_is_tuned_on_its_fitness() -> None:
     assert _task_objective("flocking_confined") == ("flock.fitness", "maximize", 0.0)
     assert _task_objective("construction") is None
+
+
+def test_the_defaults_are_the_first_trial() -> None:
+    from pybullet_swarm.cli.tune import _defaults
+
+    base = _defaults("vasarhelyi", planner_search_space("vasarhelyi"))
+    assert base["planner.params.r0_rep"] == 2.5 and len(base) == 11
