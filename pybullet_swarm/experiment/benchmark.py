@@ -351,6 +351,7 @@ def run_record(row: Mapping[str, Any], classes: Sequence[str]) -> dict[str, Any]
         "contacts": {c: (None if v is None else int(v)) for c, v in contacts.items()},
         "incidents": run_incidents(row),
         "wall_time_s": _number(row.get("worker_time_s")),
+        "cpu_time_s": _number(row.get("worker_cpu_s")),
     }
 
 
@@ -449,6 +450,9 @@ def summarize(plan: BenchmarkPlan, rows: Sequence[Row], *, command: str | None =
         "command": command if command is not None else " ".join(["pybullet-swarm", *sys.argv[1:]]),
         "planned_runs": len(plan.runs),
         "recorded_runs": len(records),
+        # s, summed over the runs: what the runs cost (CPU) and took in their workers (wall, load included)
+        "cpu_time_s": round(sum(r["cpu_time_s"] or 0.0 for r in records), 1),
+        "wall_time_s": round(sum(r["wall_time_s"] or 0.0 for r in records), 1),
         "seeds": list(plan.split.seeds),
         "layouts": layouts,
         "contact_classes": classes,

@@ -58,9 +58,16 @@ class RunSpec:
 
 # -------------------------------------------------------------------- worker
 def make_row(
-    spec: RunSpec, metrics: Mapping[str, Any] | None, *, error: str | None = None, worker_time_s: float | None = None
+    spec: RunSpec,
+    metrics: Mapping[str, Any] | None,
+    *,
+    error: str | None = None,
+    worker_time_s: float | None = None,
+    worker_cpu_s: float | None = None,
 ) -> Row:
-    """The ``runs.csv`` row of a run: identity, outcome, flattened scalar metrics."""
+    """The ``runs.csv`` row of a run: identity, outcome, flattened scalar metrics. ``worker_time_s`` is the
+    run's wall time in its worker, ``worker_cpu_s`` the CPU time its process spent on it (what the run costs
+    on an idle core, whatever the load of the machine)."""
     row = spec.identity()
     status = RunStatus.ERROR.value if metrics is None else str(metrics.get("exit_status", RunStatus.ERROR.value))
     row.update(
@@ -69,6 +76,7 @@ def make_row(
             "error": None if error is None else one_line(error),
             "worker_time_s": None if worker_time_s is None else round(float(worker_time_s), 4),
             "run_dir": spec.rel_dir,
+            "worker_cpu_s": None if worker_cpu_s is None else round(float(worker_cpu_s), 4),
         }
     )
     if metrics is not None:
@@ -86,7 +94,7 @@ def execute_run(spec: RunSpec) -> Row:
     from pybullet_swarm.experiment.runner import run
     from pybullet_swarm.experiment.scenario import build_scenario
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     run_dir = Path(spec.run_dir)
     try:
         if run_dir.exists():  # a run killed part-way: start it again from nothing
@@ -102,7 +110,9 @@ def execute_run(spec: RunSpec) -> Row:
             report=spec.plots,
             quiet=True,
         )
-        return make_row(spec, result.metrics, worker_time_s=time.perf_counter() - t0)
+        return make_row(
+            spec, result.metrics, worker_time_s=time.perf_counter() - t0, worker_cpu_s=time.process_time() - c0
+        )
     except Exception as exc:  # noqa: BLE001 - a failed run is a result, recorded with its error
         with contextlib.suppress(OSError):
             atomic_write(run_dir / "error.txt", lambda fh: fh.write(traceback.format_exc()))

@@ -1,7 +1,7 @@
 """Result tables: metrics flattened into rows, ``runs.csv`` appended atomically, rows read back.
 
 A row is one run: who ran it (``run_id``, ``planner``, ``avoidance``, ``seed``, grid values),
-how it ended (``exit_status``, ``error``, ``worker_time_s``, ``run_dir``) and every scalar
+how it ended (``exit_status``, ``error``, ``worker_time_s``, ``run_dir``, ``worker_cpu_s``) and every scalar
 metric of its ``metrics.json`` flattened with dots (``collisions.agent_agent``). Lists (per-agent
 values) stay in the run directory. Cells hold plain scalars: ``None``, ``bool``, ``int``,
 ``float`` or ``str`` (lists and mappings of grid values are stored as JSON text).
@@ -46,7 +46,7 @@ class RunStatus(str, enum.Enum):
 #: Identity columns of a row, before the grid values.
 ID_COLUMNS: tuple[str, ...] = ("run_id", "planner", "avoidance", "seed")
 #: Outcome columns of a row, after the grid values and before the metrics.
-STATUS_COLUMNS: tuple[str, ...] = ("exit_status", "error", "worker_time_s", "run_dir")
+STATUS_COLUMNS: tuple[str, ...] = ("exit_status", "error", "worker_time_s", "run_dir", "worker_cpu_s")
 #: Columns that are not outcomes of a run (never summarised or plotted).
 NOT_METRICS: frozenset[str] = frozenset(
     {*ID_COLUMNS, *STATUS_COLUMNS, "crashed_agent", "crash_cause", "scenario", "vehicle", "video"}

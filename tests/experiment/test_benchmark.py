@@ -112,6 +112,8 @@ def test_a_tiny_benchmark_writes_json_table_and_figure_and_resumes(tmp_path):
     assert config["runs"] == 2 and config["timeout"] == 2 and config["completed"] == 0
     assert "agent_agent" in config["contact_runs"]
     assert {(r["layout"], r["seed"]) for r in data["runs"]} == {("t1", 0), ("t1", 1)}
+    assert all(r["cpu_time_s"] > 0 and r["wall_time_s"] > 0 for r in data["runs"])
+    assert data["cpu_time_s"] == pytest.approx(sum(r["cpu_time_s"] for r in data["runs"]), abs=0.1)
     table = (out / "benchmark.md").read_text()
     assert "| shortest_path | 0/2 | 0 | 0 | 2 | - |" in table
     assert (out / "benchmark.png").stat().st_size > 1000
