@@ -482,7 +482,8 @@ def benchmark_table_file(path: str, root: Path) -> str:
 
 
 def render_markers(markdown: str, *, root: Path, data_dir: Path) -> str:
-    """Replace every marker line of a page (see the module's docstring) with what it names.
+    """Replace every marker line of a page (see the module's docstring) with what it names; markers
+    inside fenced code blocks are left as they are.
 
     Raises ``ConfigError`` (one line) for an unknown reference, a missing or malformed results
     file, or a benchmark table when the benchmark module is not there.
@@ -494,8 +495,7 @@ def render_markers(markdown: str, *, root: Path, data_dir: Path) -> str:
         "presets": preset_reference,
     }
 
-    def replace(match: re.Match[str]) -> str:
-        kind, arg = match.group(1), match.group(2)
+    def generate(kind: str, arg: str) -> str:
         if kind == "reference":
             if arg not in generators:
                 raise ConfigError(f"unknown reference {arg!r}; one of {', '.join(generators)}")
@@ -505,4 +505,17 @@ def render_markers(markdown: str, *, root: Path, data_dir: Path) -> str:
             return results_table_file(arg, data_dir, source=str(source) if source else None)
         return benchmark_table_file(arg, root)
 
-    return MARKER.sub(replace, markdown)
+    def replace(match: re.Match[str]) -> str:  # a block of its own: a blank line after it
+        return generate(match.group(1), match.group(2)).rstrip("\n") + "\n\n"
+
+    out, fence = [], ""
+    for line in markdown.splitlines(keepends=True):  # markers inside fenced code stay as they are
+        stripped = line.lstrip()
+        if fence and stripped.startswith(fence):
+            fence = ""
+        elif not fence and stripped.startswith(("```", "~~~")):
+            fence = stripped[:3]
+        elif not fence:
+            line = MARKER.sub(replace, line)
+        out.append(line)
+    return "".join(out)

@@ -8,6 +8,7 @@ import importlib.util
 import json
 import subprocess
 import sys
+import types
 import typing
 from pathlib import Path
 from typing import Any, Iterator
@@ -32,15 +33,22 @@ def _models_in(annotation: Any) -> Iterator[type[pydantic.BaseModel]]:
         yield from _models_in(arg)
 
 
+def _holds_list(annotation: Any) -> bool:
+    """True for ``list[...]`` / ``tuple[...]``, also inside ``Annotated`` and unions."""
+    origin = typing.get_origin(annotation)
+    if origin in (list, tuple):
+        return True
+    if origin is typing.Annotated:
+        return _holds_list(typing.get_args(annotation)[0])
+    return origin in (typing.Union, types.UnionType) and any(_holds_list(a) for a in typing.get_args(annotation))
+
+
 def _paths(model: type[pydantic.BaseModel], prefix: str = "") -> Iterator[str]:
     """Every field of a model and of the models nested in it, as dotted paths (``[]`` for a list of models)."""
     for name, f in model.model_fields.items():
         yield prefix + name
-        origin = typing.get_origin(f.annotation)
-        args = [a for a in typing.get_args(f.annotation) if a is not type(None)]
-        is_list = origin is list or any(typing.get_origin(a) is list for a in args)
         for inner in set(_models_in(f.annotation)):
-            yield from _paths(inner, f"{prefix}{name}{'[]' if is_list else ''}.")
+            yield from _paths(inner, f"{prefix}{name}{'[]' if _holds_list(f.annotation) else ''}.")
 
 
 def _section(text: str, heading: str) -> str:
@@ -204,6 +212,27 @@ def test_markers_are_replaced_and_a_missing_or_broken_file_fails(tmp_path: Path)
         docgen.render_markers("<!-- results-table: broken -->\n", root=tmp_path, data_dir=data_dir)
     with pytest.raises(ConfigError, match="unknown reference"):
         docgen.render_markers("<!-- reference: everything -->\n", root=tmp_path, data_dir=data_dir)
+
+
+def test_markers_in_fenced_code_are_left_alone(tmp_path: Path) -> None:
+    page = "```markdown\n<!-- results-table: absent -->\n```\n"
+    assert docgen.render_markers(page, root=tmp_path, data_dir=tmp_path) == page
+
+
+def test_a_benchmark_table_is_rendered_by_the_benchmark_module(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import types as _types
+
+    fake = _types.ModuleType("pybullet_swarm.experiment.benchmark")
+    fake.markdown_table = lambda data: f"| split |\n|---|\n| {data['split']} |"  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "pybullet_swarm.experiment.benchmark", fake)
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "runs" / "b.json").write_text(json.dumps({"split": "holdout"}))
+    out = docgen.render_markers(
+        "before\n<!-- benchmark-table: runs/b.json -->\nafter\n", root=tmp_path, data_dir=tmp_path
+    )
+    assert out == "before\n| split |\n|---|\n| holdout |\n\nafter\n"
+    with pytest.raises(ConfigError, match=r"^runs/absent\.json: no such file$"):
+        docgen.render_markers("<!-- benchmark-table: runs/absent.json -->\n", root=tmp_path, data_dir=tmp_path)
 
 
 def test_a_benchmark_table_needs_the_benchmark_module(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
