@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from pybullet_swarm.envs.config import ActionType, EnvConfig
 from pybullet_swarm.planning.base import Action
+from pybullet_swarm.planning.views.construction import ConstructionLayout
 
 GRIP_THRESHOLD = 0.5  # |gripper| above this asks for GRASP (+) or RELEASE (-)
 DEFAULT_CEILING = 2.0  # m, top of the waypoint range when the arena has no height
@@ -39,7 +40,8 @@ class ActionMapper:
         sc = sim.scenario
         self.type = ActionType(config.action_type)
         self.normalized = bool(config.normalize_actions)
-        self.gripper = len(sim.info.depot) > 0  # the task has objects to grasp and release
+        layout = sim.info.layout  # the task has objects to grasp and release: a construction layout with boxes
+        self.gripper = isinstance(layout, ConstructionLayout) and len(layout.depot) > 0
         self.span = float(config.rotor_span)
         self.hover_speed = sim.params.hover_rotor_speed(sc.sim.gravity)  # rad/s
         self.max_speed = float(sim.params.max_rotor_speed)  # rad/s

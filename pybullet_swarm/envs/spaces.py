@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pybullet_swarm.envs.kernels import clip_rows, fill_own
 from pybullet_swarm.sensing.perception import PerceptionStage
+from pybullet_swarm.planning.views.construction import ConstructionLayout
 
 OWN_SIZE = 14
 VELOCITY_BOUND = 10.0  # m/s, own velocity
@@ -140,8 +141,8 @@ class ObservationBuilder:
         self.kp = int(points) if len(task.points) > 0 else 0
         self.r = int(ranges)
         view = 0.0
-        if has_objects:
-            view = float(info.extra.get("view_radius", 0.0)) + 2.0 * float(info.grasp_height)
+        if has_objects and isinstance(info.layout, ConstructionLayout):
+            view = float(info.layout.view_radius) + 2.0 * float(info.layout.grasp_height)
         pi = math.pi
         pos_low, pos_high = [-lx, -ly, -1.0], [2.0 * lx, 2.0 * ly, 2.0 * ceiling]
         parts: list[tuple[str, list[float], list[float]]] = [

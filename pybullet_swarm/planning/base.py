@@ -80,12 +80,17 @@ class Command:
         return Command(CommandKind.HOLD, np.zeros(3), 0.0, action)
 
 
-@dataclasses.dataclass(frozen=True)
-class TaskInfo:
-    """What every agent knows before the run: the arena and the task's static layout.
+#: a task kind's own static layout (e.g. ``planning.views.construction.ConstructionLayout``)
+L = TypeVar("L")
 
-    The thesis's agents are told where the boxes start and where the structure goes; what the
-    boxes are doing now they only learn by seeing them (``Observation.seen``).
+
+@dataclasses.dataclass(frozen=True)
+class TaskInfo(Generic[L]):
+    """What every agent knows before the run: the arena, the limits and the task's static layout.
+
+    The core is the same for every task; what only one task kind has is its ``layout``, of the
+    task's own type (``TaskInfo[ConstructionLayout]`` in a construction run; None when the task
+    publishes none).
 
     Attributes:
         arena_size: (2,) m, the arena is [0, Lx] x [0, Ly].
@@ -93,11 +98,8 @@ class TaskInfo:
         agent_radius: m, radius of the circle enclosing an airframe.
         v_max: (3,) m/s per-axis velocity limit.
         a_max: (3,) m/s^2 per-axis acceleration limit.
-        depot: (B, 3) m, box start positions (empty when the task has no boxes).
-        slots: (S, 3) m, goal slot centres.
-        box_size: m, edge of a box (0 when none).
-        grasp_height: m, agent centre above a box centre when holding it.
         route: (W, 3) m, waypoints of a route task (empty when none).
+        layout: the task's own static layout.
         extra: task-specific static data.
     """
 
@@ -106,11 +108,8 @@ class TaskInfo:
     agent_radius: float
     v_max: NDArray[np.float64]
     a_max: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.full(3, np.inf))
-    depot: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
-    slots: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
-    box_size: float = 0.0
-    grasp_height: float = 0.0
     route: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
+    layout: L = None  # type: ignore[assignment]  # None: the task publishes no layout of its own
     extra: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.planning.base import TaskInfo
+from pybullet_swarm.planning.views.construction import ConstructionInfo
 
 OVER_NEIGHBOURS_CLEARANCE = 0.01
 """m: with ``release_over_neighbours`` a box is let go this far above the tops of the boxes beside its slot."""
@@ -32,17 +32,17 @@ def side_by_side(slots: NDArray[np.float64], box_size: float) -> NDArray[np.bool
     return np.any(touching, axis=1)
 
 
-def release_clearances(info: TaskInfo, base: float, *, over_neighbours: bool) -> NDArray[np.float64]:
+def release_clearances(info: ConstructionInfo, base: float, *, over_neighbours: bool) -> NDArray[np.float64]:
     """(S,) m, how far above each slot's centre the box's centre is when it is let go: ``base``; with
     ``over_neighbours``, for a slot with boxes beside it, ``OVER_NEIGHBOURS_CLEARANCE`` above their tops
-    when the task's guide (``info.extra["guide_height"]``, m; 0 or absent: no guide) captures a box
+    when the task's guide (``info.layout.guide_height``, m; 0: no guide) captures a box
     from there."""
-    slots = np.asarray(info.slots, dtype=float).reshape(-1, 3)
+    slots = np.asarray(info.layout.slots, dtype=float).reshape(-1, 3)
     out = np.full(len(slots), float(base))
     if not over_neighbours or len(slots) == 0:
         return out
-    over = info.box_size + OVER_NEIGHBOURS_CLEARANCE
-    if float(info.extra.get("guide_height", 0.0)) < over + GUIDE_MARGIN:
+    over = info.layout.box_size + OVER_NEIGHBOURS_CLEARANCE
+    if float(info.layout.guide_height) < over + GUIDE_MARGIN:
         return out
-    out[side_by_side(slots, info.box_size)] = max(over, float(base))
+    out[side_by_side(slots, info.layout.box_size)] = max(over, float(base))
     return out

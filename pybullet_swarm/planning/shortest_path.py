@@ -154,7 +154,8 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import Field
 
-from pybullet_swarm.planning.base import Action, Command, TaskInfo, WorldView
+from pybullet_swarm.planning.base import Action, Command, WorldView
+from pybullet_swarm.planning.views.construction import ConstructionInfo
 from pybullet_swarm.planning.params import Params, Preset
 from pybullet_swarm.planning.placing import release_clearances
 
@@ -240,12 +241,16 @@ DESCENT_SPACING_MARGIN = 0.02
 the airframe a square in the agent's enclosing circle: 17 cm for ``quad150``, so a 20 cm pitch is not held up)."""
 
 
-def cruise_base(info: TaskInfo) -> float:
+def cruise_base(info: ConstructionInfo) -> float:
     """m, the lowest cruise altitude: the task's ``search_height``, raised where a carried box would not
     clear the finished structure or the depot's boxes (a tall structure)."""
-    tops = [float(np.max(pts[:, 2])) + 0.5 * info.box_size for pts in (info.slots, info.depot) if len(pts)]
-    clear = max(tops, default=0.0) + info.grasp_height + 0.5 * info.box_size + VERTICAL_CLEARANCE
-    return max(float(info.extra.get("search_height", 0.45)), clear)
+    tops = [
+        float(np.max(pts[:, 2])) + 0.5 * info.layout.box_size
+        for pts in (info.layout.slots, info.layout.depot)
+        if len(pts)
+    ]
+    clear = max(tops, default=0.0) + info.layout.grasp_height + 0.5 * info.layout.box_size + VERTICAL_CLEARANCE
+    return max(float(info.layout.search_height), clear)
 
 
 class Phase(enum.IntEnum):
@@ -430,7 +435,7 @@ class ShortestPath:
         self.altitude_step = self.params.altitude_step
         self.release_tol = self.params.release_tol
 
-    def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
+    def reset(self, n: int, rng: np.random.Generator, info: ConstructionInfo) -> None:
         """Order the slots bottom layer first and clear the assignments."""
         self.info = info
         self.n = n
@@ -443,8 +448,8 @@ class ShortestPath:
         self.hs = base + self.altitude_step * np.arange(n)  # m, cruise altitude of each agent
         low = base + LOADED_LANE_MARGIN  # m, the loaded agents' lane (wake_lanes)
         self.lanes = (low, low + self.params.lane_gap)  # m, the loaded and the empty agents' lane (wake_lanes)
-        self.gh = info.grasp_height
-        slots = info.slots
+        self.gh = info.layout.grasp_height
+        slots = info.layout.slots
         self.order = list(np.lexsort((slots[:, 1], slots[:, 0], np.round(slots[:, 2], 6))))
         self.phase = np.full(n, Phase.IDLE, dtype=np.int64)
         self.box = np.full(n, -1, dtype=np.int64)
@@ -452,8 +457,8 @@ class ShortestPath:
         self.next_slot = 0
         self.home: np.ndarray | None = None  # m, start positions (parking spots)
         self.park: np.ndarray | None = None  # m, (n, 2) where each agent parks (``park_clear``: off the columns)
-        self.offset = np.tile([0.0, 0.0, -info.grasp_height], (n, 1))  # m, held box relative to agent
-        self.attach = float(info.extra.get("attach_threshold", 0.02))
+        self.offset = np.tile([0.0, 0.0, -info.layout.grasp_height], (n, 1))  # m, held box relative to agent
+        self.attach = float(info.layout.attach_threshold)
         sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agents' own estimates
         self.estimated = sigma > 0.0
         self.clearance = max(self.release_clearance, CLEARANCE_SIGMAS * sigma)  # m
@@ -464,8 +469,8 @@ class ShortestPath:
         self.last_box = np.full((n, 3), np.nan)  # m, held box position at the previous tick
         self.columns = np.zeros((n, 2))  # m, where each agent's current vertical leg is
         # m, where the agents served at a slot's column come from (the depot) and at a box's (the structure)
-        self.depot_xy = np.mean(info.depot[:, :2], axis=0) if len(info.depot) else None
-        self.structure_xy = np.mean(info.slots[:, :2], axis=0) if len(info.slots) else None
+        self.depot_xy = np.mean(info.layout.depot[:, :2], axis=0) if len(info.layout.depot) else None
+        self.structure_xy = np.mean(info.layout.slots[:, :2], axis=0) if len(info.layout.slots) else None
         self.creep = np.full(n, np.nan)  # m, soft_landing: each agent's creeping target height (nan: not yet)
         self.held = np.zeros(n, dtype=bool)  # wake_clear: held short of a column at its last tick (held_pass)
 
@@ -506,8 +511,8 @@ class ShortestPath:
 
     def _in_slot(self, box: np.ndarray, s: int) -> bool:
         """True when a box centred at ``box`` (3,) m lies (partly) in the space of slot ``s``."""
-        d = np.abs(box - self.info.slots[s])
-        return bool(np.all(d < self.info.box_size))
+        d = np.abs(box - self.info.layout.slots[s])
+        return bool(np.all(d < self.info.layout.box_size))
 
     def _overflown(self, i: int, s: int) -> bool:
         """True when another agent cruising higher than agent ``i`` (with ``wake_lanes`` or ``wake_clear``: any
@@ -523,7 +528,7 @@ class ShortestPath:
         others = np.flatnonzero(busy & higher)
         if others.size == 0:
             return False
-        d = np.linalg.norm(self.info.slots[self.slot[others], :2] - self.info.slots[s, :2], axis=1)
+        d = np.linalg.norm(self.info.layout.slots[self.slot[others], :2] - self.info.layout.slots[s, :2], axis=1)
         return bool(np.any(d < 2.0 * self.info.agent_radius))
 
     def _descents_near(self, i: int, xy: np.ndarray) -> np.ndarray:
@@ -729,7 +734,7 @@ class ShortestPath:
         those of the other agents below its cruise altitude."""
         free = view.box_positions[np.asarray(view.box_state) == 0, :2]
         low = (np.arange(self.n) != i) & (view.positions[:, 2] < self._alt(i) - LANE_TOL)
-        return np.vstack([free, self.info.slots[:, :2], view.positions[low, :2]])
+        return np.vstack([free, self.info.layout.slots[:, :2], view.positions[low, :2]])
 
     def _soft(self, i: int, p: np.ndarray, vz: float, target: np.ndarray, gap: float) -> np.ndarray:
         """``soft_landing``: the target (3,) m of agent ``i`` at ``p`` (3,) m, climbing at ``vz`` m/s, descending to
@@ -830,7 +835,7 @@ class ShortestPath:
                 self.offset[i] = view.box_positions[b] - p
             return Command.goto([p[0], p[1], self._alt(i)])
         # where the agent must be for the box it holds (at its actual offset) to hang just above the slot
-        drop = self.info.slots[s] + [
+        drop = self.info.layout.slots[s] + [
             0.0,
             0.0,
             self.clearances[s] + (self.release_tol if self.params.soft_landing else 0.0),
@@ -939,7 +944,7 @@ class ShortestPath:
             if self.box[i] >= 0:
                 words.append(f"box {self.box[i]}")
             if self.slot[i] >= 0:
-                q = self.info.slots[self.slot[i]]
+                q = self.info.layout.slots[self.slot[i]]
                 words.append(f"slot {self.slot[i]} at ({q[0]:.2f}, {q[1]:.2f}, {q[2]:.2f})")
             out.append(", ".join(words))
         return out

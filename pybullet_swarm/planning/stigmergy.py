@@ -184,7 +184,7 @@ from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError, LayoutNeedError
 from pybullet_swarm.planning.base import Action, Command, CommandKind, TaskInfo, view_distance
-from pybullet_swarm.planning.views.construction import ConstructionObservation
+from pybullet_swarm.planning.views.construction import ConstructionInfo, ConstructionObservation
 from pybullet_swarm.planning.params import Params, PlanContext, Preset, check_memory
 from pybullet_swarm.planning.pheromone_grid import DepositRule, LayerSpec, PheromoneGrid
 from pybullet_swarm.planning.placing import release_clearances
@@ -524,7 +524,7 @@ class StigmergyParams(Params):
     def check_layout(self, info: TaskInfo) -> None:
         """Refuse altitudes that cannot work with the task's layout, and slots no agent would see
         (``FlightGeometry.from_task``, as each agent derives them when the run starts)."""
-        if len(info.slots) and info.box_size > 0:
+        if len(info.layout.slots) and info.layout.box_size > 0:
             FlightGeometry.from_task(info, self)
 
     def check_for(self, context: PlanContext) -> None:
@@ -657,7 +657,7 @@ def _zone_entry(lo: NDArray[np.float64], hi: NDArray[np.float64], ax: float, ay:
     return max(0.0, best)
 
 
-def _floor_altitude(p: StigmergyParams, info: TaskInfo, view: float, depot_grasp: float) -> float:
+def _floor_altitude(p: StigmergyParams, info: ConstructionInfo, view: float, depot_grasp: float) -> float:
     """m, flying altitude over the open floor derived from the layout.
 
     A carried box clears a box lying on the floor (one knocked out of the structure or let go beside
@@ -668,11 +668,11 @@ def _floor_altitude(p: StigmergyParams, info: TaskInfo, view: float, depot_grasp
     (the depot's altitude is not below the floor's); without it, only the clearance, counted from where
     a climb ends (``ALTITUDE_TOL`` below the altitude).
     """
-    gh, bs = info.grasp_height, info.box_size
+    gh, bs = info.layout.grasp_height, info.layout.box_size
     clear = bs + gh + 0.5 * bs + VERTICAL_CLEARANCE
     if not p.layout_altitudes:
         return clear + ALTITUDE_TOL
-    slot_grasp = info.slots[:, 2] + gh
+    slot_grasp = info.layout.slots[:, 2] + gh
     middle = 0.5 * (float(slot_grasp.min()) + float(slot_grasp.max()))
     return max(clear, min(middle, depot_grasp + view - VIEW_MARGIN))
 
@@ -730,7 +730,7 @@ class FlightGeometry:
         return self.structure.altitude
 
     @staticmethod
-    def from_task(info: TaskInfo, p: StigmergyParams) -> FlightGeometry:
+    def from_task(info: ConstructionInfo, p: StigmergyParams) -> FlightGeometry:
         """Derive the altitudes and zones of a construction task.
 
         Raises:
@@ -738,14 +738,14 @@ class FlightGeometry:
                 or (``layout_altitudes``) a slot no agent sees, from beside the structure at the floor
                 altitude or from above it at the cruise altitude (naming ``task.view_radius``).
         """
-        gh, bs, r = info.grasp_height, info.box_size, info.agent_radius
-        view = float(info.extra.get("view_radius", 2.0 * r)) + gh
+        gh, bs, r = info.layout.grasp_height, info.layout.box_size, info.agent_radius
+        view = float(info.layout.view_radius) + gh
         carried_bottom = gh + 0.5 * bs  # m, agent centre above the bottom of its box
-        slot_grasp = info.slots[:, 2] + gh
+        slot_grasp = info.layout.slots[:, 2] + gh
         seeing = p.layout_altitudes
         ground_grasp = 0.5 * bs + gh
-        depot_top = float(np.max(info.depot[:, 2])) + 0.5 * bs if len(info.depot) else bs
-        depot_grasp = float(np.min(info.depot[:, 2])) + gh if len(info.depot) else ground_grasp
+        depot_top = float(np.max(info.layout.depot[:, 2])) + 0.5 * bs if len(info.layout.depot) else bs
+        depot_grasp = float(np.min(info.layout.depot[:, 2])) + gh if len(info.layout.depot) else ground_grasp
         floor = p.floor_altitude if p.floor_altitude is not None else _floor_altitude(p, info, view, depot_grasp)
         look = (
             p.look_altitude
@@ -754,12 +754,10 @@ class FlightGeometry:
             if seeing
             else max(floor, depot_top + carried_bottom + VERTICAL_CLEARANCE + ALTITUDE_TOL)
         )
-        top = float(np.max(info.slots[:, 2])) + 0.5 * bs
+        top = float(np.max(info.layout.slots[:, 2])) + 0.5 * bs
         clear = top + carried_bottom + VERTICAL_CLEARANCE  # m, a carried box clears the finished structure
         cruise = (
-            p.cruise_altitude
-            if p.cruise_altitude is not None
-            else max(float(info.extra.get("search_height", 0.0)), clear, look)
+            p.cruise_altitude if p.cruise_altitude is not None else max(float(info.layout.search_height), clear, look)
         )
         if not floor <= look <= cruise:
             raise _field_error(
@@ -769,10 +767,10 @@ class FlightGeometry:
         half = 0.5 * bs + r + p.structure_margin
         lo = np.full(2, r)
         hi = np.maximum(np.asarray(info.arena_size, dtype=float)[:2] - r, lo)
-        cols = np.unique(np.round(info.slots[:, :2], 9), axis=0)
+        cols = np.unique(np.round(info.layout.slots[:, :2], 9), axis=0)
         geo = FlightGeometry(
             float(floor),
-            Zone(*_around(info.depot[:, :2], half), float(look)),
+            Zone(*_around(info.layout.depot[:, :2], half), float(look)),
             Zone(*_around(cols, half), float(cruise)),
             lo,
             hi,
@@ -786,25 +784,25 @@ class FlightGeometry:
             return geo
         # slots an agent beside the structure does not see are searched for from above: over their columns
         # at the cruise altitude, lowered (not below the clearance of the finished structure) to see them
-        norm = str(info.extra.get("view_norm", "chebyshev"))
+        norm = str(info.layout.view_norm)
         hidden_cols = np.zeros(len(cols), dtype=bool)
         for k, c in enumerate(cols):
             edge = geo.outside(c, c)
             reach = float(view_distance(np.array([*(edge - c), 0.0]), norm)) if geo.inside(c) else 0.0
-            in_col = np.all(np.isclose(info.slots[:, :2], c, atol=1e-9), axis=1)
+            in_col = np.all(np.isclose(info.layout.slots[:, :2], c, atol=1e-9), axis=1)
             beside = reach <= view - p.arrive_tol and np.all(np.abs(slot_grasp[in_col] - floor) <= view - VIEW_MARGIN)
             hidden_cols[k] = not beside
         if not hidden_cols.any():
             return geo
         in_hidden = np.any(
-            np.all(np.isclose(info.slots[:, None, :2], cols[hidden_cols][None, :, :], atol=1e-9), axis=2), axis=1
+            np.all(np.isclose(info.layout.slots[:, None, :2], cols[hidden_cols][None, :, :], atol=1e-9), axis=2), axis=1
         )
         lowest = float(np.min(slot_grasp[in_hidden]))
         if p.cruise_altitude is None:
             cruise = max(clear, look, min(cruise, lowest + view - VIEW_MARGIN))
         if cruise - lowest > view - VIEW_MARGIN:
             s = int(np.flatnonzero(in_hidden & np.isclose(slot_grasp, lowest))[0])
-            q = info.slots[s]
+            q = info.layout.slots[s]
             least = math.ceil((cruise - lowest + VIEW_MARGIN - gh) * 1e3 + 1e-6) / 1e3  # m, up to the millimetre
             raise LayoutNeedError(
                 f"slot {s} at ({q[0]:g}, {q[1]:g}, {q[2]:g}) is out of view both from beside the structure (at the "
@@ -1018,7 +1016,7 @@ class Stigmergy:
         return [LayerSpec(Layer.TASK.value, fatigue=p.fatigue)]
 
     @classmethod
-    def make_medium(cls, params: StigmergyParams, info: TaskInfo) -> PheromoneGrid:
+    def make_medium(cls, params: StigmergyParams, info: ConstructionInfo) -> PheromoneGrid:
         """The pheromone grid shared by the agents of a run, from the planner's validated parameters."""
         return PheromoneGrid(
             info.arena_size,
@@ -1029,15 +1027,15 @@ class Stigmergy:
         )
 
     # ------------------------------------------------------------- protocol
-    def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
+    def reset(self, agent_id: int, rng: np.random.Generator, info: ConstructionInfo) -> None:
         """Start a run as agent ``agent_id``: looking for a box, no pheromone strategy used yet."""
-        if len(info.slots) == 0 or info.box_size <= 0:
+        if len(info.layout.slots) == 0 or info.layout.box_size <= 0:
             raise ConfigError("the stigmergy planners solve construction tasks (boxes and slots)", field="planner.name")
         self.id = int(agent_id)
         self.rng = rng
         self.info = info
         self.geo = FlightGeometry.from_task(info, self.params)
-        self.attach = float(info.extra.get("attach_threshold", 0.02))
+        self.attach = float(info.layout.attach_threshold)
         sigma = float(info.extra.get("position_std", 0.0))  # m, per-axis std of the agent's own position estimate
         self.sigma = sigma
         # m, height of the drop point's box over its slot: the settle test lets the agent go anywhere
@@ -1086,7 +1084,7 @@ class Stigmergy:
     @property
     def offset(self) -> NDArray[np.float64]:
         """(3,) m, the held box's centre relative to the agent (straight under it when not holding)."""
-        return self.carry.offset if self.carry is not None else np.array([0.0, 0.0, -self.info.grasp_height])
+        return self.carry.offset if self.carry is not None else np.array([0.0, 0.0, -self.info.layout.grasp_height])
 
     def plan(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command:
         """The agent's command for the next planner period."""
@@ -1197,7 +1195,11 @@ class Stigmergy:
         layout = self.params.layout_altitudes
         if best is None or self.strategy == Strategy.LOCAL:
             self.strategy = Strategy.RANDOM
-            near = (self.info.slots if sign < 0 else self.info.depot)[:, :2] if self.params.search_near else None
+            near = (
+                (self.info.layout.slots if sign < 0 else self.info.layout.depot)[:, :2]
+                if self.params.search_near
+                else None
+            )
             if near is not None and len(near):
                 c = near[int(self.rng.integers(len(near)))]
                 xy = c + self.rng.uniform(-g.view_range, g.view_range, size=2)
@@ -1275,9 +1277,9 @@ class Stigmergy:
         # drawn back to spent marks)
         margin = CLEARANCE_SIGMAS * self.sigma
         reach = self.geo.view_range - margin
-        norm = str(self.info.extra.get("view_norm", "chebyshev"))
-        slots = self.info.slots
-        d = slots + [0.0, 0.0, self.info.grasp_height] - p
+        norm = str(self.info.layout.view_norm)
+        slots = self.info.layout.slots
+        d = slots + [0.0, 0.0, self.info.layout.grasp_height] - p
         d[:, 2] = np.abs(d[:, 2]) + max(VIEW_MARGIN - margin, 0.0)
         seen = view_distance(d, norm) <= reach  # (S,)
         half = 0.5 * medium.cell + 1e-9
@@ -1358,10 +1360,8 @@ class Stigmergy:
 
     def _gone(self, p: NDArray[np.float64], obj: NDArray[np.float64]) -> bool:
         """True when an object the agent should see from here (well inside its view range) is not there."""
-        grasp = obj + [0.0, 0.0, self.info.grasp_height]
-        return bool(
-            view_distance(grasp - p, self.info.extra.get("view_norm", "chebyshev")) <= 0.9 * self.geo.view_range
-        )
+        grasp = obj + [0.0, 0.0, self.info.layout.grasp_height]
+        return bool(view_distance(grasp - p, self.info.layout.view_norm) <= 0.9 * self.geo.view_range)
 
     # ------------------------------------------------------------- a box: over it, down, grasp, up
     def _box_lost(self, obs: ConstructionObservation, *, claims: bool) -> bool:
@@ -1379,7 +1379,7 @@ class Stigmergy:
         return False
 
     def _grasp_point(self) -> NDArray[np.float64]:
-        return self.box.pos + [0.0, 0.0, self.info.grasp_height]
+        return self.box.pos + [0.0, 0.0, self.info.layout.grasp_height]
 
     def _step_to_box(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """TO_BOX -> DESCEND_BOX (over it at the flying altitude) | SEEK_BOX (lost)."""
@@ -1552,7 +1552,9 @@ class Stigmergy:
         if len(obs.seen.box_ids) == 0:
             return False
         d = np.abs(obs.seen.boxes - slot)
-        return bool(np.any(np.all(d[:, :2] < self.info.box_size, axis=1) & (d[:, 2] < self.info.box_size)))
+        return bool(
+            np.any(np.all(d[:, :2] < self.info.layout.box_size, axis=1) & (d[:, 2] < self.info.layout.box_size))
+        )
 
     def _step_settling(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """SETTLING -> DESCEND_BOX (the box lies loose beside its slot: take it back) | CLIMB | CHOOSE_BOX.
@@ -1721,7 +1723,7 @@ class LayeredStigmergy(Stigmergy):
         """Points (3,) m the agent marks and checks from: itself, and with ``footprint`` its box."""
         return [p, p + self.offset] if self.holding and self.params.footprint else [p]
 
-    def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
+    def reset(self, agent_id: int, rng: np.random.Generator, info: ConstructionInfo) -> None:
         """Start a run as agent ``agent_id`` (see ``Stigmergy.reset``)."""
         super().reset(agent_id, rng, info)
         self.detour_until = -math.inf  # s, until then the agent keeps to its search point

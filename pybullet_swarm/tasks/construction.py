@@ -27,7 +27,7 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.collisions import CollisionClass
 from pybullet_swarm.metrics.construction import task_lower_bound
 from pybullet_swarm.planning.base import Action, Obstacles, TaskView, view_distance
-from pybullet_swarm.planning.views.construction import ConstructionLocalView
+from pybullet_swarm.planning.views.construction import ConstructionLayout, ConstructionLocalView
 from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import NOT_MINE, Framing, ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.tasks.build_order import REACH_MARGIN, Reach, build_order, prerequisites
@@ -233,24 +233,21 @@ def grasp_height(spec: ConstructionTask, agent_half_height: float) -> float:
 
 
 def layout_info(spec: ConstructionTask, *, agent_half_height: float, agent_radius: float) -> dict[str, Any]:
-    """The static layout every agent is told (keyword arguments of ``TaskInfo``): depot, slots, box size,
-    grasp height, and view and search settings as extras; the same when the scenario is loaded (for the
-    planners' layout checks) and when the run starts."""
-    extra: dict[str, Any] = {
-        "search_height": spec.search_height,
-        "attach_threshold": spec.attach_threshold,
-        "view_radius": spec.view_radius if spec.view_radius is not None else 2.0 * agent_radius,
-        "view_norm": spec.view_norm,
+    """The static layout every agent is told (keyword arguments of ``TaskInfo``: its ``layout``); the
+    same when the scenario is loaded (for the planners' layout checks) and when the run starts."""
+    layout = ConstructionLayout(
+        depot=np.asarray(spec.boxes, dtype=float).reshape(-1, 3),
+        slots=np.asarray(spec.structure, dtype=float).reshape(-1, 3),
+        box_size=spec.box_size,
+        grasp_height=grasp_height(spec, agent_half_height),
+        search_height=spec.search_height,
+        attach_threshold=spec.attach_threshold,
+        view_radius=spec.view_radius if spec.view_radius is not None else 2.0 * agent_radius,
+        view_norm=spec.view_norm,
         # m, how far above its slot a released box is still captured by the guide (0: free placement)
-        "guide_height": spec.guide_height * spec.box_size if spec.placement == "guided" else 0.0,
-    }
-    return {
-        "depot": np.asarray(spec.boxes, dtype=float).reshape(-1, 3),
-        "slots": np.asarray(spec.structure, dtype=float).reshape(-1, 3),
-        "box_size": spec.box_size,
-        "grasp_height": grasp_height(spec, agent_half_height),
-        "extra": extra,
-    }
+        guide_height=spec.guide_height * spec.box_size if spec.placement == "guided" else 0.0,
+    )
+    return {"layout": layout}
 
 
 def _first_overlap(pts: NDArray[np.float64], size: float) -> tuple[int, int]:
@@ -707,7 +704,7 @@ class ConstructionRuntime(TaskBase):
 
     # ---------------------------------------------------------------- protocol
     def task_info(self) -> dict[str, Any]:
-        """Depot, slots, box size and grasp height; view and search settings as extras."""
+        """The layout: depot, slots, box size, grasp height, view and search settings."""
         return layout_info(self.spec, agent_half_height=self.agent_half_height, agent_radius=self.agent_radius)
 
     def framing(self) -> Framing:

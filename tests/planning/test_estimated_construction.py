@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pybullet_swarm.planning.base import Action, Observation, TaskInfo, WorldView
-from pybullet_swarm.planning.views.construction import ConstructionLocalView
+from pybullet_swarm.planning.views.construction import ConstructionLayout, ConstructionLocalView
 from pybullet_swarm.planning.shortest_path import Phase as SPPhase
 from pybullet_swarm.planning.shortest_path import ShortestPath, ShortestPathParams
 from pybullet_swarm.planning.stigmergy import CLEARANCE_SIGMAS, Carry, Phase, Sighting, Stigmergy
@@ -34,7 +34,7 @@ NOI = np.zeros(0, dtype=np.int64)
 
 
 def _info(sigma: float | None = SIGMA) -> TaskInfo:
-    extra = {"search_height": 0.45, "attach_threshold": 0.02, "view_radius": 2 * R}
+    extra: dict[str, object] = {}
     if sigma is not None:
         extra["position_std"] = sigma
     return TaskInfo(
@@ -42,10 +42,9 @@ def _info(sigma: float | None = SIGMA) -> TaskInfo:
         n_agents=5,
         agent_radius=R,
         v_max=np.full(3, 0.15),
-        depot=DEPOT.copy(),
-        slots=SLOTS.copy(),
-        box_size=0.1,
-        grasp_height=GH,
+        layout=ConstructionLayout(
+            DEPOT.copy(), SLOTS.copy(), box_size=0.1, grasp_height=GH, search_height=0.45, view_radius=2 * R
+        ),
         extra=extra,
     )
 

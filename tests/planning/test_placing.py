@@ -13,6 +13,7 @@ import pybullet_swarm
 from pybullet_swarm.experiment.layouts import compose_layout
 from pybullet_swarm.experiment.scenario import load_scenario
 from pybullet_swarm.planning.base import TaskInfo
+from pybullet_swarm.planning.views.construction import ConstructionLayout
 from pybullet_swarm.planning.placing import OVER_NEIGHBOURS_CLEARANCE, release_clearances, side_by_side
 
 WALL_10 = np.array([[2.7, 0.3 + 0.1 * k, 0.05] for k in range(3)] + [[2.7, 0.35, 0.15]])  # 3 side by side, 1 on top
@@ -25,11 +26,7 @@ def _info(slots: np.ndarray, guide: float) -> TaskInfo:
         n_agents=1,
         agent_radius=0.106,
         v_max=np.full(3, 0.15),
-        depot=np.zeros((0, 3)),
-        slots=slots,
-        box_size=0.1,
-        grasp_height=0.065,
-        extra={"guide_height": guide},
+        layout=ConstructionLayout(np.zeros((0, 3)), slots, box_size=0.1, grasp_height=0.065, guide_height=guide),
     )
 
 

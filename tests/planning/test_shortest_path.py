@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pybullet_swarm.planning.base import TaskInfo, WorldView
+from pybullet_swarm.planning.views.construction import ConstructionLayout
 from pybullet_swarm.planning.shortest_path import Phase, ShortestPath, ShortestPathParams
 
 GH = 0.065
@@ -19,7 +20,7 @@ def _planner(
     n: int, slots: np.ndarray = SLOTS, downwash: bool | None = None, avoidance: bool | None = None, **params
 ) -> ShortestPath:
     sp = ShortestPath(ShortestPathParams(**params))
-    extra: dict[str, object] = {"search_height": 0.45, "attach_threshold": 0.02}
+    extra: dict[str, object] = {}
     if downwash is not None:
         extra["downwash"] = downwash
     if avoidance is not None:
@@ -29,10 +30,7 @@ def _planner(
         n_agents=n,
         agent_radius=0.106,
         v_max=np.full(3, 0.15),
-        depot=DEPOT.copy(),
-        slots=np.array(slots, dtype=float),
-        box_size=0.1,
-        grasp_height=GH,
+        layout=ConstructionLayout(DEPOT.copy(), np.array(slots, dtype=float), box_size=0.1, grasp_height=GH),
         extra=extra,
     )
     sp.reset(n, np.random.default_rng(0), info)

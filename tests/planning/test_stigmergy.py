@@ -12,7 +12,7 @@ import pytest
 import pybullet_swarm
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import Action, CommandKind, Observation, TaskInfo
-from pybullet_swarm.planning.views.construction import ConstructionLocalView
+from pybullet_swarm.planning.views.construction import ConstructionLayout, ConstructionLocalView
 from pybullet_swarm.planning.pheromone_grid import DepositRule, PheromoneGrid
 from pybullet_swarm.planning.registry import planners
 from pybullet_swarm.planning.stigmergy import (
@@ -58,11 +58,9 @@ def _info() -> TaskInfo:
         n_agents=5,
         agent_radius=R,
         v_max=np.full(3, 0.15),
-        depot=DEPOT.copy(),
-        slots=SLOTS.copy(),
-        box_size=0.1,
-        grasp_height=GH,
-        extra={"search_height": 0.45, "attach_threshold": 0.02, "view_radius": 2 * R},
+        layout=ConstructionLayout(
+            DEPOT.copy(), SLOTS.copy(), box_size=0.1, grasp_height=GH, search_height=0.45, view_radius=2 * R
+        ),
     )
 
 

@@ -51,11 +51,13 @@ def test_tall_structures_get_altitudes_that_see_every_slot_and_the_depot(layout,
     geo, info = _geometry(layout, planner)
     assert geo.floor_altitude <= geo.look_altitude <= geo.cruise_altitude
     view = geo.view_range
-    grasp = info.slots[:, 2] + info.grasp_height
+    grasp = info.layout.slots[:, 2] + info.layout.grasp_height
     assert np.all(np.abs(grasp - geo.floor_altitude) <= view - ALTITUDE_TOL)  # every layer from beside it
-    assert np.all(np.abs(info.depot[:, 2] + info.grasp_height - geo.look_altitude) <= view)  # the depot's boxes
-    top = info.slots[:, 2].max() + 0.5 * info.box_size
-    assert geo.cruise_altitude - info.grasp_height - 0.5 * info.box_size > top  # a carried box clears it
+    assert np.all(
+        np.abs(info.layout.depot[:, 2] + info.layout.grasp_height - geo.look_altitude) <= view
+    )  # the depot's boxes
+    top = info.layout.slots[:, 2].max() + 0.5 * info.layout.box_size
+    assert geo.cruise_altitude - info.layout.grasp_height - 0.5 * info.layout.box_size > top  # a carried box clears it
     assert len(geo.hidden) == 0
 
 
@@ -90,7 +92,10 @@ def test_hidden_columns_are_searched_for_from_above():
     assert geo.hidden.shape == (1, 2) and np.allclose(geo.hidden, [[2.5, 0.5]])  # the middle column only
     assert geo.outside(np.array([2.52, 0.47]), np.array([1.0, 0.5]), keep_hidden=True) == pytest.approx([2.5, 0.5])
     assert not geo.inside(geo.outside(np.array([2.52, 0.47]), np.array([1.0, 0.5])))  # boxes: from beside
-    lowest = info.slots[np.all(np.isclose(info.slots[:, :2], [2.5, 0.5]), axis=1), 2].min() + info.grasp_height
+    lowest = (
+        info.layout.slots[np.all(np.isclose(info.layout.slots[:, :2], [2.5, 0.5]), axis=1), 2].min()
+        + info.layout.grasp_height
+    )
     assert geo.cruise_altitude - lowest <= geo.view_range - ALTITUDE_TOL
     rel = np.array([0.0, 0.0, lowest - geo.cruise_altitude])
     assert view_distance(rel, "chebyshev") <= geo.view_range

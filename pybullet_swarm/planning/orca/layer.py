@@ -9,6 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, Obstacles, TaskView
+from pybullet_swarm.planning.views.construction import ConstructionLayout
 from pybullet_swarm.planning.orca import rules
 from pybullet_swarm.planning.orca.kernel import (
     FLAG_BIASED,
@@ -109,8 +110,9 @@ class OrcaLayer:
         self.sensing_radius = setup.sensing_radius
         self.r_agent = float(setup.agent_radius)  # m, airframe enclosing radius
         self.half_extent = 0.5 * np.asarray(setup.collision_size, dtype=float)  # (3,) m
-        self.box_size = float(info.box_size)  # m, 0 when the task has no boxes
-        self.box_drop = float(info.grasp_height)  # m, box centre below agent
+        boxes = info.layout if isinstance(info.layout, ConstructionLayout) else None  # a hanging box to keep clear
+        self.box_size = float(boxes.box_size) if boxes is not None else 0.0  # m, 0 when the task has no boxes
+        self.box_drop = float(boxes.grasp_height) if boxes is not None else 0.0  # m, box centre below agent
         self.arena_obstacles = setup.obstacles  # the arena's, for the whole run
         # sphere around the agent centre enclosing airframe and hanging box
         self.r_carry = max(

@@ -1,4 +1,4 @@
-"""The construction task's own types: what an agent sees of boxes and slots, and its observation."""
+"""The construction task's own types: its static layout, what an agent sees of boxes and slots."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.planning.base import Observation
+from pybullet_swarm.planning.base import Observation, TaskInfo
 
 
 def _empty3() -> NDArray[np.float64]:
@@ -16,6 +16,37 @@ def _empty3() -> NDArray[np.float64]:
 
 def _empty_ids() -> NDArray[np.int64]:
     return np.zeros(0, dtype=np.int64)
+
+
+@dataclasses.dataclass(frozen=True)
+class ConstructionLayout:
+    """What every agent of a construction run is told before it starts (``TaskInfo.layout``).
+
+    The thesis's agents are told where the boxes start and where the structure goes; what the boxes
+    are doing now they only learn by seeing them (``Observation.seen``).
+
+    Attributes:
+        depot: (B, 3) m, box start positions.
+        slots: (S, 3) m, goal slot centres.
+        box_size: m, edge of a box.
+        grasp_height: m, agent centre above a box centre when holding it.
+        search_height: m, cruise altitude of the planners.
+        attach_threshold: m, an agent grasps a box whose grasp point is this close.
+        view_radius: m, boxes and slots within it (in ``view_norm``) are seen.
+        view_norm: "chebyshev" (largest per-axis difference, as the thesis measures it) or "euclidean".
+        guide_height: m, how far above its slot a released box is still captured by the guide
+            (0: free placement).
+    """
+
+    depot: NDArray[np.float64]
+    slots: NDArray[np.float64]
+    box_size: float
+    grasp_height: float
+    search_height: float = 0.45
+    attach_threshold: float = 0.02
+    view_radius: float = 0.3
+    view_norm: str = "chebyshev"
+    guide_height: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,3 +72,6 @@ NOTHING_IN_VIEW = ConstructionLocalView()
 
 #: what a construction planner's agent knows at a planner tick (``Observation.seen``: boxes and slots)
 ConstructionObservation = Observation[ConstructionLocalView]
+
+#: what every agent of a construction run knows before it starts (the layout: ``ConstructionLayout``)
+ConstructionInfo = TaskInfo[ConstructionLayout]
