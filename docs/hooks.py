@@ -1,7 +1,7 @@
 """MkDocs hook: fills the generated parts of the pages when the site is built.
 
 A page holds a marker line where generated Markdown goes (see ``pybullet_swarm.cli.docgen``):
-``<!-- reference: cli | scenario | parameters -->``, ``<!-- results-table: NAME -->`` (from
+``<!-- reference: cli | scenario | parameters | presets -->``, ``<!-- results-table: NAME -->`` (from
 ``docs/results/data/NAME.json``) and ``<!-- benchmark-table: PATH -->`` (a ``pybullet-swarm benchmark``
 JSON file, PATH relative to the repository's root). A marker that cannot be filled (a missing or
 malformed file) fails the build with one line naming the page and the file.
