@@ -28,6 +28,7 @@ from pybullet_swarm.envs.spaces import RANGE_BOUND, ObservationBuilder, Observat
 from pybullet_swarm.experiment.scenario import Scenario
 from pybullet_swarm.experiment.simulation import Simulation
 from pybullet_swarm.planning.base import Action, Command, CommandKind, TaskInfo, WorldView
+from pybullet_swarm.planning.views.waypoints import set_points_of
 from pybullet_swarm.types import ExitStatus
 
 TERMINAL = frozenset({ExitStatus.COMPLETED, ExitStatus.CRASHED, ExitStatus.DIVERGED})
@@ -151,8 +152,8 @@ class SwarmEpisode:
     # ------------------------------------------------------------------- steps
     def _targets(self) -> NDArray[np.float64] | None:
         """(n, 3) m, the set-points active now (timed set-point tasks), else None."""
-        targets = self.sim.task.view(self.sim.time).targets
-        return targets if len(targets) == self.n else None
+        shown = set_points_of(self.sim.task.view(self.sim.time))
+        return shown.targets if shown is not None and len(shown.targets) == self.n else None
 
     def observe(self) -> NDArray[np.float32]:
         """Observation rows (n, dim) of every agent now."""
@@ -228,8 +229,8 @@ class SwarmEpisode:
             height = sim.task.framing().height
             if height is None:
                 height = max(1.0, float(np.max(sim.starts[:, 2])) + 0.5)
-                targets = sim.task.view(sim.time).targets
-                if len(targets):
+                targets = self._targets()
+                if targets is not None:
                     height = max(height, float(np.max(targets[:, 2])) + 0.3)
             self._camera = camera_for_arena(self.scenario.arena.size, height)
         w, h = self.config.render_size

@@ -24,7 +24,9 @@ from numpy.typing import NDArray
 from pybullet_swarm.envs.config import RewardWeights
 from pybullet_swarm.metrics.collisions import COLLISION_CLASSES
 from pybullet_swarm.metrics.construction import box_to_goal_distance
-from pybullet_swarm.planning.base import TaskView
+from pybullet_swarm.planning.views.construction import ConstructionState
+from pybullet_swarm.planning.views.construction import boxes_of as _boxes
+from pybullet_swarm.planning.views.points import points_of as _points
 from pybullet_swarm.types import Event, ExitStatus
 
 _COLLISION_KINDS = frozenset(COLLISION_CLASSES)
@@ -71,22 +73,23 @@ class RewardTracker:
         self.agent_of = {f"agent{i}": i for i in range(sim.n)}  # World body names of the agents
         self.task = sim.task
         view = sim.task.view(sim.time)
-        self.has_slots = len(view.slots) > 0
-        self.has_points = len(view.points) > 0
-        self.slots_total = len(view.slots)
-        self.points_total = len(view.points)
-        self.placed = int(np.count_nonzero(view.slot_filled >= 0))
-        self.box_distance = self._box_distance(view)
-        self.visited = int(np.count_nonzero(view.points_done))
+        boxes, points = _boxes(view), _points(view)
+        self.has_slots = len(boxes.slots) > 0
+        self.has_points = len(points.points) > 0
+        self.slots_total = len(boxes.slots)
+        self.points_total = len(points.points)
+        self.placed = int(np.count_nonzero(boxes.slot_filled >= 0))
+        self.box_distance = self._box_distance(boxes)
+        self.visited = int(np.count_nonzero(points.points_done))
         self.events_seen = len(sim.events)
         self._goal: NDArray[np.float64] | None = None
         self._d0: NDArray[np.float64] | None = None
 
     @staticmethod
-    def _box_distance(view: TaskView) -> float:
-        if len(view.objects) == 0 or len(view.slots) == 0:
+    def _box_distance(boxes: ConstructionState) -> float:
+        if len(boxes.objects) == 0 or len(boxes.slots) == 0:
             return 0.0
-        return float(box_to_goal_distance(view.objects[None, :, :], view.slots)[0])
+        return float(box_to_goal_distance(boxes.objects[None, :, :], boxes.slots)[0])
 
     def start(self, targets: NDArray[np.float64] | None, positions: NDArray[np.float64]) -> None:
         """Remember the active set-points (n, 3) m and the agents' distances to them at the episode start."""
@@ -107,15 +110,16 @@ class RewardTracker:
         shared = -w.time_penalty * dt
         view = self.task.view(sim.time)
         if self.has_slots:
-            placed = int(np.count_nonzero(view.slot_filled >= 0))
+            boxes = _boxes(view)
+            placed = int(np.count_nonzero(boxes.slot_filled >= 0))
             shared += w.box_placed * (placed - self.placed)
             self.placed = placed
             if w.box_to_goal:
-                d = self._box_distance(view)
+                d = self._box_distance(boxes)
                 shared += w.box_to_goal * (self.box_distance - d)
                 self.box_distance = d
         if self.has_points:
-            visited = int(np.count_nonzero(view.points_done))
+            visited = int(np.count_nonzero(_points(view).points_done))
             shared += w.point_visited * (visited - self.visited)
             self.visited = visited
         if completed:

@@ -32,7 +32,9 @@ import numpy as np
 from numpy.typing import NDArray
 from pybullet_swarm.envs.kernels import clip_rows, fill_own
 from pybullet_swarm.sensing.perception import PerceptionStage
-from pybullet_swarm.planning.views.construction import ConstructionLayout
+from pybullet_swarm.planning.views.construction import ConstructionLayout, boxes_of
+from pybullet_swarm.planning.views.points import points_of
+from pybullet_swarm.planning.views.waypoints import set_points_of
 
 OWN_SIZE = 14
 VELOCITY_BOUND = 10.0  # m/s, own velocity
@@ -134,11 +136,13 @@ class ObservationBuilder:
         self.stage = PerceptionStage(self.n, self.radius)  # no neighbour noise: observing draws nothing
         task = sim.task.view(sim.time)
         info = sim.info
-        self.waypoints = len(task.targets) == self.n
-        has_objects = len(task.objects) > 0 and len(task.slots) > 0
+        shown = set_points_of(task)
+        self.waypoints = shown is not None and len(shown.targets) == self.n
+        shows = boxes_of(task)
+        has_objects = len(shows.objects) > 0 and len(shows.slots) > 0
         self.kb = int(boxes) if has_objects else 0
         self.ks = int(slots) if has_objects else 0
-        self.kp = int(points) if len(task.points) > 0 else 0
+        self.kp = int(points) if len(points_of(task).points) > 0 else 0
         self.r = int(ranges)
         view = 0.0
         if has_objects and isinstance(info.layout, ConstructionLayout):
@@ -194,7 +198,9 @@ class ObservationBuilder:
         carrying = (task.carrying >= 0).astype(np.float64)
         fill_own(out, sim.sensed_state_array, sim.controller.body_rates, carrying, sim.time / sim.time_limit)
         if self.waypoints:
-            out[:, self._goal] = (task.targets if goal is None else goal) - pos
+            shown = set_points_of(task)
+            assert shown is not None  # a waypoints task shows set-points at every tick
+            out[:, self._goal] = (shown.targets if goal is None else goal) - pos
         if self.k:
             table = pc.nearest_table(self.k)[:, : self.k]  # (n, k), nearest first
             present = table >= 0
@@ -211,8 +217,9 @@ class ObservationBuilder:
             if self.ks:
                 out[:, self._sl["slots"]] = _nearest_block([lv.slots for lv in local], pos, self.ks)
         if self.kp:
-            rel = task.points[None, :, :] - pos[:, None, :]
-            vec, present_p = _nearest(rel, np.broadcast_to(~task.points_done, (n, len(task.points))), self.kp)
+            pts = points_of(task)
+            rel = pts.points[None, :, :] - pos[:, None, :]
+            vec, present_p = _nearest(rel, np.broadcast_to(~pts.points_done, (n, len(pts.points))), self.kp)
             out[:, self._sl["points"]] = np.concatenate([vec, present_p[:, :, None]], axis=2).reshape(n, -1)
         if self.r:
             out[:, self._sl["ranges"]] = sim.ranges

@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pybullet_swarm.planning.views.construction import PLACED, boxes_of
+
 #: matplotlib's tab10, the replay's agent colours up to 10 agents (RGB in [0, 1])
 TAB10 = (
     (0.122, 0.467, 0.706),
@@ -36,7 +38,6 @@ TAB10 = (
 )
 BOX_FREE = (0.76, 0.60, 0.42)
 BOX_PLACED = (0.42, 0.62, 0.33)
-PLACED_STATE = 2  # ``TaskView.object_state`` of an object in its place
 GUI_ASPECT = 4.0 / 3.0  # width / height of Bullet's default GUI window
 GUI_FOV_DEG = 90.0  # vertical field of view of Bullet's GUI camera (its frustum's top is its near distance)
 TRAIL_S = 3.0  # s of simulated time a trail point stays
@@ -192,7 +193,7 @@ class GuiViewer:
         carrier = np.full(len(bodies), -1)
         holding = np.nonzero((view.carrying >= 0) & (view.carrying < len(bodies)))[0]
         carrier[view.carrying[holding]] = holding
-        placed = view.object_state == PLACED_STATE
+        placed = boxes_of(view).object_state == PLACED
         for i, body in enumerate(bodies):
             c = int(carrier[i])
             rgb = self.colors[c] if c >= 0 else BOX_PLACED if i < len(placed) and placed[i] else BOX_FREE

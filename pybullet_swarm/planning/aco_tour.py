@@ -37,6 +37,7 @@ from scipy.optimize import linear_sum_assignment
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.aco import ACOParams, solve_tsp
 from pybullet_swarm.planning.base import Command, TaskInfo, TourPlan, WorldView
+from pybullet_swarm.planning.views.points import Points
 
 VIA = -1  # waypoint tag: a climb/descent point, not an inspection point
 HOME = -2  # waypoint tag: the agent's home point
@@ -417,8 +418,9 @@ class AcoTour:
 
     def plan_all(self, view: WorldView) -> list[Command]:
         """One position command per agent."""
-        if view.task is not None and view.task.points_done.shape == self.points_done.shape:
-            self.points_done = view.task.points_done
+        shown = view.task.state
+        if isinstance(shown, Points) and shown.points_done.shape == self.points_done.shape:
+            self.points_done = shown.points_done
         if self.starts is None:
             self.starts = view.positions.copy()
             self.plan_legs(self.starts)

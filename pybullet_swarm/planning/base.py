@@ -151,14 +151,6 @@ class Observation(Generic[V]):
     neighbour_carrying: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
 
 
-def _empty3() -> NDArray[np.float64]:
-    return np.zeros((0, 3))
-
-
-def _empty_ids() -> NDArray[np.int64]:
-    return np.zeros(0, dtype=np.int64)
-
-
 @dataclasses.dataclass(frozen=True)
 class Obstacles:
     """Static obstacles as axis-aligned boxes in the world frame: what stands still while agents fly past it.
@@ -169,7 +161,7 @@ class Obstacles:
     Attributes:
         centres: (K, 3) m.
         half_extents: (K, 3) m.
-        objects: (K,) the task object each box is (an index into ``TaskView.objects``), -1 for the arena's.
+        objects: (K,) the task object each box is (an index into the objects of the task's view, e.g. ``ConstructionState.objects``), -1 for the arena's.
     """
 
     centres: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
@@ -200,84 +192,57 @@ class Obstacles:
         )
 
 
+#: a task kind's own public state (e.g. ``planning.views.construction.ConstructionState``)
+S = TypeVar("S")
+
+
 @dataclasses.dataclass(frozen=True)
-class TaskView:
+class TaskView(Generic[S]):
     """What the task shows at one planner tick: public progress of the task (world frame, SI units).
 
-    Every task fills what it has and leaves the rest empty. Decentralised planners see objects only
-    through their ``Observation``; the whole view goes to centralised baselines, avoidance layers
-    (which need to know who carries what) and the learning environments.
+    The core is the same for every task; what only one task kind shows is its ``state``, of the
+    task's own type (``TaskView[ConstructionState]`` in a construction run: boxes and slots;
+    ``SetPoints`` of a waypoints run; ``Points`` of a route or a tour; None when there is nothing
+    more). Decentralised planners see objects only through their ``Observation``; the whole view
+    goes to centralised baselines, avoidance layers (which need to know who carries what) and the
+    learning environments.
 
     Attributes:
         time_s: simulated time, s.
         carrying: (n,) id of the object each agent holds, or -1.
-        objects: (B, 3) m, the task's movable objects now (boxes).
-        object_state: (B,) 0 free, 1 carried, 2 placed.
-        slots: (S, 3) m, goal slot centres.
-        slot_filled: (S,) object in each slot, or -1.
-        slot_open: (S,) True when a slot is empty and can be filled now.
-        targets: (n, 3) m, each agent's active set-point (timed set-point tasks), else (0, 3).
-        target_yaws: (n,) rad, with ``targets``.
-        points: (W, 3) m, points to pass or visit (routes, tours), else (0, 3).
-        points_done: (W,) True once a point counts as passed or visited.
+        state: the task's own public state.
         obstacles: the task's objects that stand still now (free and placed boxes, not carried ones),
             as avoidance layers keep clear of them (the arena's own are in ``AvoidanceSetup.obstacles``).
     """
 
     time_s: float
     carrying: NDArray[np.int64]
-    objects: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
-    object_state: NDArray[np.int64] = dataclasses.field(default_factory=_empty_ids)
-    slots: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
-    slot_filled: NDArray[np.int64] = dataclasses.field(default_factory=_empty_ids)
-    slot_open: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=bool))
-    targets: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
-    target_yaws: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(0))
-    points: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
-    points_done: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=bool))
+    state: S = None  # type: ignore[assignment]  # None: the task shows nothing of its own
     obstacles: Obstacles = dataclasses.field(default_factory=Obstacles)
 
 
 @dataclasses.dataclass(frozen=True)
-class WorldView:
+class WorldView(Generic[S]):
     """Everything, for centralised planners only.
 
     Attributes:
         time_s: elapsed simulated time, s.
         positions: (n, 3) m.
         velocities: (n, 3) m/s.
-        carrying: (n,) box id held by each agent, or -1.
-        box_positions: (B, 3) m, every box now.
-        box_state: (B,) 0 free, 1 carried, 2 placed.
-        slot_filled: (S,) box id in each slot, or -1.
-        slot_open: (S,) True when a slot is empty and supported.
-        task: the task's whole view (set-points, points done ...), None when built by hand.
+        carrying: (n,) id of the object held by each agent, or -1.
+        task: the task's whole view (its state: boxes and slots, set-points, points done ...).
     """
 
     time_s: float
     positions: NDArray[np.float64]
     velocities: NDArray[np.float64]
     carrying: NDArray[np.int64]
-    box_positions: NDArray[np.float64]
-    box_state: NDArray[np.int64]
-    slot_filled: NDArray[np.int64]
-    slot_open: NDArray[np.bool_]
-    task: TaskView | None = None
+    task: TaskView[S]
 
     @staticmethod
-    def of(perception: Perception, task: TaskView) -> WorldView:
+    def of(perception: Perception, task: TaskView[S]) -> WorldView[S]:
         """The view of a centralised planner from the swarm's ``Perception`` and the task's view."""
-        return WorldView(
-            task.time_s,
-            perception.positions,
-            perception.velocities,
-            task.carrying,
-            task.objects,
-            task.object_state,
-            task.slot_filled,
-            task.slot_open,
-            task,
-        )
+        return WorldView(task.time_s, perception.positions, perception.velocities, task.carrying, task)
 
 
 @dataclasses.dataclass(frozen=True)

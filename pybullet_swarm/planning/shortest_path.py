@@ -154,8 +154,8 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import Field
 
-from pybullet_swarm.planning.base import Action, Command, WorldView
-from pybullet_swarm.planning.views.construction import ConstructionInfo
+from pybullet_swarm.planning.base import Action, Command
+from pybullet_swarm.planning.views.construction import ConstructionInfo, ConstructionWorldView
 from pybullet_swarm.planning.params import Params, Preset
 from pybullet_swarm.planning.placing import release_clearances
 
@@ -474,38 +474,42 @@ class ShortestPath:
         self.creep = np.full(n, np.nan)  # m, soft_landing: each agent's creeping target height (nan: not yet)
         self.held = np.zeros(n, dtype=bool)  # wake_clear: held short of a column at its last tick (held_pass)
 
-    def _assign(self, i: int, view: WorldView) -> None:
+    def _assign(self, i: int, view: ConstructionWorldView) -> None:
         taken_boxes = set(self.box[self.box >= 0].tolist())
-        while self.next_slot < len(self.order) and view.slot_filled[self.order[self.next_slot]] >= 0:
+        while self.next_slot < len(self.order) and view.task.state.slot_filled[self.order[self.next_slot]] >= 0:
             self.next_slot += 1
         # a slot passed over earlier that is empty again (its box came to rest off it)
         k = self._retry_slot(view) if self.params.retry_slots else -1
         if k < 0 and self.next_slot >= len(self.order):
             self.phase[i] = Phase.DONE
             return
-        free = [b for b in range(len(view.box_state)) if view.box_state[b] == 0 and b not in taken_boxes]
+        free = [
+            b
+            for b in range(len(view.task.state.object_state))
+            if view.task.state.object_state[b] == 0 and b not in taken_boxes
+        ]
         if not free:
             self.phase[i] = Phase.DONE
             return
         s = self.order[k if k >= 0 else self.next_slot]
-        loose = [b for b in free if self.params.retry_slots and self._in_slot(view.box_positions[b], s)]
+        loose = [b for b in free if self.params.retry_slots and self._in_slot(view.task.state.objects[b], s)]
         if loose:  # the box lying in the slot goes first: nothing is set down onto it
             self.box[i] = loose[0]
         else:
             p = view.positions[i]
-            d = [np.linalg.norm(view.box_positions[b, :2] - p[:2]) for b in free]
+            d = [np.linalg.norm(view.task.state.objects[b, :2] - p[:2]) for b in free]
             self.box[i] = free[int(np.argmin(d))]
         self.slot[i] = s
         if k < 0:
             self.next_slot += 1
         self.phase[i] = Phase.TO_BOX
 
-    def _retry_slot(self, view: WorldView) -> int:
+    def _retry_slot(self, view: ConstructionWorldView) -> int:
         """Position in ``order`` of the first empty slot before ``next_slot`` that no agent is serving, or -1."""
         busy = set(self.slot[(self.phase >= Phase.TO_BOX) & (self.phase <= Phase.CLIMB)].tolist())
         for k in range(min(self.next_slot, len(self.order))):
             s = self.order[k]
-            if view.slot_filled[s] < 0 and s not in busy:
+            if view.task.state.slot_filled[s] < 0 and s not in busy:
                 return k
         return -1
 
@@ -549,7 +553,9 @@ class ShortestPath:
         d = np.max(np.abs(self.columns[others] - xy[:2]), axis=1)
         return others[d < spacing]
 
-    def _wait_aside(self, i: int, view: WorldView, above: np.ndarray, source: np.ndarray | None = None) -> Command:
+    def _wait_aside(
+        self, i: int, view: ConstructionWorldView, above: np.ndarray, source: np.ndarray | None = None
+    ) -> Command:
         """Wait at the cruise altitude aside from the column ``above`` (3,) m (``wait_beside``, ``spaced_descents``:
         over it, the waiting agent would block a descent, its wake would push a climbing agent down, or one
         climbing to a higher cruise altitude would pass through it). Agents waiting for one column wait at points
@@ -593,7 +599,7 @@ class ShortestPath:
                 break
         return xy, best
 
-    def _park_point(self, i: int, view: WorldView) -> np.ndarray:
+    def _park_point(self, i: int, view: ConstructionWorldView) -> np.ndarray:
         """Where agent ``i``, with nothing left to carry, parks (2,) m: above its start; with ``park_clear`` and
         ``wake_clear`` the point it keeps until that comes within ``WAKE_CLEARANCE`` (per axis) of a column it must
         not wait over (free boxes, slots, agents below it), then the start again if that is clear, or else a
@@ -636,7 +642,7 @@ class ShortestPath:
         climbing or sinking to its cruise altitude."""
         return bool(self.phase[j] in VERTICAL_PHASES or abs(p[2] - self._alt(j)) > LANE_TOL)
 
-    def _wake_blocked(self, i: int, view: WorldView, target: np.ndarray) -> bool:
+    def _wake_blocked(self, i: int, view: ConstructionWorldView, target: np.ndarray) -> bool:
         """``wake_clear``: True when agent ``i``, flying level towards ``target`` (3,) m, would within
         ``WAKE_LOOKAHEAD`` come closer than ``WAKE_CLEARANCE`` (per axis), and nearer than it is now, to an agent
         at another altitude that is on a vertical leg (below it, its wake would push that agent down onto its box
@@ -664,7 +670,7 @@ class ShortestPath:
                 return True
         return False
 
-    def _detour(self, i: int, view: WorldView, target: np.ndarray) -> np.ndarray:
+    def _detour(self, i: int, view: ConstructionWorldView, target: np.ndarray) -> np.ndarray:
         """The target (3,) m of agent ``i`` flying level to ``target``, by a point beside the first agent its
         straight path would pass near: with ``wake_clear`` one at another altitude (but one on a vertical leg or
         over its goal, held for) within ``WAKE_CLEARANCE`` (horizontally) over or under it, as a rotor wake, 5 cm
@@ -707,7 +713,7 @@ class ShortestPath:
                 best, w = along, np.array([xy[0], xy[1], target[2]])
         return w
 
-    def _round_parked(self, i: int, j: int, view: WorldView) -> bool:
+    def _round_parked(self, i: int, j: int, view: ConstructionWorldView) -> bool:
         """``round_parked``: True when agent ``i`` carries a box to its slot and agent ``j``, carrying one too,
         hovers at rest (waiting for its slot, or held), or (at ``i``'s altitude) is at the top of a vertical leg.
         Empty agents are left to the avoidance layer: going round each other over the depot, they strayed beside
@@ -719,7 +725,7 @@ class ShortestPath:
             return True
         return bool(self.phase[j] == Phase.TO_SLOT and np.linalg.norm(view.velocities[j]) < PARKED_SPEED)
 
-    def _under_wake(self, i: int, view: WorldView, xy: np.ndarray) -> bool:
+    def _under_wake(self, i: int, view: ConstructionWorldView, xy: np.ndarray) -> bool:
         """``wake_clear``: True when another agent above agent ``i`` is within ``WAKE_CLEARANCE`` (per axis) of
         the column at ``xy`` (2,) m, where ``i`` would descend (its wake would push ``i`` down)."""
         if not self.wake_clear:
@@ -729,10 +735,10 @@ class ShortestPath:
         near = np.max(np.abs(view.positions[:, :2] - xy[:2]), axis=1) < WAKE_CLEARANCE
         return bool(np.any(others & above & near))
 
-    def _columns(self, i: int, view: WorldView) -> np.ndarray:
+    def _columns(self, i: int, view: ConstructionWorldView) -> np.ndarray:
         """(k, 2) m: the columns agent ``i`` must not wait over (``wake_clear``): the free boxes', the slots' and
         those of the other agents below its cruise altitude."""
-        free = view.box_positions[np.asarray(view.box_state) == 0, :2]
+        free = view.task.state.objects[np.asarray(view.task.state.object_state) == 0, :2]
         low = (np.arange(self.n) != i) & (view.positions[:, 2] < self._alt(i) - LANE_TOL)
         return np.vstack([free, self.info.layout.slots[:, :2], view.positions[low, :2]])
 
@@ -778,7 +784,7 @@ class ShortestPath:
     def _near_xy(self, p: np.ndarray, q: np.ndarray) -> bool:
         return bool(np.linalg.norm(p[:2] - q[:2]) <= self.arrive_tol)
 
-    def _cruise(self, i: int, view: WorldView, target: np.ndarray) -> Command:
+    def _cruise(self, i: int, view: ConstructionWorldView, target: np.ndarray) -> Command:
         """Go to ``target`` at cruise altitude: climb first, then fly straight (with ``wake_clear``, stop short
         of the column of an agent on a vertical leg below)."""
         p = view.positions[i]
@@ -790,7 +796,7 @@ class ShortestPath:
         self.held[i] = False
         return Command.goto(self._detour(i, view, target))
 
-    def _step(self, i: int, view: WorldView) -> Command:
+    def _step(self, i: int, view: ConstructionWorldView) -> Command:
         p = view.positions[i]
         ph = Phase(self.phase[i])
         if ph == Phase.IDLE:
@@ -801,11 +807,11 @@ class ShortestPath:
             return self._cruise(i, view, np.array([xy[0], xy[1], self._alt(i)]))
         b, s = self.box[i], self.slot[i]
         if ph == Phase.TO_BOX:
-            if view.box_state[b] != 0:  # someone took or placed it meanwhile: choose again
+            if view.task.state.object_state[b] != 0:  # someone took or placed it meanwhile: choose again
                 self.phase[i] = Phase.IDLE
                 self.box[i] = -1
                 return Command.goto([p[0], p[1], self._alt(i)])
-            above = np.array([*view.box_positions[b, :2], self._alt(i)])
+            above = np.array([*view.task.state.objects[b, :2], self._alt(i)])
             if self._descents_near(i, above).size:
                 return self._wait_aside(i, view, above, self.structure_xy)
             if self._near_xy(p, above) and abs(p[2] - self._alt(i)) < 0.05 and not self._under_wake(i, view, above):
@@ -814,7 +820,7 @@ class ShortestPath:
                 self.creep[i] = np.nan
             return self._cruise(i, view, above)
         if ph == Phase.DESCEND_BOX:
-            grasp = view.box_positions[b] + [0.0, 0.0, self.gh]
+            grasp = view.task.state.objects[b] + [0.0, 0.0, self.gh]
             if view.carrying[i] == b:
                 self.phase[i] = Phase.LIFT
                 return Command.goto([p[0], p[1], self._alt(i)])
@@ -832,7 +838,7 @@ class ShortestPath:
                 self.phase[i] = Phase.TO_SLOT
                 # where the box hangs under this agent, measured once while hovering steadily
                 # (measuring it in flight would feed the airframe's tilt back into the target)
-                self.offset[i] = view.box_positions[b] - p
+                self.offset[i] = view.task.state.objects[b] - p
             return Command.goto([p[0], p[1], self._alt(i)])
         # where the agent must be for the box it holds (at its actual offset) to hang just above the slot
         drop = self.info.layout.slots[s] + [
@@ -843,7 +849,9 @@ class ShortestPath:
         slot_top = drop - self.offset[i]
         if ph == Phase.TO_SLOT:
             above = np.array([slot_top[0], slot_top[1], self._alt(i)])
-            if not view.slot_open[s] and (self.estimated or (self.params.wait_beside and self._overflown(i, s))):
+            if not view.task.state.slot_open[s] and (
+                self.estimated or (self.params.wait_beside and self._overflown(i, s))
+            ):
                 # wait beside the column, not over it: an agent serving a slot under this one descends
                 # there, and the avoidance layer (on jittering estimates, or a higher agent's way down
                 # through this one's altitude) would hold it up for ever
@@ -852,7 +860,7 @@ class ShortestPath:
                 return self._wait_aside(i, view, above, self.depot_xy)
             if (
                 self._near_xy(p, above)
-                and view.slot_open[s]
+                and view.task.state.slot_open[s]
                 and abs(p[2] - self._alt(i)) < 0.05
                 and not self._under_wake(i, view, above)
             ):
@@ -869,7 +877,7 @@ class ShortestPath:
             if view.carrying[i] != b:
                 self.phase[i] = Phase.CLIMB
                 return Command.goto([p[0], p[1], self._alt(i)])
-            err = view.box_positions[b] - drop
+            err = view.task.state.objects[b] - drop
             speed = np.linalg.norm(view.velocities[i])
             ok = bool(np.hypot(err[0], err[1]) <= self.release_tol and abs(err[2]) <= self.release_tol and speed < 0.02)
             if not hasattr(self, "_targets"):
@@ -884,7 +892,9 @@ class ShortestPath:
                 self._plumb(
                     i,
                     p,
-                    self._soft(i, p, float(view.velocities[i, 2]), target, float(view.box_positions[b, 2] - drop[2])),
+                    self._soft(
+                        i, p, float(view.velocities[i, 2]), target, float(view.task.state.objects[b, 2] - drop[2])
+                    ),
                 ),
                 Action.RELEASE if ok else Action.NONE,
             )
@@ -894,14 +904,14 @@ class ShortestPath:
             self.box[i] = -1
         return Command.goto([p[0], p[1], self._alt(i)])
 
-    def _box_still(self, i: int, view: WorldView) -> bool:
+    def _box_still(self, i: int, view: ConstructionWorldView) -> bool:
         """True when the box carrier ``i`` holds moved less than 2 mm since the last tick (remembered here)."""
-        box = view.box_positions[self.box[i]]
+        box = view.task.state.objects[self.box[i]]
         still = bool(np.all(np.isfinite(self.last_box[i])) and np.linalg.norm(box - self.last_box[i]) < 0.002)
         self.last_box[i] = box
         return still
 
-    def _recentre(self, i: int, view: WorldView, target: np.ndarray, err: np.ndarray) -> np.ndarray:
+    def _recentre(self, i: int, view: ConstructionWorldView, target: np.ndarray, err: np.ndarray) -> np.ndarray:
         """``recentre_box``: the target (3,) m of carrier ``i`` over its slot, its box ``err`` (3,) m off the drop
         point: once the agent has arrived and the box is still, a box more than ``release_tol`` off horizontally
         (and at most ``SERVO_LIMIT``: farther is no error of the offset) moves the target by ``SERVO_GAIN`` of
@@ -917,7 +927,9 @@ class ShortestPath:
             self.correction[i] = np.clip(self.correction[i] - SERVO_GAIN * step, -SERVO_LIMIT, SERVO_LIMIT)
         return target + self.correction[i]
 
-    def _servo(self, i: int, view: WorldView, target: np.ndarray, err: np.ndarray, ok: bool) -> tuple[np.ndarray, bool]:
+    def _servo(
+        self, i: int, view: ConstructionWorldView, target: np.ndarray, err: np.ndarray, ok: bool
+    ) -> tuple[np.ndarray, bool]:
         """On estimated state: the target (3,) m of carrier ``i`` corrected by what is seen of its box
         (error ``err`` (3,) m from the drop point), and whether to let go (``ok``, held for the dwell
         while the box is still)."""
@@ -949,24 +961,25 @@ class ShortestPath:
             out.append(", ".join(words))
         return out
 
-    def _swap_boxes(self, view: WorldView) -> None:
+    def _swap_boxes(self, view: ConstructionWorldView) -> None:
         """``swap_boxes``: two agents on their way to boxes exchange them when that shortens their summed
         (horizontal) flights by more than ``SWAP_GAIN``; boxes lying in a slot stay with their agents."""
         going = [
             i
             for i in np.flatnonzero(self.phase == Phase.TO_BOX)
-            if self.box[i] >= 0 and not any(self._in_slot(view.box_positions[self.box[i]], int(s)) for s in self.slot)
+            if self.box[i] >= 0
+            and not any(self._in_slot(view.task.state.objects[self.box[i]], int(s)) for s in self.slot)
         ]
         for a, i in enumerate(going):
             for j in going[a + 1 :]:
                 pi, pj = view.positions[i, :2], view.positions[j, :2]
-                bi, bj = view.box_positions[self.box[i], :2], view.box_positions[self.box[j], :2]
+                bi, bj = view.task.state.objects[self.box[i], :2], view.task.state.objects[self.box[j], :2]
                 now = np.linalg.norm(pi - bi) + np.linalg.norm(pj - bj)
                 swapped = np.linalg.norm(pi - bj) + np.linalg.norm(pj - bi)
                 if swapped < now - SWAP_GAIN:
                     self.box[i], self.box[j] = self.box[j], self.box[i]
 
-    def plan_all(self, view: WorldView) -> list[Command]:
+    def plan_all(self, view: ConstructionWorldView) -> list[Command]:
         """One command per agent."""
         if self.home is None:
             self.home = view.positions.copy()

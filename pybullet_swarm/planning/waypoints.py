@@ -7,11 +7,12 @@ from typing import ClassVar
 import numpy as np
 
 from pybullet_swarm.planning.base import Command, TaskInfo, WorldView
+from pybullet_swarm.planning.views.waypoints import SetPoints
 from pybullet_swarm.planning.params import NoParams
 
 
 class WaypointFollower:
-    """Centralised: every agent flies to the set-point the task shows as active (``TaskView.targets``).
+    """Centralised: every agent flies to the set-point the task shows as active (``SetPoints.targets`` of its view).
 
     Args:
         params: none (``NoParams``).
@@ -30,10 +31,10 @@ class WaypointFollower:
 
     def plan_all(self, view: WorldView) -> list[Command]:
         """Each agent's active set-point (holding position when the task shows none)."""
-        task = view.task
-        if task is None or len(task.targets) != self.n:
+        shown = view.task.state
+        if not isinstance(shown, SetPoints) or len(shown.targets) != self.n:
             return [Command.hold() for _ in range(self.n)]
-        return [Command.goto(task.targets[i], yaw=float(task.target_yaws[i])) for i in range(self.n)]
+        return [Command.goto(shown.targets[i], yaw=float(shown.target_yaws[i])) for i in range(self.n)]
 
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402

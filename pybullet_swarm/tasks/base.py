@@ -97,8 +97,8 @@ class Framing:
 
     Attributes:
         height: m, height of the working volume a camera frames, None to frame the agents' starts.
-        bodies: Bullet body ids of the task's movable objects, in the order of ``TaskView.objects``
-            (the GUI colours them by ``TaskView.object_state`` and who carries them).
+        bodies: Bullet body ids of the task's movable objects, in the order of the objects its view shows
+            (the GUI colours them by their state (``ConstructionState.object_state``) and who carries them).
         status: one line of the task's progress for a heads-up display ('' when none).
     """
 

@@ -27,7 +27,15 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.collisions import CollisionClass
 from pybullet_swarm.metrics.construction import task_lower_bound
 from pybullet_swarm.planning.base import Action, Obstacles, TaskView, view_distance
-from pybullet_swarm.planning.views.construction import ConstructionLayout, ConstructionLocalView
+from pybullet_swarm.planning.views.construction import (
+    CARRIED,
+    FREE,
+    PLACED,
+    ConstructionLayout,
+    ConstructionLocalView,
+    ConstructionState,
+    ConstructionView,
+)
 from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import NOT_MINE, Framing, ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.tasks.build_order import REACH_MARGIN, Reach, build_order, prerequisites
@@ -36,8 +44,6 @@ from pybullet_swarm.types import Event, TimeSeries
 from pybullet_swarm.world import BodyKind, World
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
-
-FREE, CARRIED, PLACED = 0, 1, 2
 
 
 def cube_half_extents(quaternions: NDArray[np.float64], size: float) -> NDArray[np.float64]:
@@ -715,7 +721,7 @@ class ConstructionRuntime(TaskBase):
             status=f"boxes placed {self.boxes_placed}/{self.S}",
         )
 
-    def view(self, t: float) -> TaskView:
+    def view(self, t: float) -> ConstructionView:
         """Boxes, their states, slots and who carries what."""
         state, filled = self.state.copy(), self.slot_box.copy()
         into = self._guided_into()
@@ -726,11 +732,7 @@ class ConstructionRuntime(TaskBase):
         return TaskView(
             t,
             self.carrying(self.n),
-            objects=self.positions.copy(),
-            object_state=state,
-            slots=self.slots,
-            slot_filled=filled,
-            slot_open=self.slot_open,
+            ConstructionState(self.positions.copy(), state, self.slots, filled, self.slot_open),
             obstacles=Obstacles(
                 self.positions[still], cube_half_extents(self.quaternions[still], self.size), still.astype(np.int64)
             ),

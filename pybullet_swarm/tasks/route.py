@@ -33,6 +33,7 @@ from pydantic import Field
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.flocking import route_fitness_series, time_average
 from pybullet_swarm.planning.base import TaskView
+from pybullet_swarm.planning.views.points import Points
 from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.types import Event, TimeSeries
@@ -215,9 +216,7 @@ class RouteRuntime(TaskBase):
 
     def view(self, t: float) -> TaskView:
         """The waypoints and which of them the swarm has passed."""
-        return TaskView(
-            t, np.full(self.n, -1, dtype=np.int64), points=self.route, points_done=np.arange(self.W) < self.next
-        )
+        return TaskView(t, np.full(self.n, -1, dtype=np.int64), Points(self.route, np.arange(self.W) < self.next))
 
     def series(self, ts: TimeSeries) -> dict[str, Any]:
         """Per-step fitness series of a recorded run (see ``route_fitness_series``)."""

@@ -25,6 +25,7 @@ from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import TaskView, TourPlan
+from pybullet_swarm.planning.views.points import Points
 from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.types import Event, TimeSeries
@@ -222,7 +223,7 @@ class TourRuntime(TaskBase):
 
     def view(self, t: float) -> TaskView:
         """The points and which of them were visited."""
-        return TaskView(t, np.full(self.n, -1, dtype=np.int64), points=self.points, points_done=self.visited.copy())
+        return TaskView(t, np.full(self.n, -1, dtype=np.int64), Points(self.points, self.visited.copy()))
 
     @property
     def points_visited(self) -> int:

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.planning.base import TaskView
+from pybullet_swarm.planning.views.waypoints import SetPoints
 from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import TaskBase, TaskContext
 from pybullet_swarm.types import Event, TimeSeries
@@ -92,7 +93,7 @@ class WaypointsRuntime(TaskBase):
     def view(self, t: float) -> TaskView:
         """The active set-points and yaws."""
         targets, yaws = self.targets(t)
-        return TaskView(t, np.full(self.n, -1, dtype=np.int64), targets=targets.copy(), target_yaws=yaws)
+        return TaskView(t, np.full(self.n, -1, dtype=np.int64), SetPoints(targets.copy(), yaws))
 
     def metrics(self, series: TimeSeries | None, planner_artefacts: dict[str, Any]) -> dict[str, Any]:
         """Nothing beyond the completion time and the flight metrics."""

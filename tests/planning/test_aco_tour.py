@@ -19,7 +19,7 @@ from pybullet_swarm.planning.aco_tour import (
     bottleneck_assignment,
     split_tour,
 )
-from pybullet_swarm.planning.base import CommandKind, TaskInfo, WorldView
+from pybullet_swarm.planning.base import CommandKind, TaskInfo, TaskView, WorldView
 from pybullet_swarm.planning.registry import default_planner
 from pybullet_swarm.tasks.tour import TourRuntime, TourTask
 
@@ -173,11 +173,7 @@ def _view(t, positions, rt=None):
         positions.copy(),
         np.zeros((n, 3)),
         np.full(n, -1),
-        np.zeros((0, 3)),
-        np.zeros(0, dtype=np.int64),
-        np.zeros(0, dtype=np.int64),
-        np.zeros(0, dtype=bool),
-        None if rt is None else rt.view(t),
+        TaskView(t, np.full(n, -1)) if rt is None else rt.view(t),
     )
 
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pybullet_swarm.planning.base import Action, Observation, TaskInfo, WorldView
-from pybullet_swarm.planning.views.construction import ConstructionLayout, ConstructionLocalView
+from pybullet_swarm.planning.base import Action, Observation, TaskInfo, TaskView, WorldView
+from pybullet_swarm.planning.views.construction import ConstructionLayout, ConstructionLocalView, ConstructionState
 from pybullet_swarm.planning.shortest_path import Phase as SPPhase
 from pybullet_swarm.planning.shortest_path import ShortestPath, ShortestPathParams
 from pybullet_swarm.planning.stigmergy import CLEARANCE_SIGMAS, Carry, Phase, Sighting, Stigmergy
@@ -149,15 +149,11 @@ def test_no_descent_with_a_box_onto_a_slot_with_a_loose_box_in_it():
 
 def _view(t, positions, carrying, box_positions, box_state, slot_filled) -> WorldView:
     slot_filled = np.asarray(slot_filled)
+    open_ = np.array([f < 0 for f in slot_filled])
+    boxes = ConstructionState(np.asarray(box_positions, float), np.asarray(box_state), SLOTS, slot_filled, open_)
+    carrying = np.asarray(carrying)
     return WorldView(
-        t,
-        np.asarray(positions, float),
-        np.zeros((len(positions), 3)),
-        np.asarray(carrying),
-        np.asarray(box_positions, float),
-        np.asarray(box_state),
-        slot_filled,
-        np.array([f < 0 for f in slot_filled]),
+        t, np.asarray(positions, float), np.zeros((len(positions), 3)), carrying, TaskView(t, carrying, boxes)
     )
 
 

@@ -205,8 +205,8 @@ def test_the_construction_view_shows_boxes_that_stand_still_and_the_layer_gets_t
     sim = Simulation(sc)
     try:
         view = sim.task.view(sim.time)
-        assert view.obstacles.objects.tolist() == list(range(len(view.objects)))  # all free at the start
-        assert np.allclose(view.obstacles.centres, view.objects)
+        assert view.obstacles.objects.tolist() == list(range(len(view.state.objects)))  # all free at the start
+        assert np.allclose(view.obstacles.centres, view.state.objects)
         assert np.allclose(view.obstacles.half_extents, 0.05, atol=1e-6)
         layer = sim.avoidance_layer
         assert isinstance(layer, OrcaLayer) and len(layer.arena_obstacles) == 1

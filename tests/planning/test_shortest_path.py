@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pybullet_swarm.planning.base import TaskInfo, WorldView
-from pybullet_swarm.planning.views.construction import ConstructionLayout
+from pybullet_swarm.planning.base import TaskInfo, TaskView, WorldView
+from pybullet_swarm.planning.views.construction import ConstructionLayout, ConstructionState
 from pybullet_swarm.planning.shortest_path import Phase, ShortestPath, ShortestPathParams
 
 GH = 0.065
@@ -40,15 +40,10 @@ def _planner(
 def _view(positions, *, slot_filled=None, carrying=None, n_slots: int = len(SLOTS)) -> WorldView:
     n = len(positions)
     filled = np.full(n_slots, -1) if slot_filled is None else np.asarray(slot_filled)
+    carrying = np.full(n, -1) if carrying is None else np.asarray(carrying)
+    boxes = ConstructionState(DEPOT.copy(), np.zeros(len(DEPOT), dtype=np.int64), SLOTS[:n_slots], filled, filled < 0)
     return WorldView(
-        0.0,
-        np.asarray(positions, dtype=float),
-        np.zeros((n, 3)),
-        np.full(n, -1) if carrying is None else np.asarray(carrying),
-        DEPOT.copy(),
-        np.zeros(len(DEPOT), dtype=np.int64),
-        filled,
-        filled < 0,
+        0.0, np.asarray(positions, dtype=float), np.zeros((n, 3)), carrying, TaskView(0.0, carrying, boxes)
     )
 
 
@@ -158,7 +153,7 @@ def test_soft_landing_creeps_down_the_last_centimetres(soft, to_slot):
     p = point + [0.0, 0.0, 0.045]  # at rest 5 mm above the point SETTLE_HEIGHT (4 cm) up
     view = _view([p], carrying=[0] if to_slot else None)
     if to_slot:
-        view.box_positions[0] = p - [0.0, 0.0, GH]
+        view.task.state.objects[0] = p - [0.0, 0.0, GH]
     z = sp.plan_all(view)[0].vector[2]
     if soft:  # at rest near the point SETTLE_HEIGHT up: its target creeps down from there, a few mm below it
         assert 0.0 < p[2] - z <= 0.01
@@ -182,7 +177,7 @@ def test_soft_landing_waits_for_a_lagging_airframe_and_backs_up_past_the_point()
     def target(z: float) -> float:
         p = np.array([top[0], top[1], z])
         view = _view([p], carrying=[0])
-        view.box_positions[0] = p - [0.0, 0.0, GH]
+        view.task.state.objects[0] = p - [0.0, 0.0, GH]
         return float(sp.plan_all(view)[0].vector[2])
 
     start = float(sp.creep[0])
@@ -206,7 +201,7 @@ def test_recentre_box_moves_a_settled_carrier_over_by_its_boxs_error(recentre):
     p = drop - sp.offset[0]  # the agent over its target
     sp.creep[0] = p[2]
     view = _view([p], carrying=[0])
-    view.box_positions[0] = p + [0.0, 0.0, -GH]  # in fact straight under it: 7 mm off the drop point in x
+    view.task.state.objects[0] = p + [0.0, 0.0, -GH]  # in fact straight under it: 7 mm off the drop point in x
     xs = [float(sp.plan_all(view)[0].vector[0]) for _ in range(2)]  # the first tick sees the box still
     if recentre:
         assert xs[1] == pytest.approx(p[0] - SERVO_GAIN * 0.007)
@@ -319,15 +314,15 @@ def test_wake_clear_waits_farthest_off_the_columns_when_no_point_is_clear_of_the
     dense = np.array([[x, y, 0.05] for x in xs for y in (0.15, 0.4, 0.65, 0.9)])
     sp = _planner(1, wake_clear=True)
     sp.home = np.zeros((1, 3))
+    boxes = ConstructionState(
+        dense, np.zeros(len(dense), dtype=np.int64), SLOTS, np.full(len(SLOTS), -1), np.ones(len(SLOTS), dtype=bool)
+    )
     view = WorldView(
         0.0,
         np.array([[1.0, 0.9, sp._alt(0)]]),  # at its cruise altitude: the command is the waiting point
         np.zeros((1, 3)),
         np.full(1, -1),
-        dense,
-        np.zeros(len(dense), dtype=np.int64),
-        np.full(len(SLOTS), -1),
-        np.ones(len(SLOTS), dtype=bool),
+        TaskView(0.0, np.full(1, -1), boxes),
     )
     columns = sp._columns(0, view)
     above = np.array([0.4, 0.4, sp._alt(0)])
@@ -454,7 +449,7 @@ def test_held_pass_breaks_two_agents_holding_each_other_over_their_targets(held_
     p1 = np.array([2.65, 0.25, sp._alt(1)])
     assert sp._alt(1) - sp._alt(0) > 0.5
     view = _view([p0, p1], carrying=[0, -1])
-    view.box_positions[1] = [2.05, 0.25, 0.05]  # agent 1's box, under agent 0
+    view.task.state.objects[1] = [2.05, 0.25, 0.05]  # agent 1's box, under agent 0
     moved = []
     for _ in range(3):
         cmds = sp.plan_all(view)

@@ -1,13 +1,14 @@
-"""The construction task's own types: its static layout, what an agent sees of boxes and slots."""
+"""The construction task's own types: its static layout, its public state, what an agent sees."""
 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.planning.base import Observation, TaskInfo
+from pybullet_swarm.planning.base import Observation, TaskInfo, TaskView, WorldView
 
 
 def _empty3() -> NDArray[np.float64]:
@@ -49,6 +50,29 @@ class ConstructionLayout:
     guide_height: float = 0.0
 
 
+#: ``ConstructionState.object_state`` of a box that lies free, hangs under its carrier, sits in its slot
+FREE, CARRIED, PLACED = 0, 1, 2
+
+
+@dataclasses.dataclass(frozen=True)
+class ConstructionState:
+    """The boxes and slots now (``TaskView.state`` of a construction run, world frame).
+
+    Attributes:
+        objects: (B, 3) m, every box now.
+        object_state: (B,) ``FREE``, ``CARRIED`` or ``PLACED``.
+        slots: (S, 3) m, goal slot centres.
+        slot_filled: (S,) box in each slot, or -1.
+        slot_open: (S,) True when a slot is empty and can be filled now (supported).
+    """
+
+    objects: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
+    object_state: NDArray[np.int64] = dataclasses.field(default_factory=_empty_ids)
+    slots: NDArray[np.float64] = dataclasses.field(default_factory=_empty3)
+    slot_filled: NDArray[np.int64] = dataclasses.field(default_factory=_empty_ids)
+    slot_open: NDArray[np.bool_] = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+
 @dataclasses.dataclass(frozen=True)
 class ConstructionLocalView:
     """The boxes and slots one agent sees now (within its view), in the agent's own frame of reference
@@ -75,3 +99,16 @@ ConstructionObservation = Observation[ConstructionLocalView]
 
 #: what every agent of a construction run knows before it starts (the layout: ``ConstructionLayout``)
 ConstructionInfo = TaskInfo[ConstructionLayout]
+#: what a construction task shows at a planner tick (``TaskView.state``: boxes and slots)
+ConstructionView = TaskView[ConstructionState]
+#: what a centralised construction planner sees
+ConstructionWorldView = WorldView[ConstructionState]
+
+#: the state of a task without boxes
+NO_BOXES = ConstructionState()
+
+
+def boxes_of(view: TaskView[Any]) -> ConstructionState:
+    """The boxes and slots a view shows (``NO_BOXES`` when its task has none): for consumers that serve
+    several task kinds (the learning environments, the GUI)."""
+    return view.state if isinstance(view.state, ConstructionState) else NO_BOXES
