@@ -2,7 +2,7 @@
 
 Planning happens once. At ``reset`` the colony (:func:`~pybullet_swarm.planning.aco.solve_tsp`,
 seeded from the run's generator) finds a short closed tour through the points of
-``TaskInfo.route``. At the first tick, when the agents' start positions are known, the tour is
+``TourLayout.points`` (``TaskInfo.layout``). At the first tick, when the agents' start positions are known, the tour is
 cut into k contiguous legs, one per agent (:func:`split_tour`): the cuts and the assignment of
 agents to legs minimise the slowest agent's cost, approach from its start (and return home, if
 the task asks for it) included. Then every agent flies its leg point by point with position
@@ -36,8 +36,9 @@ from scipy.optimize import linear_sum_assignment
 
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.aco import ACOParams, solve_tsp
-from pybullet_swarm.planning.base import Command, TaskInfo, TourPlan, WorldView
+from pybullet_swarm.planning.base import Command, TourPlan, WorldView
 from pybullet_swarm.planning.views.points import Points
+from pybullet_swarm.planning.views.tour import TourInfo, TourLayout
 
 VIA = -1  # waypoint tag: a climb/descent point, not an inspection point
 HOME = -2  # waypoint tag: the agent's home point
@@ -334,19 +335,20 @@ class AcoTour:
         self.via_tolerance = float(self.params.via_tolerance)
         self.aco = ACOParams(**{k: getattr(self.params, k) for k in ACOParams.model_fields})
 
-    def reset(self, n: int, rng: np.random.Generator, info: TaskInfo) -> None:
-        """Order the points of ``info.route`` with the colony (legs are cut at the first tick)."""
-        pts = np.asarray(info.route, dtype=float).reshape(-1, 3)
+    def reset(self, n: int, rng: np.random.Generator, info: TourInfo) -> None:
+        """Order the points of the tour (``info.layout.points``) with the colony (legs are cut at the first tick)."""
+        tour = info.layout
+        pts = np.asarray(tour.points, dtype=float).reshape(-1, 3) if isinstance(tour, TourLayout) else np.zeros((0, 3))
         if len(pts) == 0:
-            raise ConfigError("the aco_tour planner needs points to visit (TaskInfo.route is empty)", field="task")
+            raise ConfigError("the aco_tour planner needs points to visit (a tour task's layout)", field="task")
         self.n = n
         self.points = pts  # (W, 3) m
-        self.radius = float(info.extra.get("visit_radius", 0.1))  # m
+        self.radius = float(tour.visit_radius)  # m
         self.plan: TourPlan | None = None  # published once the legs are cut
         self.points_done = np.zeros(len(pts), dtype=bool)  # what the task counts as visited
-        self.return_home = bool(info.extra.get("return_home", False))
-        self.homes = info.extra.get("homes")  # (n, 3) m or None
-        self.costs = CostModel(self.metric, self.safe_altitude, info.v_max, info.extra.get("a_max"))
+        self.return_home = bool(tour.return_home)
+        self.homes = tour.homes  # (n, 3) m
+        self.costs = CostModel(self.metric, self.safe_altitude, info.v_max, tour.a_max)
         self.point_cost = self.costs.matrix(pts, pts)  # (W, W)
         self.result = solve_tsp(self.point_cost, self.aco, rng=rng)
         self.tour = self.result.tour  # (W,) closed tour

@@ -26,6 +26,7 @@ from pydantic import Field
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.planning.base import TaskView, TourPlan
 from pybullet_swarm.planning.views.points import Points
+from pybullet_swarm.planning.views.tour import TourLayout
 from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.types import Event, TimeSeries
@@ -176,15 +177,15 @@ class TourRuntime(TaskBase):
 
     # -------------------------------------------------------------- protocol
     def task_info(self) -> dict[str, Any]:
-        """Keyword arguments of ``TaskInfo``: the points as ``route`` and the tour's extras."""
-        extra: dict[str, Any] = {
-            "visit_radius": self.spec.visit_radius,
-            "return_home": self.spec.return_home,
-            "homes": self.homes.copy(),
-        }
-        if self.a_max is not None:
-            extra["a_max"] = self.a_max.copy()
-        return {"route": self.points.copy(), "extra": extra}
+        """Keyword arguments of ``TaskInfo``: the tour's ``layout`` (points, visit radius, homes)."""
+        layout = TourLayout(
+            points=self.points.copy(),
+            visit_radius=self.spec.visit_radius,
+            return_home=self.spec.return_home,
+            homes=self.homes.copy(),
+            a_max=None if self.a_max is None else self.a_max.copy(),
+        )
+        return {"layout": layout}
 
     def observe(self, t: float, positions: NDArray[np.float64]) -> bool:
         """Mark the points agents at ``positions`` (n, 3) m passed since the last call; True once completed."""

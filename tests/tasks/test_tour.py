@@ -63,7 +63,7 @@ def test_return_home_completes_only_with_every_agent_above_its_start():
     assert not rt.observe(0.2, [[0.5, 0.5, 0.4], [2.0, 1.0, 1.5]])  # agent 1 still away
     assert rt.observe(0.3, [[0.5, 0.5, 0.42], [3.0, 0.55, 0.4]])
     assert rt.completed_at == pytest.approx(0.3)
-    assert rt.task_info()["extra"]["homes"].tolist() == [[0.5, 0.5, 0.4], [3.0, 0.5, 0.4]]
+    assert rt.task_info()["layout"].homes.tolist() == [[0.5, 0.5, 0.4], [3.0, 0.5, 0.4]]
 
 
 @pytest.mark.parametrize(
