@@ -117,6 +117,21 @@ def _refuse(kind: str, name: str, origin: Origin, why: str) -> PluginRefused:
     return exc
 
 
+def _as_class(kind: str, name: str, factory: Any, origin: Origin) -> Any:
+    """``factory`` when it is a class (whose attributes the protocols name), else refused."""
+    if not isinstance(factory, type):
+        raise _refuse(kind, name, origin, f"must be a class, got {type(factory).__name__}")
+    return factory
+
+
+def _params_of(kind: str, name: str, cls: Any, params: type[Params] | None, origin: Origin) -> type[Params]:
+    """The plug-in's parameter model (``params``, else ``cls.Params``, else none), else refused."""
+    try:
+        return _model(cls, params, name)
+    except TypeError:
+        raise _refuse(kind, name, origin, "Params must be a subclass of planning.params.Params") from None
+
+
 def planner_entry(
     name: str,
     factory: Any,
@@ -132,9 +147,7 @@ def planner_entry(
         PluginRefused: a plug-in that is not a planner (what is missing named).
         TypeError: the same for a built-in one.
     """
-    if not isinstance(factory, type):
-        raise _refuse("planner", name, origin, f"must be a class, got {type(factory).__name__}")
-    cls: Any = factory  # a class now, whose attributes the protocol names
+    cls = _as_class("planner", name, factory, origin)
     if not isinstance(getattr(cls, "centralized", None), bool):
         raise _refuse("planner", name, origin, "missing the class attribute centralized (True or False)")
     central = cls.centralized
@@ -144,15 +157,11 @@ def planner_entry(
         raise _refuse("planner", name, origin, f"not a {protocol.__name__}: missing {', '.join(lacks)}")
     if not tasks or not all(isinstance(t, str) for t in tasks):
         raise _refuse("planner", name, origin, f"tasks must name at least one task kind, got {tasks!r}")
-    try:
-        model = _model(factory, params, name)
-    except TypeError:
-        raise _refuse("planner", name, origin, "Params must be a subclass of planning.params.Params") from None
     return PlannerEntry(
         factory,
         description,
         tuple(tasks),
-        model,
+        _params_of("planner", name, cls, params, origin),
         origin=origin,
         centralized=central,
         make_medium=cls.make_medium if plugins.declares(factory, ProvidesMedium) else None,
@@ -206,20 +215,14 @@ def avoidance_entry(
         PluginRefused: a plug-in that is not a layer (what is missing named).
         TypeError: the same for a built-in one.
     """
-    if not isinstance(factory, type):
-        raise _refuse("avoidance", name, origin, f"must be a class, got {type(factory).__name__}")
-    cls: Any = factory
+    cls = _as_class("avoidance", name, factory, origin)
     lacks = plugins.missing(cls, AvoidanceLayer, data=("needs_range_sensors",))
     if lacks:
         raise _refuse("avoidance", name, origin, f"not an AvoidanceLayer: missing {', '.join(lacks)}")
-    try:
-        model = _model(factory, params, name)
-    except TypeError:
-        raise _refuse("avoidance", name, origin, "Params must be a subclass of planning.params.Params") from None
     return AvoidanceEntry(
         factory,
         description,
-        model,
+        _params_of("avoidance", name, cls, params, origin),
         origin=origin,
         needs_range_sensors=bool(cls.needs_range_sensors),
         publishes_artefacts=plugins.declares(factory, PublishesArtefacts),
