@@ -98,7 +98,6 @@ class TaskInfo(Generic[L]):
         agent_radius: m, radius of the circle enclosing an airframe.
         v_max: (3,) m/s per-axis velocity limit.
         a_max: (3,) m/s^2 per-axis acceleration limit.
-        route: (W, 3) m, waypoints of a route task (empty when none).
         layout: the task's own static layout.
         extra: task-specific static data.
     """
@@ -108,7 +107,6 @@ class TaskInfo(Generic[L]):
     agent_radius: float
     v_max: NDArray[np.float64]
     a_max: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.full(3, np.inf))
-    route: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
     layout: L = None  # type: ignore[assignment]  # None: the task publishes no layout of its own
     extra: dict[str, Any] = dataclasses.field(default_factory=dict)
 

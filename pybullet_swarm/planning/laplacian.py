@@ -8,7 +8,7 @@ and commands, per axis,
 
     v_i = -k sum_j L_ij (x_j - b_j) = -k sum_{j ~ i} A_ij ((x_i - b_i) - (x_j - b_j))
 
-with ``b`` the task's formation slots (``TaskInfo.extra["formation_slots"]``, centred). On the
+with ``b`` the task's formation slots (``RouteLayout.formation_slots``, centred). On the
 kinematic model ``x_dot = v`` the formation error ``e = (x - b) - mean(x - b)`` then decays as
 ``exp(-k lambda_2 t)`` (slowest mode), lambda_2 the graph's algebraic connectivity.
 
@@ -37,7 +37,8 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.errors import ConfigError
-from pybullet_swarm.planning.base import Command, Observation, TaskInfo
+from pybullet_swarm.planning.base import Command, Observation
+from pybullet_swarm.planning.views.route import RouteInfo
 from pybullet_swarm.planning.params import ParamRuleError, Params, PlanContext
 from pybullet_swarm.planning.reynolds import RouteFollower, migration, scale_to_limits, separation, switch_radius_from
 
@@ -185,7 +186,7 @@ class LaplacianParams(Params):
 
 
 class LaplacianPlanner:
-    """Decentralised Laplacian formation keeping with migration along ``TaskInfo.route``.
+    """Decentralised Laplacian formation keeping with migration along the route (``RouteLayout.route``).
 
     Args:
         params: validated ``LaplacianParams`` (default: the defaults).
@@ -208,10 +209,10 @@ class LaplacianPlanner:
                 field="task.formation",
             )
 
-    def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
+    def reset(self, agent_id: int, rng: np.random.Generator, info: RouteInfo) -> None:
         """Start a run as agent ``agent_id``: build the graph and read the slots."""
         p = self.params
-        slots = info.extra.get("formation_slots")
+        slots = info.layout.formation_slots
         if slots is None:
             raise ConfigError(
                 "the laplacian planner needs a formation: add task.formation (slots, or the default "
@@ -228,7 +229,7 @@ class LaplacianPlanner:
         self.migration_speed = (
             p.migration_speed if p.migration_speed is not None else (0.7 * v_h if math.isfinite(v_h) else 0.5)
         )
-        self.route = RouteFollower(info.route, switch_radius_from(info, p.switch_radius))
+        self.route = RouteFollower(info.layout.route, switch_radius_from(info, p.switch_radius))
 
     def velocity(self, obs: Observation) -> NDArray[np.float64]:
         """The commanded velocity (3,) m/s for this observation."""

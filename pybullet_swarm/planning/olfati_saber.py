@@ -24,7 +24,7 @@ r = 1.2 d, d_beta = 0.6 d, r_beta = 1.2 d_beta) with the lattice spacing d scale
 (2.5 m instead of 7 m); the gains are ours (c2 = 2 sqrt(c1) for each pair), see
 docs/science/flocking.md.
 
-The virtual leader flies the task's circuit (``TaskInfo.extra["circuit"]``: centre and radius m)
+The virtual leader flies the task's circuit (``FlockLayout.circuit``: centre and radius m)
 at v_flock; every agent computes it from the time alone. Velocity commands integrate the input
 over the planner period, ``v_cmd = v_i + u_i dt``, cut to ``v_max``. Altitude is held as in
 ``vasarhelyi``.
@@ -40,7 +40,8 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.planning.arena import ArenaGeometry, altitude_velocity, cap_speed
-from pybullet_swarm.planning.base import Command, Observation, TaskInfo
+from pybullet_swarm.planning.base import Command, Observation
+from pybullet_swarm.planning.views.route import FlockInfo
 from pybullet_swarm.planning.params import Params
 from pybullet_swarm.planning.reynolds import scale_to_limits
 
@@ -157,16 +158,16 @@ class OlfatiSaberPlanner:
     def __init__(self, params: OlfatiSaberParams | None = None) -> None:
         self.params = params if params is not None else OlfatiSaberParams()
 
-    def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
+    def reset(self, agent_id: int, rng: np.random.Generator, info: FlockInfo) -> None:
         """Start a run as agent ``agent_id``: the arena, the leader's circuit and the sigma-distances."""
         p = self.params
         self.agent_id = agent_id
         self.arena = ArenaGeometry.from_info(info)
-        self.v_flock = float(p.v_flock if p.v_flock is not None else info.extra.get("v_flock", 0.6))
+        self.v_flock = float(p.v_flock if p.v_flock is not None else info.layout.v_flock)
         self.v_cap = float(p.v_max if p.v_max is not None else 4.0 / 3.0 * self.v_flock)
-        self.altitude = float(info.extra.get("flock_altitude", 1.0))
+        self.altitude = float(info.layout.altitude)
         self.axis_limits = np.where(np.isfinite(info.v_max), info.v_max, 1e9)  # (3,) m/s
-        cx, cy, radius = info.extra.get("circuit", (*(0.5 * self.arena.size), 0.25 * float(self.arena.size.min())))
+        cx, cy, radius = info.layout.circuit
         self.centre = np.array([cx, cy], dtype=float)
         self.radius = float(radius)
         r = p.r if p.r is not None else 1.2 * p.d

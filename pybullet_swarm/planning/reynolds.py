@@ -16,7 +16,7 @@ z)`` pulls the agent back. Agents below half the band's floor (on the ground, ta
 climb vertically before any horizontal term acts. The sum is scaled down, direction kept,
 to the per-axis velocity limits.
 
-Waypoints. Every agent keeps its own index into ``TaskInfo.route`` and moves on when the
+Waypoints. Every agent keeps its own index into the route (``RouteLayout.route``) and moves on when the
 centroid of itself and its sensed neighbours is within ``switch_radius`` (default three
 quarters of the task's ``pass_radius``) of the current waypoint, so that the task (judging the
 swarm's centroid against ``pass_radius``) has counted it when the flock turns.
@@ -32,7 +32,8 @@ import pydantic
 from numpy.typing import NDArray
 from pydantic import Field
 
-from pybullet_swarm.planning.base import Command, Observation, TaskInfo
+from pybullet_swarm.planning.base import Command, Observation
+from pybullet_swarm.planning.views.route import RouteInfo
 from pybullet_swarm.planning.params import ParamRuleError, Params
 
 
@@ -151,15 +152,15 @@ class RouteFollower:
         return self.route[self.index]
 
 
-def switch_radius_from(info: TaskInfo, value: float | None) -> float:
+def switch_radius_from(info: RouteInfo, value: float | None) -> float:
     """The waypoint switch radius m: ``value``, else 0.75 x the task's pass radius (0.2 m without one)."""
     if value is not None:
         return float(value)
-    return 0.75 * float(info.extra.get("pass_radius", 0.27))
+    return 0.75 * float(info.layout.pass_radius)
 
 
 class ReynoldsPlanner:
-    """Decentralised Reynolds flocking with a migratory urge along ``TaskInfo.route``.
+    """Decentralised Reynolds flocking with a migratory urge along the route (``RouteLayout.route``).
 
     Args:
         params: validated ``ReynoldsParams`` (default: the defaults).
@@ -172,7 +173,7 @@ class ReynoldsPlanner:
     def __init__(self, params: ReynoldsParams | None = None) -> None:
         self.params = params if params is not None else ReynoldsParams()
 
-    def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
+    def reset(self, agent_id: int, rng: np.random.Generator, info: RouteInfo) -> None:
         """Start a run as agent ``agent_id``."""
         p = self.params
         self.agent_id = agent_id
@@ -181,7 +182,7 @@ class ReynoldsPlanner:
         self.migration_speed = (
             p.migration_speed if p.migration_speed is not None else (0.8 * v_h if math.isfinite(v_h) else 0.5)
         )
-        self.route = RouteFollower(info.route, switch_radius_from(info, p.switch_radius))
+        self.route = RouteFollower(info.layout.route, switch_radius_from(info, p.switch_radius))
 
     def velocity(self, obs: Observation) -> NDArray[np.float64]:
         """The commanded velocity (3,) m/s for this observation."""

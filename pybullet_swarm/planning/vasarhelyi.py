@@ -43,7 +43,8 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from pybullet_swarm.planning.arena import ArenaGeometry, altitude_velocity, cap_speed
-from pybullet_swarm.planning.base import Command, Observation, TaskInfo
+from pybullet_swarm.planning.base import Command, Observation
+from pybullet_swarm.planning.views.route import FlockInfo
 from pybullet_swarm.planning.params import Params
 from pybullet_swarm.planning.reynolds import scale_to_limits
 
@@ -173,14 +174,14 @@ class VasarhelyiPlanner:
     def __init__(self, params: VasarhelyiParams | None = None) -> None:
         self.params = params if params is not None else VasarhelyiParams()
 
-    def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
+    def reset(self, agent_id: int, rng: np.random.Generator, info: FlockInfo) -> None:
         """Start a run as agent ``agent_id``: the arena, the speeds and a start heading."""
         p = self.params
         self.agent_id = agent_id
         self.arena = ArenaGeometry.from_info(info)
-        self.v_flock = float(p.v_flock if p.v_flock is not None else info.extra.get("v_flock", 0.6))
+        self.v_flock = float(p.v_flock if p.v_flock is not None else info.layout.v_flock)
         self.v_cap = float(p.v_max if p.v_max is not None else 4.0 / 3.0 * self.v_flock)
-        self.altitude = float(info.extra.get("flock_altitude", 1.0))
+        self.altitude = float(info.layout.altitude)
         self.axis_limits = np.where(np.isfinite(info.v_max), info.v_max, 1e9)  # (3,) m/s
         heading = rng.uniform(0.0, 2.0 * math.pi)
         self.start_heading = np.array([math.cos(heading), math.sin(heading)])

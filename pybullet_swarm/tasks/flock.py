@@ -6,9 +6,9 @@ the samples after ``warmup_s`` (take-off and the first sorting out of the flock)
 the scenario's ``arena.size`` (give it ``arena.walls: true`` for physical walls); pillars are the
 scenario's ``arena.obstacles``.
 
-Agents are told (``TaskInfo.extra``): ``flock_altitude`` (m), ``v_flock`` (m/s, the preferred
-speed every flocking planner flies at unless its own parameter says otherwise), ``r_coll`` (m)
-and ``connection_range_m`` (m). ``TaskInfo.route`` is a circuit: laps of a circle around the
+Agents are told (``TaskInfo.layout``, a ``FlockLayout``): ``altitude`` (m), ``v_flock`` (m/s, the
+preferred speed every flocking planner flies at unless its own parameter says otherwise), ``r_coll``
+(m) and ``connection_range_m`` (m). Its ``route`` is a circuit: laps of a circle around the
 arena's centre at the flight altitude, which planners with a migratory urge (``reynolds``) follow
 and ``olfati_saber``'s virtual leader flies; ``vasarhelyi`` is self-propelled and ignores it.
 
@@ -29,13 +29,14 @@ from pydantic import Field
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.flock import FLOCK_KEYS, FitnessTolerances, flock_metrics, order_series
 from pybullet_swarm.planning.base import TaskView
+from pybullet_swarm.planning.views.route import FlockLayout
 from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import ScenarioLike, TaskBase, TaskContext
 from pybullet_swarm.types import Event, TimeSeries
 
-#: waypoints per lap of the circuit the task publishes as ``TaskInfo.route``
+#: waypoints per lap of the circuit the task publishes as the route of its ``FlockLayout``
 CIRCUIT_POINTS = 8
-#: m, a waypoint of the circuit counts as reached this close (``TaskInfo.extra["pass_radius"]``)
+#: m, a waypoint of the circuit counts as reached this close (``FlockLayout.pass_radius``)
 CIRCUIT_PASS_RADIUS = 1.0
 
 
@@ -137,20 +138,20 @@ class FlockRuntime(TaskBase):
         )
 
     def task_info(self) -> dict[str, Any]:
-        """The circuit as ``route``; the flight altitude, speed, collision distance and connection range as extras."""
+        """The circuit as the route of a ``FlockLayout``, with the flight altitude, speed, collision distance and
+        connection range."""
         s = self.spec
         centre = 0.5 * self.arena_size
-        return {
-            "route": self.circuit(),
-            "extra": {
-                "pass_radius": CIRCUIT_PASS_RADIUS,
-                "circuit": (float(centre[0]), float(centre[1]), self.circuit_radius()),
-                "flock_altitude": s.altitude,
-                "v_flock": s.v_flock,
-                "r_coll": s.r_coll,
-                "connection_range_m": s.connection_range_m,
-            },
-        }
+        layout = FlockLayout(
+            route=self.circuit(),
+            pass_radius=CIRCUIT_PASS_RADIUS,
+            circuit=(float(centre[0]), float(centre[1]), self.circuit_radius()),
+            altitude=s.altitude,
+            v_flock=s.v_flock,
+            r_coll=s.r_coll,
+            connection_range_m=s.connection_range_m,
+        )
+        return {"layout": layout}
 
     def update(self, t: float, positions: NDArray[np.float64]) -> bool:
         """Never completed: the flock flies until the time limit."""

@@ -9,7 +9,7 @@ Formation. With a ``formation`` section the swarm must also hold a shape: each a
 (an offset, m, from the formation's reference point). The default is the five-robot formation
 of the course report (a leader and four robots at 0.15 m / 0.3 m offsets), scaled by ``scale``
 from its 7 cm robots to our airframes (2: a 15 cm quadrotor). The slots reach planners through
-``TaskInfo.extra["formation_slots"]`` (centred on their mean).
+``RouteLayout.formation_slots`` (``TaskInfo.layout``, centred on their mean).
 
 Metrics (``metrics.json``): ``route_time_s``, ``waypoints_passed``, ``waypoints_total``,
 ``waypoint_times_s``, ``agents_passed_all`` (agents that passed every waypoint themselves),
@@ -33,6 +33,7 @@ from pydantic import Field
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.metrics.flocking import route_fitness_series, time_average
 from pybullet_swarm.planning.base import TaskView
+from pybullet_swarm.planning.views.route import RouteLayout
 from pybullet_swarm.planning.views.points import Points
 from pybullet_swarm.tasks import register_task
 from pybullet_swarm.tasks.base import ScenarioLike, TaskBase, TaskContext
@@ -180,10 +181,8 @@ class RouteRuntime(TaskBase):
 
     def task_info(self) -> dict[str, Any]:
         """Keyword arguments of ``TaskInfo``: the waypoints as ``route``; pass radius and slots as extras."""
-        extra: dict[str, Any] = {"pass_radius": self.spec.pass_radius}
-        if self.slots is not None:
-            extra["formation_slots"] = self.slots - self.slots.mean(axis=0)
-        return {"route": self.route.copy(), "extra": extra}
+        slots = None if self.slots is None else self.slots - self.slots.mean(axis=0)
+        return {"layout": RouteLayout(self.route.copy(), self.spec.pass_radius, slots)}
 
     def observe(self, t: float, positions: NDArray[np.float64]) -> bool:
         """Advance the waypoints passed by agents at ``positions`` (n, 3) m; True once completed."""

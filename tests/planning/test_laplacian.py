@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from pybullet_swarm.planning.base import Observation, TaskInfo
+from pybullet_swarm.planning.views.route import RouteLayout
 from pybullet_swarm.planning.laplacian import (
     LaplacianParams,
     LaplacianPlanner,
@@ -60,8 +61,7 @@ def test_kinematic_convergence_rate_matches_algebraic_connectivity(graph: str) -
         n_agents=n,
         agent_radius=0.1,
         v_max=np.full(3, np.inf),
-        route=np.array([[5.0, 5.0, 1.0]]),
-        extra={"formation_slots": slots},
+        layout=RouteLayout(np.array([[5.0, 5.0, 1.0]]), pass_radius=0.3, formation_slots=slots),
     )
     planners = []
     rng = np.random.default_rng(7)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pybullet_swarm.planning.base import Observation, TaskInfo
+from pybullet_swarm.planning.views.route import FlockLayout
 from pybullet_swarm.planning.olfati_saber import (
     OlfatiSaberParams,
     OlfatiSaberPlanner,
@@ -56,7 +57,15 @@ def _planner() -> OlfatiSaberPlanner:
         n_agents=1,
         agent_radius=0.1,
         v_max=np.full(3, 5.0),
-        extra={"v_flock": 0.5, "flock_altitude": 1.0, "circuit": (50.0, 50.0, 10.0)},
+        layout=FlockLayout(
+            route=np.zeros((0, 3)),
+            pass_radius=0.3,
+            circuit=(50.0, 50.0, 10.0),
+            altitude=1.0,
+            v_flock=0.5,
+            r_coll=0.3,
+            connection_range_m=5.0,
+        ),
     )
     pl.reset(0, np.random.default_rng(0), info)
     return pl

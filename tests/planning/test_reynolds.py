@@ -7,6 +7,7 @@ import pytest
 
 from pybullet_swarm.planning import reynolds as ry
 from pybullet_swarm.planning.base import CommandKind, Observation, TaskInfo
+from pybullet_swarm.planning.views.route import RouteLayout
 
 
 def test_separation_points_away_and_grows_closer() -> None:
@@ -66,8 +67,7 @@ def test_planner_climbs_first_then_migrates_and_switches_waypoints() -> None:
         n_agents=1,
         agent_radius=0.1,
         v_max=np.full(3, 0.3),
-        route=np.array([[2.0, 1.0, 1.0], [2.0, 3.0, 1.0]]),
-        extra={"pass_radius": 0.3},
+        layout=RouteLayout(np.array([[2.0, 1.0, 1.0], [2.0, 3.0, 1.0]]), pass_radius=0.3),
     )
     pl = ry.ReynoldsPlanner()
     pl.reset(0, np.random.default_rng(0), info)

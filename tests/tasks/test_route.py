@@ -42,7 +42,7 @@ def test_default_formation_is_the_report_formation_scaled() -> None:
     rt = RouteRuntime(_spec(formation={"scale": 2.0}), 5)
     np.testing.assert_allclose(rt.slots[:, :2], 2.0 * SEED_FORMATION)
     info = rt.task_info()
-    np.testing.assert_allclose(info["extra"]["formation_slots"].mean(axis=0), 0.0, atol=1e-12)
+    np.testing.assert_allclose(info["layout"].formation_slots.mean(axis=0), 0.0, atol=1e-12)
 
 
 @pytest.mark.parametrize(

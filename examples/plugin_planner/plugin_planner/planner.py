@@ -1,10 +1,12 @@
 """``follow_route``: each agent flies to the route's next waypoint and keeps its distance from the others.
 
 A decentralised planner for ``route`` tasks, from pybullet_swarm's public protocol only. Every
-agent holds its own index into the route (``TaskInfo.route``, known before the run) and moves on to
-the next waypoint once the centroid of itself and the neighbours it senses is within
-``switch_radius`` of the present one horizontally (with every agent in sensing range, that is the
-swarm's centroid: the route task's ``centroid`` criterion passes the waypoint at the same moment).
+agent holds its own index into the route (``info.layout.route``, a ``RouteLayout`` every agent is
+told before the run) and moves on to the next waypoint once the centroid of itself and the
+neighbours it senses is within ``switch_radius`` of the present one horizontally (with every agent
+in sensing range, that is the swarm's centroid: the route task's ``centroid`` criterion passes the
+waypoint at the same moment).
+
 Its velocity command is the sum of three terms, clipped to the vehicle's limits:
 
 - migration: towards the waypoint at ``speed`` m/s, slowing down within ``slow_radius`` of the last one;
@@ -20,8 +22,9 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field
 
-from pybullet_swarm.planning.base import Command, Observation, TaskInfo
+from pybullet_swarm.planning.base import Command, Observation
 from pybullet_swarm.planning.params import Params
+from pybullet_swarm.planning.views.route import RouteInfo
 
 
 class FollowRouteParams(Params):
@@ -52,10 +55,10 @@ class FollowRoute:
         self.params = params if params is not None else FollowRouteParams()
         self.index = 0
 
-    def reset(self, agent_id: int, rng: np.random.Generator, info: TaskInfo) -> None:
+    def reset(self, agent_id: int, rng: np.random.Generator, info: RouteInfo) -> None:
         """Start a run as agent ``agent_id`` at the route's first waypoint."""
         self.agent_id = agent_id
-        self.route = np.asarray(info.route, dtype=float).reshape(-1, 3)  # (W, 3) m
+        self.route = np.asarray(info.layout.route, dtype=float).reshape(-1, 3)  # (W, 3) m
         self.v_max = np.where(np.isfinite(info.v_max), info.v_max, 1e9)  # (3,) m/s
         self.index = 0
 
