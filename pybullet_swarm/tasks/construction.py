@@ -252,6 +252,7 @@ def layout_info(spec: ConstructionTask, *, agent_half_height: float, agent_radiu
         view_norm=spec.view_norm,
         # m, how far above its slot a released box is still captured by the guide (0: free placement)
         guide_height=spec.guide_height * spec.box_size if spec.placement == "guided" else 0.0,
+        box_mass=spec.box_mass,
     )
     return {"layout": layout}
 

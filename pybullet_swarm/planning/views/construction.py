@@ -37,6 +37,7 @@ class ConstructionLayout:
         view_norm: "chebyshev" (largest per-axis difference, as the thesis measures it) or "euclidean".
         guide_height: m, how far above its slot a released box is still captured by the guide
             (0: free placement).
+        box_mass: kg, mass of a box (the payload a carrier lifts).
     """
 
     depot: NDArray[np.float64]
@@ -48,6 +49,7 @@ class ConstructionLayout:
     view_radius: float = 0.3
     view_norm: str = "chebyshev"
     guide_height: float = 0.0
+    box_mass: float = 0.0
 
 
 #: ``ConstructionState.object_state`` of a box that lies free, hangs under its carrier, sits in its slot
