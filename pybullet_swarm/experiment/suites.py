@@ -328,7 +328,14 @@ def layout_data(layout: Layout, defaults: Generator, base_dir: Path, *, source: 
 
     if isinstance(layout, ScenarioLayout):
         local = base_dir / layout.scenario
-        data = read_yaml(local if local.is_file() else resolve_scenario_path(layout.scenario))
+        try:
+            data = read_yaml(local if local.is_file() else resolve_scenario_path(layout.scenario))
+        except ConfigError as exc:
+            raise ConfigError(
+                f"{exc.detail} (a scenario file relative to the suite, or a bundled scenario's name)",
+                source=source,
+                field=f"layout {layout.name}.scenario",
+            ) from None
         if not isinstance(data, dict):
             raise ConfigError("is not a scenario (a mapping of sections)", source=source, field=f"layout {layout.name}")
         data = copy.deepcopy(data)

@@ -139,6 +139,14 @@ def test_failed_runs_are_kept_on_resume_and_run_again_when_asked(tmp_path, capsy
     assert data["configurations"][0]["error"] == 0 and data["configurations"][0]["timeout"] == 2
 
 
+def test_a_layout_whose_scenario_is_missing_is_refused_naming_the_suite_and_layout(tmp_path):
+    dev = {"seeds": [0], "layouts": [{"name": "mine", "scenario": "no_such.yaml"}]}
+    suite = tiny_suite(tmp_path, splits={**TINY["splits"], "dev": dev})
+    with pytest.raises(ConfigError) as err:
+        benchmark.plan_benchmark(suite, "dev", build=False)
+    assert str(err.value).startswith("tiny.yaml: layout mine.scenario: ") and "\n" not in str(err.value)
+
+
 def test_a_directory_of_another_split_is_refused(tmp_path):
     out = tmp_path / "bench"
     out.mkdir()
