@@ -78,13 +78,15 @@ def test_explicit_altitudes_that_do_not_rise_are_refused_when_the_scenario_loads
     assert "planner.params.cruise_altitude" in capsys.readouterr().err
 
 
-def test_slots_out_of_every_view_are_refused_naming_the_view_radius():
+def test_slots_out_of_every_view_derive_the_view_radius_and_a_set_one_too_small_is_refused():
+    derived = load_scenario("construction", SLAB3, planner="stigmergy").task.view_radius  # unset: from the layout
+    assert derived is not None and derived > 0.15
     with pytest.raises(ConfigError) as exc:
-        load_scenario("construction", SLAB3, planner="stigmergy")
+        load_scenario("construction", {**SLAB3, "task.view_radius": 0.15}, planner="stigmergy")  # set: refused
     assert exc.value.field == "task.view_radius"
-    assert "out of view" in str(exc.value)
-    load_scenario("construction", SLAB3, planner="shortest_path")  # the baseline sees everything
-    load_scenario("construction", {**SLAB3, "task.view_radius": 0.3}, planner="stigmergy")  # sees it from above
+    assert "out of view" in str(exc.value) and f"at least {derived:.3f} m" in str(exc.value)
+    assert load_scenario("construction", SLAB3, planner="shortest_path").task.view_radius is None  # sees everything
+    load_scenario("construction", {**SLAB3, "task.view_radius": derived}, planner="stigmergy")  # the least that works
 
 
 def test_hidden_columns_are_searched_for_from_above():
