@@ -23,7 +23,7 @@ from pybullet_swarm.control.rotations import quat_to_euler
 from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.recorder import Recorder, TimeSeries
 from pybullet_swarm.experiment.scenario import WALL_THICKNESS, Scenario
-from pybullet_swarm.metrics.collisions import COLLISION_CLASSES, CollisionClass, ContactTracker
+from pybullet_swarm.metrics.collisions import COLLISION_CLASSES, CollisionClass, ContactTracker, IncidentCounter
 from pybullet_swarm.metrics.flight import flight_metrics
 from pybullet_swarm.rng import named_rng
 from pybullet_swarm.planning.base import (
@@ -162,8 +162,8 @@ class Simulation:
             reference_step=ReferenceStep.from_limits(sc.velocity_limits(), sc.acceleration_limits()),
         )
         self.shaper = ReferenceShaper(n, sc.velocity_limits(), sc.acceleration_limits(), 1.0 / s.control_hz)
-        # interaction forces between vehicles, added to the controller's wrench every physics step
-        self.downwash = Downwash(p.downwash_params, kf=p.kf, mass=p.mass) if s.downwash and n > 1 else None
+        # rotor wakes on the vehicles and boxes below them, added to the forces every physics step
+        self.downwash = Downwash(p.downwash_params) if s.downwash else None
         self.state_array = np.zeros((n, 13))  # position, quaternion, velocity, angular velocity (world)
         self.world.read_agent_states(self.state_array)
         self.shaper.reset(self.state_array[:, :3])
@@ -174,6 +174,7 @@ class Simulation:
         self.diameter = float(max(p.collision_size[0], p.collision_size[1]))  # m, agent "diameter"
         self.max_height = self.starts[:, 2].copy()  # m, highest recorded altitude per agent
         self.contacts = ContactTracker(self._classify, self.dt * self.contact_every, debounce_s=0.1)
+        self.incidents = IncidentCounter(self.contacts.debounce_s)  # contact events that belong together count once
         # m/s, each agent's lowest vertical velocity since the last contact read (a ground impact's speed); the
         # state's own when contacts are read every step
         self._vz_low = np.full(n, np.inf) if self.contact_every > 1 else self.state_array[:, 9]
@@ -218,6 +219,12 @@ class Simulation:
             ),
         )
         self.info = self._task_info()
+        # the boxes the wakes push on (every movable one, free or carried), their poses read every physics step
+        sizes = self.world.dynamic_boxes if self.downwash is not None else {}
+        self.wake_boxes = list(sizes)
+        self._box_pose = np.zeros((len(sizes), 7))
+        self._box_half = 0.5 * np.array(list(sizes.values()), dtype=float).reshape(-1, 3)
+        self._box_force = np.zeros((len(sizes), 3))
         # stall detection: the task's progress count and when (and where the agents were) it last changed
         self.stall_time: float | None = self.task.stall_time_s
         self._progress: int | None = None
@@ -286,6 +293,12 @@ class Simulation:
         if self.wind_boxes:
             self.world.read_body_velocities(self.wind_boxes, self._box_velocities)
             self.world.apply_body_forces(self.wind_boxes, wind.box_forces(self._box_velocities[:, :3]))
+
+    def _push_boxes(self, box_force: NDArray[np.float64]) -> None:
+        """Apply the wakes' forces (k, 3) N on the boxes that have one (most boxes are in no wake)."""
+        hit = np.flatnonzero(box_force.any(axis=1))
+        if hit.size:
+            self.world.apply_body_forces([self.wake_boxes[i] for i in hit.tolist()], box_force[hit])
 
     def enable_range_sensors(self) -> None:
         """Give every agent the fan of range rays of ``sensing.range`` (idempotent; avoidance layers
@@ -400,6 +413,7 @@ class Simulation:
             downwash=bool(sc.sim.downwash),
             downwash_model=p.downwash_params,
             mass=float(p.mass),
+            load_mass=float(getattr(sc.task, "box_mass", 0.0)),
         )
 
     def _make_planner(self) -> None:
@@ -628,8 +642,21 @@ class Simulation:
         """Hand an agent's task action to the task now; a changed payload goes to the controller."""
         payload = self.task.apply(agent, action, self.time if t is None else t, self.state_array[agent, :3])
         if payload is not None:
-            self.controller.set_payload(agent, payload)
+            self.controller.set_payload(agent, payload + self.own_wake_load(payload))
             self.contacts.reclassify_all()  # a box changed role: its touching pairs count differently
+
+    def own_wake_load(self, payload: float) -> float:
+        """kg, what the drag of a carrier's own wake on the box it holds weighs, for the thrust feed-forward of a
+        carrier of ``payload`` kg (0 without wakes or a box): the drag is k T at thrust T (the wake's dynamic
+        pressure grows with T), so the carrier hovers at T = (m + payload) g / (1 - k), and the box pulls like
+        ``(m + payload) k / (1 - k)`` kg more. Without it the position loop's integrator alone would carry a load
+        of about a quarter of the weight, more than its limit: the carrier would hang below its reference."""
+        info = self.info
+        if self.downwash is None or payload <= 0.0 or info.box_size <= 0.0:
+            return 0.0
+        k = self.downwash.params.force_on_box(info.grasp_height - 0.5 * info.box_size, info.box_size, thrust=1.0)
+        k = min(k, 0.5)  # a box that takes more than half the thrust is no load to feed forward
+        return (float(self.params.mass) + payload) * k / (1.0 - k)
 
     def perceive(self, *, neighbours: bool | None = None) -> Perception:
         """The swarm's perception snapshot now (one spatial query; neighbour noise drawn when flying on
@@ -711,11 +738,21 @@ class Simulation:
             return "wake", f"no agent-agent contact in the last {CRASH_LOOKBACK_S:g} s; {wake}"
         return "other", f"no agent-agent contact in the last {CRASH_LOOKBACK_S:g} s; {wake}"
 
+    def _unit(self, body: int) -> str | None:
+        """What a body in a contact event stands for when events are grouped into incidents: an agent, a held
+        body as its holder, any other moving body as itself; the ground, walls and obstacles as nothing."""
+        kind = self.world.body_kind(body)
+        if kind in (BodyKind.GROUND, BodyKind.WALL, BodyKind.OBSTACLE):
+            return None
+        holder = self.world.holder(body) if kind is not BodyKind.AGENT else None
+        return self.world.body_name(body if holder is None else holder)
+
     def _on_contacts(self, pairs: AbstractSet[tuple[int, int]]) -> None:
         t = self.time
         for cls, a, b in self.contacts.update(pairs, t):
             wa, wb = self.world.body_name(a), self.world.body_name(b)
             self.events.append(Event(t, cls.value, wa, wb))
+            self.incidents.add(t, tuple(u for u in (self._unit(a), self._unit(b)) if u is not None))
             if cls is CollisionClass.AGENT_GROUND:
                 body = a if self.world.body_kind(a) is BodyKind.AGENT else b
                 i = self.agent_index[body]
@@ -741,7 +778,10 @@ class Simulation:
         tick = physics_tick
         args = ctrl.physics_args(state)
         forces, torques = ctrl.forces, ctrl.torques
-        interact = self.downwash.add_to if self.downwash is not None else None
+        interact = self.downwash.add_to if self.downwash is not None and (self.n > 1 or self.wake_boxes) else None
+        boxes, box_pose, box_half, box_force = self.wake_boxes, self._box_pose, self._box_half, self._box_force
+        read_boxes = world.read_body_poses
+        push = self._push_boxes
         blow = self._blow if self.wind is not None else None
         rotor_speeds = ctrl.rotor_speeds
         apply, advance, read, contact_pairs = (
@@ -773,7 +813,12 @@ class Simulation:
                 ctrl.position_update(sensed, shaper.step())
             worst = tick(*args)
             if interact is not None:
-                interact(state, rotor_speeds, forces)
+                if boxes:
+                    read_boxes(boxes, box_pose)
+                    box_force[:] = 0.0
+                interact(state, rotor_speeds, forces, box_pose, box_half, box_force)
+                if boxes:
+                    push(box_force)
             if blow is not None:
                 blow(state, forces)
             apply(forces, torques)
@@ -849,6 +894,7 @@ class Simulation:
             "completion_time_s": self.task.completed_at,
             "collisions": {c: self.contacts.counts[c] for c in COLLISION_CLASSES},
             "collision_time_s": {c: round(self.contacts.time_s[c], 9) for c in COLLISION_CLASSES},
+            "incidents": self.incidents.count,
         }
         if ts is not None and ts.t.size:
             m.update(flight_metrics(ts, self.params.km))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+import math
 from typing import AbstractSet, Callable
 
 import numpy as np
@@ -19,6 +20,9 @@ class CollisionClass(str, enum.Enum):
     LOAD_LOAD = "load_load"  # two agents' carried boxes
     LOAD_BOX = "load_box"  # a carried box and a free box
     LOAD_STRUCTURE = "load_structure"  # a carried box and a placed one
+    LOAD_GROUND = "load_ground"  # a carried box and the ground
+    LOAD_WALL = "load_wall"  # a carried box and an arena wall
+    LOAD_OBSTACLE = "load_obstacle"  # a carried box and a static obstacle
 
 
 COLLISION_CLASSES: tuple[str, ...] = tuple(c.value for c in CollisionClass)
@@ -88,6 +92,34 @@ class ContactTracker:
                 self._counted.pop(pair, None)
             else:
                 self._counted[pair] = cls
+
+
+class IncidentCounter:
+    """Counts incidents: contact events that belong together count once.
+
+    Two contact events belong to one incident when their onsets are at most ``window_s`` apart (the contact
+    debounce interval) and they share a unit: an agent (its carried box counts as the agent) or a free box;
+    the ground, walls, obstacles and placed boxes are no units (two agents touching the ground at one instant
+    are two incidents). An incident is a chain of such events: an event joins the incident of every unit it
+    touches that had an event within the window before it, else it starts a new one.
+
+    Args:
+        window_s: s, the largest gap between onsets of one incident.
+    """
+
+    def __init__(self, window_s: float) -> None:
+        self.window_s = float(window_s)
+        self.count = 0
+        self._last: dict[str, float] = {}  # unit -> onset time of its latest event
+
+    def add(self, t: float, units: tuple[str, ...]) -> bool:
+        """Account for a contact event at ``t`` s touching ``units``; True when it starts a new incident."""
+        new = not any(t - self._last.get(u, -math.inf) <= self.window_s + 1e-12 for u in units)
+        if new:
+            self.count += 1
+        for u in units:
+            self._last[u] = t
+        return new
 
 
 def proximity_episodes(distances: np.ndarray, threshold: float, dt: float) -> tuple[int, float]:

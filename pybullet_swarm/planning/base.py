@@ -265,6 +265,7 @@ class AvoidanceSetup:
             below it (``sim.downwash``).
         downwash_model: the airframe's downwash constants (what the simulation applies when ``downwash``).
         mass: kg, the airframe's mass (with ``downwash_model``: the wake's strength against the weight).
+        load_mass: kg, the heaviest load an agent carries in the task (a laden agent's wake is the stronger).
     """
 
     n: int
@@ -283,6 +284,7 @@ class AvoidanceSetup:
     downwash: bool = False
     downwash_model: DownwashParams | None = None
     mass: float = 0.0
+    load_mass: float = 0.0
 
 
 @runtime_checkable

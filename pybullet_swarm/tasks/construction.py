@@ -318,6 +318,14 @@ def _box_tilt_and_yaw_error(q: NDArray[np.float64]) -> tuple[NDArray[np.float64]
     return tilt, np.abs(yaw)
 
 
+#: the class of a carried box's contact with a body of the arena, by the body's kind
+_LOAD_ON = {
+    BodyKind.GROUND: CollisionClass.LOAD_GROUND.value,
+    BodyKind.WALL: CollisionClass.LOAD_WALL.value,
+    BodyKind.OBSTACLE: CollisionClass.LOAD_OBSTACLE.value,
+}
+
+
 class ConstructionRuntime(TaskBase):
     """Bodies, grasps and placements of a construction run.
 
@@ -786,11 +794,21 @@ class ConstructionRuntime(TaskBase):
         return (CollisionClass.AGENT_STRUCTURE if self.state[box] == PLACED else CollisionClass.AGENT_BOX).value
 
     def body_contact_class(self, a: int, b: int) -> str | None:
-        """A carried box touching another carried box (``load_load``), a free box (``load_box``) or a placed
-        one (``load_structure``; a box being guided into its slot counts as placed); nothing else counts."""
+        """A carried box touching another carried box (``load_load``), a free box (``load_box``), a placed
+        one (``load_structure``; a box being guided into its slot counts as placed), the ground (``load_ground``),
+        a wall (``load_wall``) or a static obstacle (``load_obstacle``); nothing else counts, nor a carried box set
+        down on the ground within the guide's reach of an open slot (a placement)."""
         i, j = self.body_to_box.get(a), self.body_to_box.get(b)
-        if i is None or j is None:
+        if i is None and j is None:
             return None
+        if i is None or j is None:  # a box and a body of the arena: counts when the box is carried
+            box, other = (i, b) if i is not None else (int(j or 0), a)
+            if self.state[box] != CARRIED:
+                return None
+            kind = self.world.body_kind(other)
+            if kind is BodyKind.GROUND and self._guide_slot(self.world.body_pose(self.bodies[box])[0]) >= 0:
+                return None  # set down into its open slot on the ground: a placement, not a contact
+            return _LOAD_ON.get(kind)
         if self.state[i] != CARRIED:
             i, j = j, i
         if self.state[i] != CARRIED:

@@ -50,14 +50,10 @@ class _VehicleFile(pydantic.BaseModel):
     motor_time_constant: _UpTo10  # s
     max_rotor_speed: _UpTo1e5  # rad/s
     collision_size: tuple[_UpTo100, _UpTo100, _UpTo100]  # m
-    # Rotor size and the downwash model (``pybullet_swarm.vehicle.downwash``); absent fields take
-    # the defaults of ``VehicleParams``: the Crazyflie's constants scaled to this airframe.
-    rotor_radius: _UpTo10 | None = None  # m (default 0.6 arm_length)
-    downwash_alpha: Annotated[float, pydantic.Field(ge=0, le=1e9)] | None = None  # N
-    downwash_zeta: Annotated[float, pydantic.Field(ge=0, le=10.0)] | None = None  # -
-    downwash_eta: Annotated[float, pydantic.Field(ge=-10.0, le=10.0)] | None = None  # m
-    downwash_min_width: _UpTo10 | None = None  # m
-    downwash_momentum_fraction: Annotated[float, pydantic.Field(gt=0, le=2.0)] | None = None  # -
+    # Rotor size and solidity (the wake model, ``pybullet_swarm.vehicle.downwash``); absent: defaults of
+    # ``VehicleParams`` (rotor radius 0.6 arm_length, solidity ``DEFAULT_SOLIDITY``)
+    rotor_radius: _UpTo10 | None = None  # m
+    rotor_solidity: Annotated[float, pydantic.Field(gt=0, le=1.0)] | None = None  # -, blade area / disc area
     # Linear rotor drag near hover (``pybullet_swarm.vehicle.wind``); absent: the Crazyflie's scaled by weight
     drag_xy: Annotated[float, pydantic.Field(ge=0, le=100.0)] | None = None  # N/(m/s)
     drag_z: Annotated[float, pydantic.Field(ge=0, le=100.0)] | None = None  # N/(m/s)
@@ -86,6 +82,10 @@ class _VehicleFile(pydantic.BaseModel):
 
 
 MAX_URDF_BYTES = 10 << 20  # bytes
+
+#: -, rotor solidity of a vehicle file that gives none: two blades of chord 0.19 r at three-quarter radius,
+#: 2 c / (pi r) = 0.12, typical of small fixed-pitch propellers (an estimate, not a measurement)
+DEFAULT_SOLIDITY = 0.12
 
 
 def check_urdf(urdf: Path, *, source: str) -> None:
@@ -155,7 +155,7 @@ class VehicleParams:
     collision_size: tuple[float, float, float]  # m, box extents (x, y, z)
     param_file: Path | None = None  # the YAML these parameters were read from (for error messages)
     rotor_radius: float | None = None  # m (None: 0.6 arm_length, see ``rotor_radius_m``)
-    downwash: DownwashParams | None = None  # None: the Crazyflie's constants scaled (``downwash_params``)
+    rotor_solidity: float | None = None  # -, blade area over disc area (None: ``DEFAULT_SOLIDITY``)
     drag_xy: float | None = None  # N/(m/s), horizontal rotor drag near hover (None: ``drag_coefficients``)
     drag_z: float | None = None  # N/(m/s), vertical rotor drag near hover
 
@@ -174,11 +174,14 @@ class VehicleParams:
 
     @property
     def downwash_params(self) -> DownwashParams:
-        """Constants of the downwash model: the file's, else ``DownwashParams.scaled`` for this airframe
-        (alpha by mass, eta by rotor radius, the narrowest wake the arm length, momentum fraction 0.5)."""
-        if self.downwash is not None:
-            return self.downwash
-        return DownwashParams.scaled(mass=self.mass, rotor_radius=self.rotor_radius_m, arm_length=self.arm_length)
+        """Constants of the wake model (``pybullet_swarm.vehicle.downwash``) of this airframe."""
+        return DownwashParams(
+            rotor_radius=self.rotor_radius_m,
+            arm_length=self.arm_length,
+            kf=self.kf,
+            solidity=DEFAULT_SOLIDITY if self.rotor_solidity is None else float(self.rotor_solidity),
+            configuration=self.configuration,
+        )
 
     @property
     def rotor_xy(self) -> NDArray[np.float64]:
@@ -267,11 +270,7 @@ def _load(path: Path, stamp: tuple[int, int] = (0, 0)) -> VehicleParams:
     check_urdf(urdf, source=path.name)
     fields = data.model_dump()
     fields.pop("urdf")
-    dw = {k.removeprefix("downwash_"): fields.pop(k) for k in list(fields) if k.startswith("downwash_")}
     params = VehicleParams(urdf_path=urdf, param_file=path, **fields)
-    if any(v is not None for v in dw.values()):  # the file's constants over the scaled defaults
-        given = {k: v for k, v in dw.items() if v is not None}
-        params = dataclasses.replace(params, downwash=dataclasses.replace(params.downwash_params, **given))
     return params
 
 

@@ -135,6 +135,7 @@ class World:
         self.ghost_bound_exceeded = 0  # broad phases that found a body beyond its bound (see _plan_ghosts)
         self._reach: dict[int, float] = {}  # m, per body: farthest point of its shape from its base position
         self._box_sizes: dict[int, tuple[float, float, float]] = {}  # m, edges of every dynamic box
+        self._held: dict[int, tuple[int, int]] = {}  # constraint of ``attach`` -> (child, parent)
 
     # ------------------------------------------------------------------ bodies
     def add_ground(self) -> int:
@@ -597,7 +598,15 @@ class World:
             physicsClientId=cid,
         )
         pb.changeConstraint(c, maxForce=float(max_force), physicsClientId=cid)
+        self._held[c] = (child, parent)
         return c
+
+    def holder(self, body: int) -> int | None:
+        """The body that holds ``body`` through ``attach`` (a carried box's carrier), or None."""
+        for child, parent in self._held.values():
+            if child == body:
+                return parent
+        return None
 
     def pin(
         self, body: int, position: Sequence[float], quaternion: Sequence[float] | None = None, max_force: float = 1.0
@@ -644,6 +653,7 @@ class World:
     def detach(self, constraint: int) -> None:
         """Remove a constraint made by ``attach``."""
         pb.removeConstraint(constraint, physicsClientId=self._cid)
+        self._held.pop(constraint, None)
 
     # --------------------------------------------------------------- sensing
     def ray_cast(

@@ -172,3 +172,19 @@ def test_contacts_read_at_the_control_rate_count_the_same_encounters(make_sim, m
     n = sum(every.contacts.counts.values())
     for cls, t in every.contacts.time_s.items():
         assert coarse.contacts.time_s[cls] == pytest.approx(t, abs=n * period + 1e-9)
+
+
+def test_incidents_count_events_that_share_a_unit_within_the_window_once():
+    """An incident is a chain of contact events with onsets at most the window apart that share a unit; static
+    bodies are no units, so two agents touching the ground at once are two incidents."""
+    from pybullet_swarm.metrics.collisions import IncidentCounter
+
+    inc = IncidentCounter(0.1)
+    assert inc.add(1.0, ("agent0", "agent1"))  # agent-agent
+    assert not inc.add(1.05, ("agent0",))  # its carried box hits the ground (counted as agent0): same incident
+    assert not inc.add(1.09, ("agent1", "box3"))  # agent1 again within the window: same incident
+    assert not inc.add(1.17, ("box3",))  # chained: within the window of box3's event, 0.17 s after the first
+    assert inc.add(1.25, ("agent1",))  # later than the window after agent1's last event: a new one
+    assert inc.add(1.25, ("agent2",))  # at once, but nothing shared
+    assert inc.add(1.26, ())  # a body with the arena alone shares nothing
+    assert inc.count == 4

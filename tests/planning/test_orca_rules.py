@@ -209,11 +209,24 @@ def test_a_null_wake_depth_acts_only_where_the_run_models_downwash(downwash: boo
     try:
         layer = sim.avoidance_layer
         assert isinstance(layer, OrcaLayer)
-        # as deep as the airframe's wake pushes one straight under it with 5 % of its weight: quad150, 1.81 m
-        assert layer.params.wake_depth == (pytest.approx(1.808, abs=1e-3) if downwash else 0.0)
+        # as deep as an agent's wake pushes one straight under it with 5 % of its weight (quad150, no load on the
+        # hover task: 5.27 m, from the wake model at run time)
+        model = sim.params.downwash_params
+        if downwash:
+            depth, width = layer.wake_shape
+            assert layer.params.wake_depth == depth == pytest.approx(5.271, abs=2e-3)
+            w = 0.150 * 9.81
+            push = model.force_on_vehicle(depth - 0.01, upper_thrust=w, lower_thrust=w)
+            assert push > 0.05 * w > model.force_on_vehicle(depth + 0.01, upper_thrust=w, lower_thrust=w)
+            assert 0.15 < width < 0.3
+            assert sim.metrics()["orca_wake_depth_m"] == depth
+        else:
+            assert layer.params.wake_depth == 0.0 and layer.wake_shape is None
     finally:
         sim.close()
     assert sc.agents.vehicle == "quad150"
+    with pytest.raises(ValueError, match="wake model's depth"):  # no typed default stands in for the model
+        OrcaParams().wake(downwash=True)
     assert OrcaParams(wake_depth=0.3).wake(downwash=False) == 0.3  # an explicit depth always acts
     assert OrcaParams(wake_depth=0.3, wake_column=False).wake(downwash=True) == 0.0
     assert OrcaParams(wake_depth=0.3, shape="sphere").wake(downwash=True) == 0.0

@@ -398,3 +398,37 @@ def test_boxes_are_read_once_per_state_of_the_world(make_sim, monkeypatch):
     sim.step(1)  # so is a step
     c.sample()
     assert len(reads) == 3
+
+
+@pytest.mark.parametrize("downwash", [True, False])
+def test_a_carried_box_is_pushed_down_by_its_carriers_wake(make_sim, downwash):
+    """Hovering with its box, the carrier's rotors hold its weight, the box's and the drag of its own wake on the
+    box's top face (``vehicle/downwash.py``), at the separation it holds the box at."""
+    sim = make_sim(load_scenario("construction_single", {"agents.start_jitter": 0.0, "sim.downwash": downwash}))
+    c = sim.task
+    _carry(sim, 0, [1.5, 0.5, 0.45], seconds=8.0)
+    p = sim.params
+    thrust = p.kf * float(np.sum(sim.controller.rotor_speeds[0] ** 2))
+    c.read()
+    top = c.positions[0, 2] + 0.5 * c.size
+    drag = p.downwash_params.force_on_box(sim.state.positions[0, 2] - top, c.size, thrust=thrust)
+    weight = (p.mass + c.spec.box_mass) * sim.scenario.sim.gravity
+    assert drag > 0.2 * weight  # a sizeable force: the carrier's own wake on a box right under it
+    assert thrust == pytest.approx(weight + (drag if downwash else 0.0), rel=2e-3)
+
+
+def test_a_carried_box_touching_the_ground_is_a_contact_of_its_own_unless_set_into_its_slot(make_sim):
+    sim = make_sim(load_scenario("construction_single", {"agents.start_jitter": 0.0}))
+    c = sim.task
+    _carry(sim, 0, [1.5, 0.5, 0.45])
+    low = [1.5, 0.5, c.grasp_height + 0.5 * c.size - 0.01]  # the box 1 cm into the ground, far from any slot
+    _hover_to(sim, low, 3.0)
+    m = sim.metrics()
+    assert m["collisions"]["load_ground"] == 1 and m["incidents"] == 1
+    assert sum(m["collisions"].values()) == 1
+    slot = c.slots[0]  # an open slot on the ground: a box set down into it is placed, no contact
+    assert c.slot_open[0] and slot[2] == pytest.approx(0.5 * c.size)
+    _hover_to(sim, slot + [0.0, 0.0, c.grasp_height + 0.1], 8.0)
+    _hover_to(sim, slot + [0.0, 0.0, c.grasp_height - 0.005], 3.0)
+    m = sim.metrics()
+    assert m["collisions"]["load_ground"] == 1 and m["incidents"] == 1

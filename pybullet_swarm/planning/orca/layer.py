@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from typing import Any, ClassVar
@@ -28,8 +29,17 @@ from pybullet_swarm.planning.orca.kernel import (
 from pybullet_swarm.planning.orca.params import OrcaParams, Shape
 from pybullet_swarm.planning.orca.rules import clear_paths, obstacles_beside, targets_touching, velocity_bounds
 from pybullet_swarm.types import Perception
+from pybullet_swarm.vehicle.downwash import DownwashParams
 
 NO_OBSTACLES = Obstacles()
+
+
+@functools.lru_cache(maxsize=32)
+def wake_column(model: DownwashParams, fraction: float, mass: float, load: float) -> tuple[float, float]:
+    """(depth m, half-width m) of the column below a vehicle of ``mass`` kg carrying ``load`` kg in which its wake
+    pushes an unladen one of the same airframe down with more than ``fraction`` of its weight (``model.column``;
+    cached: every run of a sweep asks the same)."""
+    return model.column(fraction, mass=mass, load=load)
 
 
 def _warm_up() -> None:
@@ -98,10 +108,13 @@ class OrcaLayer:
         if std > 0.0 and self.params.uncertainty_margin:
             grow = rules.uncertainty_growth(self.params.uncertainty_sigmas, std)
             self.params = self.params.model_copy(update={"safety_margin": self.params.margin + grow})
+        #: (depth m, half-width m) of the wake column the wake model gives for this vehicle and load (None: unused)
+        self.wake_shape: tuple[float, float] | None = None
         if self.params.wake_depth is None:  # the wake column acts where the run has wakes, as deep as they push
             model = setup.downwash_model
-            reach = model.depth(self.params.wake_fraction, mass=setup.mass) if model is not None else None
-            depth = self.params.wake(setup.downwash, reach)
+            if setup.downwash and model is not None and self.params.wake_column and self.params.shape is Shape.BOX:
+                self.wake_shape = wake_column(model, self.params.wake_fraction, setup.mass, setup.load_mass)
+            depth = self.params.wake(setup.downwash, None if self.wake_shape is None else self.wake_shape[0])
             self.params = self.params.model_copy(update={"wake_depth": depth})
         self.n = setup.n
         self.v_max = setup.v_max  # (3,) m/s or None
@@ -271,4 +284,6 @@ class OrcaLayer:
             "orca_impatient_agent_ticks": self._impatient,
             "orca_mean_solve_ms": 1e3 * self._time_total / ticks,
             "orca_max_solve_ms": 1e3 * self._time_max,
+            "orca_wake_depth_m": float(self.params.wake_depth or 0.0),
+            "orca_wake_half_width_m": None if self.wake_shape is None else self.wake_shape[1],
         }

@@ -24,12 +24,6 @@ class Shape(enum.Enum):
     SPHERE = "sphere"  # enclosing spheres (the classic ORCA model)
 
 
-#: m, the wake column's depth when ``wake_depth`` is null, the run models downwash and the layer is not told the
-#: airframe's downwash model (the array API; a run always tells it: ``wake_fraction``). On the thesis task
-#: (stigmergy + orca, seeds 0..9) 0.3 m left contacts in 2 runs and a stall; 0.5 m, 1.0 m and 1.8 m none.
-DEFAULT_WAKE_DEPTH = 0.5
-
-
 #: m, safety margin of each shape when ``safety_margin`` is null: two airframes side by side at the
 #: construction task's 20 cm pitch keep 2 cm of slack with boxes
 DEFAULT_MARGIN: dict[Shape, float] = {Shape.BOX: 0.015, Shape.SPHERE: 0.03}
@@ -174,15 +168,16 @@ class OrcaParams(Params):
         ge=0.0,
         le=10.0,
         description="m, boxes: against other agents each agent's box reaches this far further down, its rotor wake "
-        "kept clear of others (null: where the run models downwash, the depth down to which the airframe's wake "
-        "pushes one straight under it with more than wake_fraction of its weight; 0 without; spheres: no effect)",
+        "kept clear of others (null: where the run models downwash, computed at run time from the airframe's wake "
+        "model: the depth down to which a laden agent's wake pushes an agent straight under it with more than "
+        "wake_fraction of its weight; 0 without; spheres: no effect)",
     )
     wake_fraction: float = Field(
         0.05,
         gt=0.0,
         lt=1.0,
-        description="with wake_depth null: the wake column reaches as deep as the downwash model's force on a vehicle "
-        "straight below exceeds this fraction of its weight (quad150: 1.81 m; cf2x: 1.32 m)",
+        description="with wake_depth null: the wake column reaches as deep as the wake model's force on a vehicle "
+        "straight below exceeds this fraction of its weight (computed at run time for the run's vehicle and load)",
     )
 
     wake_share_by_approach: bool = _switch(Rule.WAKE_SHARE_BY_APPROACH)
@@ -231,15 +226,21 @@ class OrcaParams(Params):
 
     def wake(self, downwash: bool, model_depth: float | None = None) -> float:
         """m, the wake column's depth in use: ``wake_depth``, or when null, with downwash, ``model_depth`` (the
-        airframe's wake reach at ``wake_fraction``) or, not given, ``DEFAULT_WAKE_DEPTH`` (0 without downwash);
-        0 when the rule is off or agents are spheres."""
+        depth the airframe's wake model gives at ``wake_fraction``, computed at run time); 0 without downwash,
+        when the rule is off or agents are spheres.
+
+        Raises:
+            ValueError: the run models downwash, ``wake_depth`` is null and no model depth is given.
+        """
         if not self.wake_column or self.shape is not Shape.BOX:
             return 0.0
         if self.wake_depth is not None:
             return float(self.wake_depth)
         if not downwash:
             return 0.0
-        return DEFAULT_WAKE_DEPTH if model_depth is None else float(model_depth)
+        if model_depth is None:
+            raise ValueError("wake_depth is null and the run models downwash: the layer needs the wake model's depth")
+        return float(model_depth)
 
     def on(self, rule: Rule) -> bool:
         """True when ``rule`` is switched on."""
