@@ -43,9 +43,10 @@ The paper's core and our extension rules are kept apart:
   - ``static_obstacles``: boxes (free and placed), the structure and the arena's walls and obstacles
     are velocity obstacles the agent avoids alone, the paper's obstacles (see below).
   - ``wake_column``: against other agents each agent's box reaches ``wake_depth`` further down
-    (null: where the run models downwash, as deep as the airframe's downwash model pushes a
-    vehicle straight below with more than ``wake_fraction``, 5 %, of its weight: 1.81 m for
-    quad150, 1.32 m for cf2x; 0 without): nobody flies in another's rotor wake; a pair apart
+    (null: where the run models downwash, computed at run time from the airframe's wake model, as
+    deep as a laden agent's wake pushes a vehicle straight below with more than ``wake_fraction``,
+    5 %, of its weight: 5.47 m for quad150 with a 10 g box, 4.05 m for cf2x unladen; 0 without;
+    docs/science/wake.md): nobody flies in another's rotor wake; a pair apart
     vertically but for the wake is the upper agent's to resolve.
   - ``wake_share_by_approach``: such a pair's share goes to whichever agent moves into the
     conflict, in proportion to their speeds towards each other; the upper one takes it all only
