@@ -36,6 +36,7 @@ from pybullet_swarm.planning.base import (
     TaskView,
     WorldView,
 )
+from pybullet_swarm.planning.views.construction import ConstructionLayout
 from pybullet_swarm.sensing.perception import PerceptionStage
 from pybullet_swarm.tasks import task_runtimes
 from pybullet_swarm.tasks.base import NOT_MINE, TaskContext, TaskRuntime
@@ -413,7 +414,7 @@ class Simulation:
             downwash=bool(sc.sim.downwash),
             downwash_model=p.downwash_params,
             mass=float(p.mass),
-            load_mass=float(getattr(sc.task, "box_mass", 0.0)),
+            load_mass=float(self.info.layout.box_mass) if isinstance(self.info.layout, ConstructionLayout) else 0.0,
         )
 
     def _make_planner(self) -> None:
@@ -651,10 +652,11 @@ class Simulation:
         pressure grows with T), so the carrier hovers at T = (m + payload) g / (1 - k), and the box pulls like
         ``(m + payload) k / (1 - k)`` kg more. Without it the position loop's integrator alone would carry a load
         of about a quarter of the weight, more than its limit: the carrier would hang below its reference."""
-        info = self.info
-        if self.downwash is None or payload <= 0.0 or info.box_size <= 0.0:
+        boxes = self.info.layout
+        if self.downwash is None or payload <= 0.0 or not isinstance(boxes, ConstructionLayout):
             return 0.0
-        k = self.downwash.params.force_on_box(info.grasp_height - 0.5 * info.box_size, info.box_size, thrust=1.0)
+        size = float(boxes.box_size)
+        k = self.downwash.params.force_on_box(float(boxes.grasp_height) - 0.5 * size, size, thrust=1.0)
         k = min(k, 0.5)  # a box that takes more than half the thrust is no load to feed forward
         return (float(self.params.mass) + payload) * k / (1.0 - k)
 
