@@ -46,6 +46,19 @@ def _r(x: float, nd: int = 4) -> float | str:
     return "-" if math.isnan(x) else round(x, nd)
 
 
+def _ended_early(runs: list[dict[str, str]]) -> list[str]:
+    """A note per run that did not fly to its time limit (a flock run ends with timeout)."""
+    return [
+        f"run {r['planner']} seed {r['seed']}"
+        + "".join(f", {k} {r[k]}" for k in ("comm.delay_s", "comm.radio_range_m") if r.get(k))
+        + f" ended {r['exit_status']} at {_f(r, 'sim_time_s'):g} s"
+        + (f" (agent {r['crashed_agent']}, cause {r['crash_cause']})" if r.get("crashed_agent") else "")
+        + "; its averages are up to then."
+        for r in runs
+        if r["exit_status"] != "timeout"
+    ]
+
+
 def _commit() -> str:
     return subprocess.run(
         ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True
@@ -110,6 +123,7 @@ def headline(sweep: Path, command: str, bench_wall_s: float | None) -> dict[str,
     sim_s = {_f(r, "sim_time_s") for r in runs}
     ok = lambda b: "met" if b else "NOT met"  # noqa: E731
     notes = [
+        *_ended_early(runs),
         f"{len(runs)} seeds of {', '.join(f'{s:g}' for s in sorted(sim_s))} simulated seconds each; averages after "
         "the 30 s warm-up; r_coll 0.3 m; arena 25 m x 25 m with walls.",
         f"target velocity correlation >= 0.9 on every seed: {ok(corr >= 0.9)} (lowest {corr:.4f}).",
@@ -158,10 +172,11 @@ def _mean(rows: list[dict[str, str]], key: str) -> float:
 
 def compare(sweeps: list[tuple[Path, str]]) -> dict[str, Any]:
     """Per scenario and planner, the mean over seeds (the closest pair: the minimum)."""
-    rows, commands, seeds = [], [], set()
+    rows, commands, seeds, early = [], [], set(), []
     for sweep, command in sweeps:
         commands.append(command)
         runs = [r for r in _rows(sweep / "runs.csv") if r["exit_status"] != "error"]
+        early += [f"{runs[0]['scenario']}: {n}" for n in _ended_early(runs)] if runs else []
         for planner in dict.fromkeys(r["planner"] for r in runs):
             mine = [r for r in runs if r["planner"] == planner]
             seeds.add((len(mine), _f(mine[0], "sim_time_s")))
@@ -171,6 +186,7 @@ def compare(sweeps: list[tuple[Path, str]]) -> dict[str, Any]:
         + ", ".join(f"{n} x {t:g} s" for n, t in sorted(seeds))
         + "; means over the seeds, except the closest pair (the minimum); averages after the 30 s warm-up.",
         "each planner with its defaults; reynolds follows the task's circuit with its route defaults.",
+        *early,
     ]
     cols = ["scenario", "planner", "seeds", *[c for c, _ in FLOCK_COLUMNS]]
     return _table(
@@ -204,12 +220,13 @@ def grid(sweep: Path, command: str) -> dict[str, Any]:
         "flock.fitness",
     ]
     rows = [[d, rr, len(v), *[_r(_mean(v, k), 5) for k in keys]] for (d, rr), v in sorted(cells.items())]
-    sim = sorted({_f(r, "sim_time_s") for r in runs})
+    sim = sorted({_f(r, "sim_time_s") for r in runs if r["exit_status"] == "timeout"})
     notes = [
         f"vasarhelyi on flocking_confined, {', '.join(f'{s:g}' for s in sim)} simulated seconds per run (a shortened "
         "run, not the 10-minute setting), averages after the 30 s warm-up; means over the seeds (closest pair: minimum).",
         "comm.delay_s is counted in whole planner periods (0.1 s); comm.radio_range_m limits who is heard "
         "(agents.sensing_radius is 8 m).",
+        *_ended_early(runs),
     ]
     return _table("Collisions against communication delay and radio range (grid sweep)", command, cols, rows, notes)
 
