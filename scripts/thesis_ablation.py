@@ -7,10 +7,11 @@
 
 For each planner the configurations are: the thesis preset; with ``--base``, the preset with those
 extensions on (those a planner has; e.g. ``--base wide_view``: the stigmergy planners under the
-preset see no bottom slot, see the README); the preset (plus the base) with each other extension
-on alone; and our defaults (every extension on). The extensions are read from the planner's
-parameter model (``planning.params.extensions``: every field the preset sets to a value other
-than the default), so a new switch joins the ablation by itself.
+preset see no bottom slot, see docs/results/history/2026-11-27-thesis-preset-ablation.md); the
+preset (plus the base) with each other extension on alone; and our defaults (every extension on).
+The extensions are read from the planner's parameter model (``planning.params.extensions``: every
+field the preset sets to a value other than the default), so a new switch joins the ablation by
+itself.
 
 Each planner's configurations run as one sweep (``pybullet_swarm.experiment.sweep``, the grid
 being ``planner.params``) in ``OUT/<planner>/``: resumable, run it again to add seeds or finish an
@@ -141,7 +142,7 @@ def _cell(rec: Mapping[str, Any], key: str, digits: str) -> str:
 
 
 def markdown(table: Sequence[Mapping[str, Any]], collisions: str) -> str:
-    """The table as Markdown (the README's)."""
+    """The table as Markdown (as in the results history of the docs)."""
     head = (
         "| planner | configuration | completed | completion time [s] | "
         f"collisions ({collisions}) | utility of space | boxes placed |"

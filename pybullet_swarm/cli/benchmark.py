@@ -24,7 +24,7 @@ def register(sub: Any) -> None:
         help="run a suite's dev or holdout split (resumable) and write its JSON, table and figure; or compare two",
         description="Run every layout x planner x avoidance x seed of a suite's split (scenarios/suites/), resumable, "
         "and write benchmark.json, benchmark.md and benchmark.png; `benchmark compare A.json B.json` gives paired "
-        "differences B - A with bootstrap 95 %% intervals.",
+        "differences B - A with bootstrap 95 % intervals.",
     )
     p.add_argument("suite", metavar="SUITE", help="suite file or bundled suite name (construction); or `compare`")
     p.add_argument("files", nargs="*", type=Path, metavar="JSON", help="with compare: the two benchmark JSON files")

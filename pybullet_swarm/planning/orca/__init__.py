@@ -61,7 +61,7 @@ The paper's core and our extension rules are kept apart:
     way, one behind the other, grows by (``headway_s`` - ``lag_margin_s``) x the speed they share
     besides (``headway_s``; null, the default: ``lag_margin_s``, no more): a line of followers
     damps a stop down the line (string stability) only with a time headway above twice that lag
-    (0.8 s; measured in the README, not the default).
+    (0.8 s; measured in the results history of the docs, not the default).
   - ``margin_overlap``: boxes that overlap within their margins and growths open the gap along
     the least overlap of the axes on which the bare shapes are still apart (when there are
     any): the recovery leaves the other axes free, and only those axes keep the pair apart.

@@ -77,7 +77,7 @@ class OrcaParams(Params):
         le=10.0,
         description="s, with headway: a pair flying the same way, one behind the other, keeps this time headway "
         "(its shapes grow by headway_s - lag_margin_s times the speed the two share; null: lag_margin_s). 0.8 s, "
-        "twice the lag, keeps a line of followers string-stable; measured, not the default (README)",
+        "twice the lag, keeps a line of followers string-stable; measured, not the default (docs/results/history)",
     )
     uncertainty_margin: bool = _switch(Rule.UNCERTAINTY_MARGIN)
     uncertainty_sigmas: float = Field(
