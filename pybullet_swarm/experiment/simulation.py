@@ -29,14 +29,15 @@ from pybullet_swarm.rng import named_rng
 from pybullet_swarm.planning.base import (
     Action,
     AvoidanceSetup,
+    CarriesPayload,
     Command,
     CommandKind,
     Observation,
+    Payload,
     TaskInfo,
     TaskView,
     WorldView,
 )
-from pybullet_swarm.planning.views.construction import ConstructionLayout
 from pybullet_swarm.sensing.perception import PerceptionStage
 from pybullet_swarm.tasks import task_runtimes
 from pybullet_swarm.tasks.base import NOT_MINE, TaskContext, TaskRuntime
@@ -220,6 +221,10 @@ class Simulation:
             ),
         )
         self.info = self._task_info()
+        #: what an agent carries under it, when the task's layout says so (the wakes push on it too)
+        self.payload: Payload | None = (
+            self.info.layout.payload if isinstance(self.info.layout, CarriesPayload) else None
+        )
         # the boxes the wakes push on (every movable one, free or carried), their poses read every physics step
         sizes = self.world.dynamic_boxes if self.downwash is not None else {}
         self.wake_boxes = list(sizes)
@@ -414,7 +419,7 @@ class Simulation:
             downwash=bool(sc.sim.downwash),
             downwash_model=p.downwash_params,
             mass=float(p.mass),
-            load_mass=float(self.info.layout.box_mass) if isinstance(self.info.layout, ConstructionLayout) else 0.0,
+            load_mass=0.0 if self.payload is None else self.payload.mass,
         )
 
     def _make_planner(self) -> None:
@@ -652,11 +657,10 @@ class Simulation:
         pressure grows with T), so the carrier hovers at T = (m + payload) g / (1 - k), and the box pulls like
         ``(m + payload) k / (1 - k)`` kg more. Without it the position loop's integrator alone would carry a load
         of about a quarter of the weight, more than its limit: the carrier would hang below its reference."""
-        boxes = self.info.layout
-        if self.downwash is None or payload <= 0.0 or not isinstance(boxes, ConstructionLayout):
+        box = self.payload
+        if self.downwash is None or payload <= 0.0 or box is None:
             return 0.0
-        size = float(boxes.box_size)
-        k = self.downwash.params.force_on_box(float(boxes.grasp_height) - 0.5 * size, size, thrust=1.0)
+        k = self.downwash.params.force_on_box(box.hang - 0.5 * box.edge, box.edge, thrust=1.0)
         k = min(k, 0.5)  # a box that takes more than half the thrust is no load to feed forward
         return (float(self.params.mass) + payload) * k / (1.0 - k)
 

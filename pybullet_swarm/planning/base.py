@@ -112,6 +112,31 @@ class TaskInfo(Generic[L]):
 
 
 @dataclasses.dataclass(frozen=True)
+class Payload:
+    """What an agent of a task may carry under it, told to the clock and the avoidance layers without naming
+    the task (a cube hanging below its carrier).
+
+    Attributes:
+        edge: m, edge of the cube.
+        hang: m, the carrier's centre above the cube's centre while it holds it.
+        mass: kg.
+    """
+
+    edge: float
+    hang: float
+    mass: float
+
+
+@runtime_checkable
+class CarriesPayload(Protocol):
+    """A task layout whose agents carry a payload (``TaskInfo.layout`` of such a task)."""
+
+    @property
+    def payload(self) -> Payload:
+        """The payload an agent carries."""
+
+
+@dataclasses.dataclass(frozen=True)
 class Observation(Generic[V]):
     """What one agent knows at a planner tick (local information only).
 

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pybullet_swarm.planning.base import Observation, TaskInfo, TaskView, WorldView
+from pybullet_swarm.planning.base import Observation, Payload, TaskInfo, TaskView, WorldView
 
 
 def _empty3() -> NDArray[np.float64]:
@@ -50,6 +50,11 @@ class ConstructionLayout:
     view_norm: str = "chebyshev"
     guide_height: float = 0.0
     box_mass: float = 0.0
+
+    @property
+    def payload(self) -> Payload:
+        """A box, as it hangs under its carrier (``planning.base.CarriesPayload``)."""
+        return Payload(float(self.box_size), float(self.grasp_height), float(self.box_mass))
 
 
 #: ``ConstructionState.object_state`` of a box that lies free, hangs under its carrier, sits in its slot
