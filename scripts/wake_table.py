@@ -94,8 +94,11 @@ def _summary(task: str, runs: list[dict[str, str]], planner: str, thirds: bool) 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--thesis", type=Path, required=True, help="sweep directory of the thesis command")
-    ap.add_argument("--suite", type=Path, default=None, help="output directory of the construction suite")
+    ap.add_argument(
+        "--suite", type=Path, default=None, help="output directory of the construction suite (one per layout)"
+    )
     ap.add_argument("--commit", default=None, help="commit the runs were made with (default: HEAD)")
+    ap.add_argument("--suite-commit", default=None, help="commit the suite ran at, when not --commit")
     ap.add_argument("--out", type=Path, default=Path("docs/results/data/wake_model.json"))
     args = ap.parse_args()
     commit = (
@@ -116,12 +119,21 @@ def main() -> None:
         "old model: the README at a326077 (thesis on 5d803b3, suite on 5d803b3 and 7648950); its shortest_path + "
         "orca thesis figure was never recorded and was not measured again",
     ]
-    if args.suite is not None and (args.suite / "runs.csv").is_file():
-        suite = _rows(args.suite / "runs.csv")
+    layouts = sorted(args.suite.glob("*/runs.csv")) if args.suite is not None else []
+    if layouts:
+        # a layout counts once all its runs are in (3 planners x 5 seeds)
+        full = [f for f in layouts if len(_rows(f)) >= 15]
+        suite = [r for f in full for r in _rows(f)]
+        task = f"suite, seeds 0..4 ({len(full)} of 13 layouts)"
         for k, planner in enumerate(("stigmergy", "layered_stigmergy", "shortest_path")):
             rows.append(OLD[2 + k])
-            rows.append(_summary("suite, seeds 0..4", suite, planner, thirds=False))
-        notes.append("suite: " + SUITE_CMD)
+            rows.append(_summary(task, suite, planner, thirds=False))
+        notes.append(
+            "suite: "
+            + SUITE_CMD
+            + f" at {args.suite_commit or commit}; layouts measured: {', '.join(f.parent.name for f in full)} "
+            "(the old model's rows are over all 13 layouts)"
+        )
     else:
         rows.extend(OLD[2:])
         notes.append("suite with the new wake model: not measured (no CPU time left in the session)")
