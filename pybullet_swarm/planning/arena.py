@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pybullet_swarm.planning.base import TaskInfo
+from pybullet_swarm.planning.views.route import FlockInfo
 
 #: (4, 2) inward unit normals of the walls x = 0, x = Lx, y = 0, y = Ly
 WALL_NORMALS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
@@ -69,6 +70,16 @@ class ArenaGeometry:
         norm = np.linalg.norm(d, axis=1)
         u = np.where(norm[:, None] > 1e-9, d / np.where(norm > 1e-9, norm, 1.0)[:, None], np.array([1.0, 0.0]))
         return c + r[:, None] * u, u, np.maximum(norm - r, 0.0)
+
+
+def flight_limits(
+    info: FlockInfo, v_flock: float | None, v_max: float | None
+) -> tuple[float, float, float, NDArray[np.float64]]:
+    """A flocking agent's speeds and altitude: (v_flock m/s, the parameter or the task's; the speed cap m/s, the
+    parameter or 4/3 v_flock; the task's flight altitude m; the (3,) m/s per-axis limits, 1e9 where unlimited)."""
+    flock = float(v_flock if v_flock is not None else info.layout.v_flock)
+    cap = float(v_max if v_max is not None else 4.0 / 3.0 * flock)
+    return flock, cap, float(info.layout.altitude), np.where(np.isfinite(info.v_max), info.v_max, 1e9)
 
 
 def altitude_velocity(z: float, altitude: float, gain: float) -> float:

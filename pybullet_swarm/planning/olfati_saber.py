@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field
 
-from pybullet_swarm.planning.arena import ArenaGeometry, altitude_velocity, cap_speed
+from pybullet_swarm.planning.arena import ArenaGeometry, altitude_velocity, cap_speed, flight_limits
 from pybullet_swarm.planning.base import Command, Observation
 from pybullet_swarm.planning.views.route import FlockInfo
 from pybullet_swarm.planning.params import Params
@@ -163,10 +163,7 @@ class OlfatiSaberPlanner:
         p = self.params
         self.agent_id = agent_id
         self.arena = ArenaGeometry.from_info(info)
-        self.v_flock = float(p.v_flock if p.v_flock is not None else info.layout.v_flock)
-        self.v_cap = float(p.v_max if p.v_max is not None else 4.0 / 3.0 * self.v_flock)
-        self.altitude = float(info.layout.altitude)
-        self.axis_limits = np.where(np.isfinite(info.v_max), info.v_max, 1e9)  # (3,) m/s
+        self.v_flock, self.v_cap, self.altitude, self.axis_limits = flight_limits(info, p.v_flock, p.v_max)
         cx, cy, radius = info.layout.circuit
         self.centre = np.array([cx, cy], dtype=float)
         self.radius = float(radius)

@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field
 
-from pybullet_swarm.planning.arena import ArenaGeometry, altitude_velocity, cap_speed
+from pybullet_swarm.planning.arena import ArenaGeometry, altitude_velocity, cap_speed, flight_limits
 from pybullet_swarm.planning.base import Command, Observation
 from pybullet_swarm.planning.views.route import FlockInfo
 from pybullet_swarm.planning.params import Params
@@ -70,6 +70,16 @@ def repulsion(
     return (p_rep * (r0_rep - r[near]) / r[near]) @ d[near] if np.any(near) else np.zeros(d.shape[1])
 
 
+def _excess_velocity(dv: NDArray[np.float64], allowed: NDArray[np.float64], gain: float = 1.0) -> NDArray[np.float64]:
+    """Sum (d,) m/s of gain (|dv_j| - allowed_j) dv_j / |dv_j| over the velocity differences dv (k, d) m/s larger
+    than ``allowed`` (k,) m/s: the friction form shared by alignment and the shill agents."""
+    v = np.linalg.norm(dv, axis=1)
+    act = (v > allowed) & (v > 1e-12)
+    if not np.any(act):
+        return np.zeros(dv.shape[1])
+    return (gain * (v[act] - allowed[act]) / v[act]) @ dv[act]
+
+
 def alignment(
     velocity: NDArray[np.float64],
     neighbour_velocities: NDArray[np.float64],
@@ -84,12 +94,8 @@ def alignment(
     """Sum (d,) m/s of C_frict (v_ij - v_frictmax) (v_j - v_i) / v_ij over neighbours with velocities
     (k, d) m/s at distances (k,) m whose velocity differs by more than v_frictmax."""
     dv = np.asarray(neighbour_velocities, dtype=float) - np.asarray(velocity, dtype=float)[None]
-    v_ij = np.linalg.norm(dv, axis=1)
     allowed = np.maximum(v_frict, braking_curve(np.asarray(distances, dtype=float) - r0_frict, a_frict, p_frict))
-    act = (v_ij > allowed) & (v_ij > 1e-12)
-    if not np.any(act):
-        return np.zeros(dv.shape[1])
-    return (c_frict * (v_ij[act] - allowed[act]) / v_ij[act]) @ dv[act]
+    return _excess_velocity(dv, allowed, c_frict)
 
 
 def shill(
@@ -107,16 +113,12 @@ def shill(
     """Sum (d,) m/s of (v_is - v_shillmax) (v_s - v_i) / v_is over shill agents at ``points`` (m, d) m,
     moving at v_shill along unit ``directions`` (m, d), ``distances`` (m,) m from the agent.
 
-    ``position`` is not used beyond its dimension: the distances are given (0 for an agent past a wall).
+    ``position`` is not used: the distances are given (0 for an agent past a wall).
     """
     v_s = v_shill * np.asarray(directions, dtype=float)
     dv = v_s - np.asarray(velocity, dtype=float)[None]
-    v_is = np.linalg.norm(dv, axis=1)
     allowed = braking_curve(np.asarray(distances, dtype=float) - r0_shill, a_shill, p_shill)
-    act = (v_is > allowed) & (v_is > 1e-12)
-    if not np.any(act):
-        return np.zeros(np.asarray(position).shape[0])
-    return ((v_is[act] - allowed[act]) / v_is[act]) @ dv[act]
+    return _excess_velocity(dv, allowed)
 
 
 class VasarhelyiParams(Params):
@@ -179,10 +181,7 @@ class VasarhelyiPlanner:
         p = self.params
         self.agent_id = agent_id
         self.arena = ArenaGeometry.from_info(info)
-        self.v_flock = float(p.v_flock if p.v_flock is not None else info.layout.v_flock)
-        self.v_cap = float(p.v_max if p.v_max is not None else 4.0 / 3.0 * self.v_flock)
-        self.altitude = float(info.layout.altitude)
-        self.axis_limits = np.where(np.isfinite(info.v_max), info.v_max, 1e9)  # (3,) m/s
+        self.v_flock, self.v_cap, self.altitude, self.axis_limits = flight_limits(info, p.v_flock, p.v_max)
         heading = rng.uniform(0.0, 2.0 * math.pi)
         self.start_heading = np.array([math.cos(heading), math.sin(heading)])
 
