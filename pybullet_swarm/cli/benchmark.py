@@ -12,6 +12,7 @@ from pybullet_swarm.errors import ConfigError
 
 USAGE = (
     "pybullet-swarm benchmark SUITE --split dev|holdout [--workers K] [--executor ray] [--dry-run] [--out DIR]\n"
+    "       [--planners A,B] [--seeds N] [--set KEY.PATH=VALUE ...]\n"
     "       pybullet-swarm benchmark compare A.json B.json [--out FILE]"
 )
 
@@ -39,6 +40,28 @@ def register(sub: Any) -> None:
         default=None,
         help="benchmark directory (default runs/benchmark-<suite>-v<version>-<split>); with compare: JSON file",
     )
+    p.add_argument(
+        "--planners",
+        default=None,
+        metavar="A,B",
+        help="a study on the split: run only these of its planners (comma-separated)",
+    )
+    p.add_argument(
+        "--seeds",
+        type=int,
+        default=None,
+        metavar="N",
+        help="a study on the split: N seeds from its first seed on, instead of its own (more runs per layout)",
+    )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY.PATH=VALUE",
+        help="a study on the split: scenario override on top of the suite's (an ablation: "
+        "avoidance_params.sidestep=false); a directory holds one set of overrides",
+    )
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as errors")
     p.add_argument("--no-figure", action="store_true", help="skip benchmark.png")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no table")
@@ -57,9 +80,15 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
     if args.address is not None and args.executor != "ray":
         raise ConfigError("needs --executor ray", source="--address")
     from pybullet_swarm.experiment import benchmark
+    from pybullet_swarm.experiment.scenario import parse_override
 
+    variant = benchmark.Variant(
+        planners=tuple(p.strip() for p in args.planners.split(",") if p.strip()) if args.planners else (),
+        seeds=args.seeds,
+        overrides=tuple(parse_override(o) for o in args.overrides),
+    )
     if args.dry_run:
-        plan = benchmark.plan_benchmark(args.suite, args.split, args.out, build=False)
+        plan = benchmark.plan_benchmark(args.suite, args.split, args.out, build=False, variant=variant)
         lines = plan.lines()
         print("\n".join(lines))
         if not args.quiet:
@@ -83,6 +112,7 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
         quiet=args.quiet,
         figure=not args.no_figure,
         retry_failed=args.retry_failed,
+        variant=variant,
         command=" ".join(["pybullet-swarm", *(sys.argv[1:] if sys.argv[1:2] == ["benchmark"] else ["benchmark"])]),
     )
     if result.interrupted:

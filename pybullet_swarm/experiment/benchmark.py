@@ -72,20 +72,49 @@ SHORT = {
 
 # ------------------------------------------------------------------ planning
 @dataclasses.dataclass(frozen=True)
+class Variant:
+    """A study on a split that is not the split itself: a subset of its planners, more or fewer of its seeds,
+    scenario overrides on top of the suite's (an ablation: ``avoidance_params.sidestep=false``).
+
+    Attributes:
+        planners: run only these of the split's planners (empty: all).
+        seeds: run this many seeds from the split's first seed on (None: the split's seeds).
+        overrides: ``key.path -> value`` applied after the suite's ``set``.
+    """
+
+    planners: tuple[str, ...] = ()
+    seeds: int | None = None
+    overrides: tuple[tuple[str, Any], ...] = ()
+
+    @property
+    def empty(self) -> bool:
+        """The split as the suite defines it."""
+        return not self.planners and self.seeds is None and not self.overrides
+
+    def record(self) -> dict[str, Any]:
+        """The variant as the manifest and the JSON record it (``{}`` for the split itself)."""
+        if self.empty:
+            return {}
+        return {"planners": list(self.planners), "seeds": self.seeds, "set": dict(self.overrides)}
+
+
+@dataclasses.dataclass(frozen=True)
 class BenchmarkPlan:
     """A split resolved into runs.
 
     Attributes:
         suite: the suite.
-        split: the split.
+        split: the split (with a variant's planners and seeds).
         out: the benchmark directory (absolute).
         runs: every run, seeds outermost (a partial benchmark has every configuration at similar n).
+        variant: what the study changes of the split (empty: nothing).
     """
 
     suite: Suite
     split: Split
     out: Path
     runs: tuple[RunSpec, ...]
+    variant: Variant = Variant()
 
     def lines(self) -> list[str]:
         """One tab-separated line per run: layout, planner, avoidance, seed."""
@@ -103,21 +132,26 @@ def default_out(suite: Suite, split: str, root: Path = Path("runs")) -> Path:
 
 
 def plan_benchmark(
-    suite: Suite | str | Path, split: str, out: str | Path | None = None, *, build: bool = True
+    suite: Suite | str | Path,
+    split: str,
+    out: str | Path | None = None,
+    *,
+    build: bool = True,
+    variant: Variant = Variant(),
 ) -> BenchmarkPlan:
     """Resolve every configuration of a split and list its runs.
 
     Each layout x planner x avoidance layer is the layout's scenario with the choices and the
-    suite's overrides applied, validated (``build_scenario``; with ``build``, also built once
-    without stepping, as a run starts). What a run would refuse is refused here, in one line
-    naming the suite file and the layout.
+    suite's overrides applied (then the variant's), validated (``build_scenario``; with ``build``,
+    also built once without stepping, as a run starts). What a run would refuse is refused here,
+    in one line naming the suite file and the layout.
     """
     from pybullet_swarm.experiment.runner import build_run
     from pybullet_swarm.experiment.scenario import apply_choices, apply_overrides, build_scenario
     from pybullet_swarm.planning.registry import avoidance_layers, planners
 
     suite = suite if isinstance(suite, Suite) else load_suite(suite)
-    sp = suite.split(split)
+    sp = _varied(suite.split(split), variant)
     out = Path(out if out is not None else default_out(suite, split)).resolve()
     known, layers = planners(), avoidance_layers()
     for p in sp.planners:
@@ -138,6 +172,7 @@ def plan_benchmark(
             for avoidance in sp.avoidance:
                 data = apply_choices(copy.deepcopy(raw), planner=planner, avoidance=avoidance, source=source)
                 data = apply_overrides(data, dict(suite.overrides), source=source)
+                data = apply_overrides(data, dict(variant.overrides), source=f"{source} --set")
                 scenario = build_scenario(data, source=source)
                 if build:
                     build_run(scenario)
@@ -159,7 +194,26 @@ def plan_benchmark(
                     run_dir=str(out / "runs" / run_id),
                 )
             )
-    return BenchmarkPlan(suite=suite, split=sp, out=out, runs=tuple(runs))
+    return BenchmarkPlan(suite=suite, split=sp, out=out, runs=tuple(runs), variant=variant)
+
+
+def _varied(sp: Split, variant: Variant) -> Split:
+    """The split with a variant's planners and seed count."""
+    planners_ = sp.planners
+    if variant.planners:
+        unknown = [p for p in variant.planners if p not in sp.planners]
+        if unknown:
+            raise ConfigError(
+                f"not in the {sp.name} split: {', '.join(unknown)}; it has {', '.join(sp.planners)}",
+                source="--planners",
+            )
+        planners_ = tuple(variant.planners)
+    seeds = sp.seeds
+    if variant.seeds is not None:
+        if variant.seeds < 1:
+            raise ConfigError(f"must be >= 1, got {variant.seeds}", source="--seeds")
+        seeds = tuple(range(sp.seeds[0], sp.seeds[0] + variant.seeds))
+    return dataclasses.replace(sp, planners=planners_, seeds=seeds)
 
 
 # ------------------------------------------------------------------- running
@@ -196,12 +250,18 @@ def _manifest(plan: BenchmarkPlan, old: Mapping[str, Any] | None) -> dict[str, A
         raise ConfigError(
             f"holds a benchmark of another suite, version or split ({held}); use another --out", source=str(plan.out)
         )
+    if old is not None and old.get("variant", {}).get("set", {}) != plan.variant.record().get("set", {}):
+        raise ConfigError(
+            f"holds a benchmark with other overrides ({old.get('variant', {}).get('set', {})}); use another --out",
+            source=str(plan.out),
+        )
     now = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     return {
         "format": FORMAT,
         **mine,
         "suite_file": str(plan.suite.path),
         "suite_digest": plan.suite.digest,
+        "variant": plan.variant.record(),
         "created": (old or {}).get("created", now),
         "updated": now,
         "runs": {
@@ -224,6 +284,7 @@ def run_benchmark(
     retry_failed: bool = False,
     command: str | None = None,
     worker: Any = None,
+    variant: Variant = Variant(),
 ) -> BenchmarkResult:
     """Run the runs of a split not recorded yet in ``out``, then write the benchmark JSON, table and figure.
 
@@ -239,6 +300,7 @@ def run_benchmark(
         retry_failed: run again the runs recorded with ``exit_status = error`` (they failed to run).
         command: the command line recorded in the JSON (default: this process's).
         worker: the function that runs one spec (tests; default ``jobs.execute_run``).
+        variant: planners, seeds and overrides that differ from the split (an ablation).
 
     Raises:
         ConfigError: a bad suite, a directory that holds another benchmark, an executor that cannot start.
@@ -250,7 +312,7 @@ def run_benchmark(
     t0 = time.perf_counter()
     if check_executor(executor, workers=workers, address=address) is ExecutorKind.LOCAL:
         prestart()
-    plan = plan_benchmark(suite, split, out)
+    plan = plan_benchmark(suite, split, out, variant=variant)
     check_output_dir(plan.out)
     manifest_path = plan.out / PLAN
     old = json.loads(manifest_path.read_text(encoding="utf-8")) if manifest_path.is_file() else None
@@ -445,6 +507,7 @@ def summarize(plan: BenchmarkPlan, rows: Sequence[Row], *, command: str | None =
         "suite_version": plan.suite.version,
         "suite_digest": plan.suite.digest,
         "split": plan.split.name,
+        "variant": plan.variant.record(),
         "commit": git_commit(),
         "date": datetime.date.today().isoformat(),
         "command": command if command is not None else " ".join(["pybullet-swarm", *sys.argv[1:]]),

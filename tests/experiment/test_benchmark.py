@@ -74,6 +74,31 @@ def test_the_bundled_suite_plans_both_splits(capsys):
     assert {int(c[3]) for c in dev} == set(range(50)) and "thesis" in {c[0] for c in dev}
 
 
+def test_a_study_narrows_planners_widens_seeds_and_sets_overrides(tmp_path, capsys):
+    suite = tiny_suite(tmp_path, planners=["shortest_path", "stigmergy"])
+    argv = ["benchmark", str(suite), "--split", "holdout", "--dry-run", "--quiet", "--planners", "stigmergy"]
+    assert main([*argv, "--seeds", "3"]) == 0
+    cells = [line.split("\t") for line in capsys.readouterr().out.splitlines()]
+    assert {c[1] for c in cells} == {"stigmergy"} and sorted({int(c[3]) for c in cells}) == [1000, 1001, 1002]
+    variant = benchmark.Variant(planners=("stigmergy",), overrides=(("task.time_limit_s", 2.0),))
+    plan = benchmark.plan_benchmark(suite, "holdout", tmp_path / "b", build=False, variant=variant)
+    assert {s.scenario_data["task"]["time_limit_s"] for s in plan.runs} == {2.0}
+    plain = benchmark.plan_benchmark(suite, "holdout", tmp_path / "b", build=False)
+    assert not {s.run_id for s in plan.runs} & {s.run_id for s in plain.runs}  # other scenarios, other runs
+    assert main([*argv, "--planners", "reynolds"]) == 2
+    assert "--planners: not in the holdout split: reynolds" in capsys.readouterr().err
+
+
+def test_a_directory_holds_one_set_of_overrides(tmp_path):
+    out, suite = tmp_path / "bench", tiny_suite(tmp_path)
+    benchmark.run_benchmark(suite, "dev", out, workers=1, figure=False)
+    other = benchmark.Variant(overrides=(("task.time_limit_s", 2.0),))
+    with pytest.raises(ConfigError, match="other overrides"):
+        benchmark.run_benchmark(suite, "dev", out, workers=1, figure=False, variant=other)
+    data = benchmark.run_benchmark(suite, "dev", tmp_path / "b2", workers=1, figure=False, variant=other).data
+    assert data["variant"]["set"] == {"task.time_limit_s": 2.0}
+
+
 @pytest.mark.parametrize(
     ("argv", "words"),
     [
