@@ -419,7 +419,7 @@ class Simulation:
             downwash=bool(sc.sim.downwash),
             downwash_model=p.downwash_params,
             mass=float(p.mass),
-            load_mass=0.0 if self.payload is None else self.payload.mass,
+            payload=self.payload,
         )
 
     def _make_planner(self) -> None:

@@ -290,7 +290,8 @@ class AvoidanceSetup:
             below it (``sim.downwash``).
         downwash_model: the airframe's downwash constants (what the simulation applies when ``downwash``).
         mass: kg, the airframe's mass (with ``downwash_model``: the wake's strength against the weight).
-        load_mass: kg, the heaviest load an agent carries in the task (a laden agent's wake is the stronger).
+        payload: what an agent of the task may carry under it (None: nothing): a carrier's shape is its
+            airframe and the payload, and a laden agent's wake is the stronger.
     """
 
     n: int
@@ -309,7 +310,12 @@ class AvoidanceSetup:
     downwash: bool = False
     downwash_model: DownwashParams | None = None
     mass: float = 0.0
-    load_mass: float = 0.0
+    payload: Payload | None = None
+
+    @property
+    def load_mass(self) -> float:
+        """kg, the payload's mass (0 without one)."""
+        return 0.0 if self.payload is None else float(self.payload.mass)
 
 
 @runtime_checkable

@@ -10,7 +10,6 @@ from typing import Any, ClassVar
 import numpy as np
 
 from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, Obstacles, TaskView
-from pybullet_swarm.planning.views.construction import ConstructionLayout
 from pybullet_swarm.planning.orca import rules
 from pybullet_swarm.planning.orca.kernel import (
     FLAG_BIASED,
@@ -123,9 +122,9 @@ class OrcaLayer:
         self.sensing_radius = setup.sensing_radius
         self.r_agent = float(setup.agent_radius)  # m, airframe enclosing radius
         self.half_extent = 0.5 * np.asarray(setup.collision_size, dtype=float)  # (3,) m
-        boxes = info.layout if isinstance(info.layout, ConstructionLayout) else None  # a hanging box to keep clear
-        self.box_size = float(boxes.box_size) if boxes is not None else 0.0  # m, 0 when the task has no boxes
-        self.box_drop = float(boxes.grasp_height) if boxes is not None else 0.0  # m, box centre below agent
+        load = setup.payload  # a hanging payload to keep clear (a cube), None when the task carries nothing
+        self.box_size = float(load.edge) if load is not None else 0.0  # m, 0 when the task carries nothing
+        self.box_drop = float(load.hang) if load is not None else 0.0  # m, payload centre below the agent
         self.arena_obstacles = setup.obstacles  # the arena's, for the whole run
         # sphere around the agent centre enclosing airframe and hanging box
         self.r_carry = max(
