@@ -30,3 +30,15 @@ def test_readme_links_point_at_files_that_exist() -> None:
     assert targets
     missing = [t for t in targets if t and not (ROOT / t).exists()]
     assert not missing
+
+
+def test_readme_result_tables_are_rendered_from_their_benchmark_json() -> None:
+    from pybullet_swarm.cli.docgen import README_BLOCK, refresh_readme
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    blocks = README_BLOCK.findall(readme)
+    assert blocks, "the README shows at least one benchmark table"
+    for _, path, table, _ in blocks:
+        assert (ROOT / path).is_file(), path
+        assert table.count("\n|") >= 2, path  # a header, a rule and rows
+    assert refresh_readme(readme, ROOT) == readme, "run scripts/readme_results.py"

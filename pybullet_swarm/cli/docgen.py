@@ -481,6 +481,22 @@ def benchmark_table_file(path: str, root: Path) -> str:
     return str(markdown_table(read_json(root / path, source=path)))
 
 
+#: a generated block of the README (read on GitHub, where no hook runs): the marker, the table, the end marker
+README_BLOCK = re.compile(r"(<!-- benchmark-table: (\S+) -->\n)(.*?)(<!-- /benchmark-table -->)", re.DOTALL)
+
+
+def refresh_readme(text: str, root: Path) -> str:
+    """The README with every block between ``<!-- benchmark-table: PATH -->`` and ``<!-- /benchmark-table -->``
+    rendered again from its benchmark JSON (``scripts/readme_results.py`` writes it; a test checks it is current).
+    """
+
+    def replace(match: re.Match[str]) -> str:
+        table = benchmark_table_file(match.group(2), root).rstrip("\n")
+        return f"{match.group(1)}{table}\n{match.group(4)}"
+
+    return README_BLOCK.sub(replace, text)
+
+
 def render_markers(markdown: str, *, root: Path, data_dir: Path) -> str:
     """Replace every marker line of a page (see the module's docstring) with what it names; markers
     inside fenced code blocks are left as they are.

@@ -67,6 +67,9 @@ SHORT = {
     "load_load": "load-load",
     "load_box": "load-box",
     "load_structure": "load-s",
+    "load_ground": "load-g",
+    "load_wall": "load-w",
+    "load_obstacle": "load-o",
 }
 
 
