@@ -60,7 +60,7 @@ def register(sub: Any) -> None:
         default=[],
         metavar="KEY.PATH=VALUE",
         help="a study on the split: scenario override on top of the suite's (an ablation: "
-        "avoidance_params.sidestep=false); a directory holds one set of overrides",
+        "avoidance_params.wake_column=false); a directory holds one set of overrides",
     )
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as errors")
     p.add_argument("--no-figure", action="store_true", help="skip benchmark.png")

@@ -77,7 +77,7 @@ SHORT = {
 @dataclasses.dataclass(frozen=True)
 class Variant:
     """A study on a split that is not the split itself: a subset of its planners, more or fewer of its seeds,
-    scenario overrides on top of the suite's (an ablation: ``avoidance_params.sidestep=false``).
+    scenario overrides on top of the suite's (an ablation: ``avoidance_params.wake_column=false``).
 
     Attributes:
         planners: run only these of the split's planners (empty: all).

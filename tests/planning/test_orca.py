@@ -570,33 +570,3 @@ def test_an_agent_descending_onto_its_goals_occupant_makes_way_upwards():
     )
     assert v[0, 2] > 0.05 and np.allclose(v[0, :2], 0.0)  # straight up, out of the way
     assert np.all(np.abs(v) <= vm + 1e-9)
-
-
-def test_a_stalled_agent_above_the_one_in_its_way_climbs_past_it():
-    # Traced in stigmergy + orca on construction.yaml (seed 49): an empty agent 1.5 cm short of
-    # clearing a carrier vertically was pushed backwards by it for 1.5 s, stepping left and right
-    # in turn, until they touched.
-    pos = np.array([[2.238, 0.394, 0.255], [2.058, 0.35, 0.245]])  # 0 empty, 1 carries
-    vel = np.array([[0.144, -0.104, 0.003], [0.144, 0.0, 0.0]])
-    pref = np.array([[-0.15, -0.088, -0.002], [0.15, 0.0, 0.0]])
-    vm = np.full(3, 0.15)
-    centre, half = _level_boxes([False, True])
-    bounds = velocity_bounds(pos, pref, vm, floor_height=0.5, time_horizon=1.5)
-    goals = pos + 10.0 * pref
-    for climb, climbs in ((True, True), (False, False)):
-        v, _ = orca_velocities(
-            pos,
-            vel,
-            pref,
-            # headway off: it grows the pair's boxes along x by the carrier's speed, and the empty agent
-            # then climbs over it (CLIMB_OVER) before it ever stalls
-            params=OrcaParams(climb_past=climb, vertical_cost=0.75, headway=False),
-            sensing_radius=1.0,
-            v_max=vm,
-            radii=np.array([R_AGENT, R_CARRY]),
-            boxes=(centre, half),
-            bounds=bounds,
-            goals=goals,
-            has_goal=np.ones(2, dtype=bool),
-        )
-        assert bool(v[0, 2] > 0.05) == climbs

@@ -55,10 +55,11 @@ def test_every_rule_has_a_switch_on_by_default_described_by_its_one_line():
 
 
 def test_a_rule_is_switched_off_by_name_in_a_scenario():
-    sc = pybullet_swarm.load_scenario("construction", {"avoidance_params.sidestep": False}, avoidance="orca")
+    sc = pybullet_swarm.load_scenario("construction", {"avoidance_params.deadlock_resolution": False}, avoidance="orca")
     assert isinstance(sc.avoidance_params, OrcaParams)
-    assert sc.avoidance_params.sidestep is False and Rule.SIDESTEP not in sc.avoidance_params.rules
-    assert sc.data["avoidance_params"]["sidestep"] is False
+    params = sc.avoidance_params
+    assert params.deadlock_resolution is False and Rule.DEADLOCK_RESOLUTION not in params.rules
+    assert sc.data["avoidance_params"]["deadlock_resolution"] is False
 
 
 # ----------------------------------------------------------------------------- rules in the kernel
@@ -311,23 +312,24 @@ def test_off_a_collision_course_a_wake_pair_shares_its_freedom():
         assert on or v[0, 1] <= vel[0, 1] + 1e-9  # off: held to its drift
 
 
-def test_sidestep_biases_stalled_agents_and_only_when_on():
+def test_deadlock_resolution_biases_stalled_agents_and_only_when_on():
     v, flags = _line_of_stalled_agents(OrcaParams())
     assert np.all(flags & FLAG_BIASED) and abs(v[1, 1]) > 0.1
-    for off in ({"sidestep": False}, {"right_bias": 0.0}):
+    for off in ({"deadlock_resolution": False}, {"right_bias": 0.0}):
         v, flags = _line_of_stalled_agents(OrcaParams.model_validate(off))
         assert not np.any(flags & FLAG_BIASED)
 
 
-def test_without_make_way_an_agent_over_its_goals_occupant_waits():
-    # test_orca's case: carrier 0 descends onto its slot, where agent 1 has just placed a box
+def test_an_agent_over_its_goals_occupant_rises_and_without_deadlock_resolution_waits():
+    # test_orca's case: carrier 0 descends onto its slot, where agent 1 has just placed a box: it rises, the
+    # only way the occupant can leave
     pos = np.array([[2.7, 0.6, 0.31], [2.7, 0.6, 0.125]])
     goals = np.array([[2.7, 0.6, 0.215], [2.7, 0.6, 0.45]])
     kinds = np.full(2, int(CommandKind.POSITION))
     has_goal = np.ones(2, dtype=bool)
     boxes = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([True, False]), 0.1, 0.065)
     for make_way in (True, False):
-        params = OrcaParams(make_way=make_way)
+        params = OrcaParams(deadlock_resolution=make_way)
         pref = preferred_velocities(kinds, goals, pos, arrive_time=params.arrive_time, v_max=VM)
         vcmd = commanded_velocities(kinds, goals, pos, v_max=VM, a_max=np.full(3, 1.0), dt=1.0 / 48.0)
         bounds = velocity_bounds(
@@ -549,14 +551,14 @@ def _swap(params: OrcaParams, impatient: bool) -> tuple[np.ndarray, np.ndarray]:
     return _level_boxes(params, pos, pref, goals, impatient=np.full(2, impatient))
 
 
-def test_impatience_ends_a_wait_for_a_neighbour_on_the_goal_and_only_when_on():
+def test_impatience_ends_a_wait_for_a_neighbour_on_the_goal_and_only_with_deadlock_resolution():
     v, flags = _swap(OrcaParams(), impatient=False)
     assert np.all(flags & FLAG_WAITING) and not np.any(flags & FLAG_BIASED)  # each waits for the other
     assert np.all(np.abs(v[:, 1]) < 0.01)
     v, flags = _swap(OrcaParams(), impatient=True)
     assert np.all(flags & FLAG_BIASED) and np.all(flags & FLAG_WAITING)  # goes round it, still counted as waiting
     assert np.all(np.abs(v[:, 1]) > 0.05) and v[0, 1] * v[1, 1] < 0.0  # opposite sides: they pass
-    v, flags = _swap(OrcaParams(impatience=False), impatient=True)
+    v, flags = _swap(OrcaParams(deadlock_resolution=False), impatient=True)
     assert not np.any(flags & FLAG_BIASED) and np.all(np.abs(v[:, 1]) < 0.01)
 
 
@@ -615,60 +617,6 @@ def test_a_wait_goes_on_through_a_break_shorter_than_wait_memory_s(monkeypatch: 
         assert seen[9].all() == (memory > 0.0) and seen[10].all() == (memory > 0.0)
     finally:
         sim.close()
-
-
-@pytest.mark.parametrize("on", [True, False])
-def test_climb_when_shorter_steps_aside_rather_than_climbing_over_a_wake_column(on: bool):
-    """An agent 5 cm above another it meets head-on, stalled: with a 0.5 m wake column, passing over needs a
-    climb of half a metre, and the planner pulls it back down (random_8 under shortest_path, seed 0); the step
-    aside is a box's width. Without a wake column the climb is the shorter way, rule or not."""
-    pos = np.array([[1.0, 0.5, 0.55], [1.22, 0.5, 0.5]])
-    pref = np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0]])
-    for wake, climbs in ((0.5, not on), (0.0, True)):
-        v, flags = _level_boxes(OrcaParams(climb_when_shorter=on, wake_depth=wake), pos, pref, pos + 10.0 * pref)
-        assert flags[0] & FLAG_BIASED
-        assert bool(v[0, 2] > 0.05) is climbs, (wake, v[0])
-        if not climbs:
-            assert abs(v[0, 1]) > 0.05
-
-
-@pytest.mark.parametrize("on", [True, False])
-def test_side_memory_keeps_the_side_taken_round_a_neighbour_when_their_offset_flips(on: bool):
-    """Head-on and stalled, 2 cm apart across the way: each steps to the side the other leaves free. Traced
-    (construction, stigmergy + orca, seeds 48 and 96): as both moved, the offset changed sign and the sides
-    with it, tick after tick, while the neighbour pushed the carrier 1 m back. With the rule the side stays."""
-    memory = (np.full(2, -1, dtype=np.int64), np.zeros((2, 3)))
-    pref = np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, 0.0]])
-    sides = []
-    for dy in (0.02, -0.02):
-        pos = np.array([[1.0, 0.5, 0.5], [1.22, 0.5 + dy, 0.5]])
-        params = OrcaParams(side_memory=on, wake_depth=0.0)
-        v, flags = _level_boxes(params, pos, pref, pos + 10.0 * pref, memory=memory)
-        assert flags[0] & FLAG_BIASED and abs(v[0, 1]) > 0.05
-        sides.append(np.sign(v[0, 1]))
-    assert sides[0] < 0.0  # first away from the neighbour's side (it is at +y)
-    assert bool(sides[1] == sides[0]) is on
-    assert memory[0][0] == 1 and memory[0][1] == 0  # who went round whom is kept for the next call
-
-
-@pytest.mark.parametrize("on", [True, False])
-def test_pushed_back_a_stalled_agent_steps_aside_instead_of_being_pushed_along(on: bool):
-    """Agent 1 flies at agent 0 head-on, 9 cm apart across the way, at the speed agent 0 is pushed back (the
-    pair's velocity obstacle only keeps them apart: neither is told to stop). ORCA linearises about the present
-    velocities, so agent 1 kept its speed and agent 0 kept retreating; its sideways bias was cancelled by its
-    preferred velocity back towards its line (shortest_path + orca, construction seed 43: a carrier pushed out
-    of the arena; stigmergy, seeds 48 and 96). Velocities follow the commands with a 0.3 s lag, 6 s."""
-    pos = np.array([[0.23, 0.6, 0.5], [0.0, 0.51, 0.5]])
-    vel = np.array([[0.11, 0.0, 0.0], [0.11, 0.0, 0.0]])
-    goals = np.array([[-1.0, 0.6, 0.5], [5.0, 0.51, 0.5]])
-    memory = (np.full(2, -1, dtype=np.int64), np.zeros((2, 3)))
-    for _ in range(60):
-        pref = np.clip((goals - pos) / 0.5, -VM, VM)
-        v, _ = _level_boxes(OrcaParams(pushed_back=on, wake_depth=0.0), pos, pref, goals, vel=vel, memory=memory)
-        vel += (v - vel) * (0.1 / 0.3)
-        pos += vel * 0.1
-    assert bool(pos[0, 0] < pos[1, 0]) is on  # past agent 1 on its way, or pushed along ahead of it
-    assert bool(pos[0, 0] < 0.23) is on
 
 
 @pytest.mark.parametrize("on", [True, False])
@@ -793,16 +741,14 @@ def test_gap_weighted_fallback_closes_on_the_nearest_neighbour_last():
     assert OrcaParams(gap_weighted_fallback=False).rules.count(Rule.GAP_WEIGHTED_FALLBACK) == 0
 
 
-@pytest.mark.parametrize("on", [True, False])
-def test_free_side_steps_away_from_a_neighbour_off_to_one_side(on: bool):
+def test_a_stalled_agent_steps_to_the_side_a_neighbour_off_to_one_side_leaves_free():
     """Agent 0 flies +y, stalled by a neighbour at rest 14 cm to its right and 20 cm ahead (35 deg off its
-    course: not nearly straight ahead). With the rule it steps to the left, which the neighbour leaves free;
-    without, to the right, into the neighbour's side. Traced (suite layout random_3, stigmergy + orca, seed 2):
+    course). It steps to the left, which the neighbour leaves free, not to the right, into its side. Traced (suite layout random_3, stigmergy + orca, seed 2):
     two agents meeting head-on over a depot column, 15 cm apart across it, each stepped towards the other's
     side, and three agents in a row held each other for 23 s, touching five times."""
     pos = np.array([[1.0, 1.0, 0.5], [1.14, 1.2, 0.5]])
     pref = np.array([[0.0, 0.15, 0.0], [0.0, 0.0, 0.0]])
     goals = np.array([[1.0, 5.0, 0.5], pos[1]])
-    v, flags = _level_boxes(OrcaParams(free_side=on, wake_depth=0.0), pos, pref, goals)
+    v, flags = _level_boxes(OrcaParams(wake_depth=0.0), pos, pref, goals)
     assert flags[0] & FLAG_BIASED and abs(v[0, 0]) > 0.05
-    assert bool(v[0, 0] < 0.0) is on
+    assert v[0, 0] < 0.0

@@ -6,8 +6,7 @@ whole u, as the paper's agents do with obstacles: never traded away by the fallb
 agent already overlaps the obstacle), one ORCA plane per neighbour (``core``; shapes grown by
 ``LAG_MARGIN``, the way out weighted by ``WEIGHTED_WAY_OUT``, the shares moved by ``CLIMB_OVER``),
 then either the command unchanged (``MINIMAL_INTERVENTION``) or the LP's velocity, which a
-stalled agent may solve again with a bias (``SIDESTEP``, ``CLIMB_PAST``, ``MAKE_WAY``; held up by
-an obstacle, ``STATIC_OBSTACLES``).
+stalled agent may solve again with a bias (``DEADLOCK_RESOLUTION``, ``resolve_stall``).
 
 Also here: the arrays the kernel is fed from commands and sensed state (neighbour table,
 bounding boxes, preferred and commanded velocities).
@@ -31,11 +30,11 @@ from pybullet_swarm.planning.orca.vec import Vec, add, dot, row, scale, set_row
 
 #: flags returned per agent by ``orca_velocities``
 FLAG_INFEASIBLE = 1  # the ORCA planes had no common velocity: least-violating velocity used (core)
-FLAG_BIASED = 2  # stalled by a neighbour: the sideways (or upward) bias was applied (SIDESTEP, MAKE_WAY)
+FLAG_BIASED = 2  # stalled: the sideways (or upward) bias was applied (DEADLOCK_RESOLUTION)
 FLAG_FREE = 4  # the commanded velocity satisfies every plane: nothing was changed (MINIMAL_INTERVENTION)
 FLAG_CLIMB = 8  # took a pair's whole share of a vertical way out (CLIMB_OVER)
 FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach (STATIC_OBSTACLES)
-FLAG_WAITING = 32  # stalled, waiting for a neighbour that sits on its goal (IMPATIENCE counts the time)
+FLAG_WAITING = 32  # stalled, waiting for a neighbour that sits on its goal (the layer counts the time)
 
 HARD_PLANES = 6  # at most two velocity bounds per axis
 NO_BARE = (-1.0, -1.0, -1.0)  # box_u without MARGIN_OVERLAP
@@ -266,24 +265,78 @@ def obstacle_planes(
 
 
 @njit
-def climb_first(
+def resolve_stall(
     i: int,
-    j: int,
     pos: NDArray[np.float64],
+    radius: NDArray[np.float64],
     centre: NDArray[np.float64],
     half: NDArray[np.float64],
     boxes: bool,
+    nbr: NDArray[np.int64],
+    goal: NDArray[np.float64],
+    has_goal: NDArray[np.bool_],
+    oc: NDArray[np.float64],
+    oh: NDArray[np.float64],
+    parts: NDArray[np.float64],
+    impatient: bool,
+    pr: Vec,
+    sp: float,
+    obstacles_near: bool,
     cs: np.record,
     rs: np.record,
-    wake: float,
-) -> bool:
-    """CLIMB_PAST (with CLIMB_WHEN_SHORTER): whether agent i, above j in its way, passes over it."""
-    if not (rs.climb_when_shorter and boxes):
-        return True
-    c = box_offset(i, j, pos, centre)
-    m2 = 2.0 * cs.margin
-    H = (half[i, 0] + half[j, 0] + m2, half[i, 1] + half[j, 1] + m2, half[i, 2] + half[j, 2] + m2 + wake)
-    return rules.climb_is_shorter(c, H, rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost))
+    N: NDArray[np.float64],
+    P: NDArray[np.float64],
+    SN: NDArray[np.float64],
+    SP: NDArray[np.float64],
+    W: NDArray[np.float64],
+    m: int,
+    n_hard: int,
+    weighted: bool,
+    res: Vec,
+    f: int,
+) -> tuple[Vec, int]:
+    """DEADLOCK_RESOLUTION, the deadlock stage: a new velocity and flags for agent i, stalled (its LP velocity
+    ``res`` makes progress below ``stuck_fraction`` of its preferred speed ``sp`` along ``pr``).
+
+    One mechanism: find what holds the agent up (``rules.stalled_by``: the nearest neighbour ahead in its
+    way, or one on its goal, which is waited for, ``FLAG_WAITING``, until the agent is ``impatient``; or,
+    with none, the nearest static obstacle ahead), then solve again with the preferred velocity biased by
+    ``right_bias`` x ``sp`` sideways, to the side the one in the way leaves free (``rules.sidestep``), or,
+    descending onto the occupant of its goal, straight up: the only way that one can leave. When the
+    biased velocity is still held, or takes the agent backwards and hardly sideways (ORCA linearises
+    about present velocities: an agent pushed back at the speed of one flying at it keeps retreating),
+    the agent asks for the sideways step alone.
+    """
+    stuck, right_bias = rs.stuck_fraction, rs.right_bias
+    wake = rules.wake_growth(rs.wake_column and boxes, rs.wake_depth)
+    j, make_way, waits = rules.stalled_by(
+        i, pos, pr, sp, radius, centre, half, boxes, nbr, goal, has_goal[i], 2.0 * cs.margin, rs.time_horizon,
+        True, wake, impatient,
+    )  # fmt: skip
+    if waits:
+        f |= FLAG_WAITING
+    if make_way:
+        feasible, out = core.solve(N, P, m, n_hard, cs.max_speed, (0.0, 0.0, sp), SN, SP, W, weighted)
+        return out, FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
+    held = False
+    side = (0.0, 0.0, 0.0)
+    if j >= 0:
+        held = True
+        side = rules.sidestep(scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0))
+    elif obstacles_near:
+        held, side = rules.obstacle_in_way(
+            i, pos, radius, centre, half, boxes, oc, oh, goal, has_goal[i], parts, scale(pr, 1.0 / sp),
+            sp / rs.inv_tau_obstacle, cs.margin, cs.margin + rs.goal_reach,
+        )  # fmt: skip
+    if not held:
+        return res, f
+    feasible, out = core.solve(N, P, m, n_hard, cs.max_speed, add(pr, side, right_bias * sp), SN, SP, W, weighted)
+    if (dot(out, pr) < 0.0 and dot(out, side) < stuck * sp) or dot(out, out) < stuck * stuck * sp * sp:
+        # still held (the bias cancelled what the neighbours' planes left free: a box VO leaves the axis
+        # across the blocking face free, and the bias can exactly cancel the preferred velocity along it),
+        # or pushed backwards and hardly sideways: ask for the sideways step alone
+        feasible, out = core.solve(N, P, m, n_hard, cs.max_speed, scale(side, sp), SN, SP, W, weighted)
+    return out, FLAG_BIASED | (f & FLAG_WAITING) | (0 if feasible else FLAG_INFEASIBLE)
 
 
 @njit
@@ -305,8 +358,6 @@ def orca_batch(
     oh: NDArray[np.float64],
     parts: NDArray[np.float64],
     impatient: NDArray[np.bool_],
-    side_of: NDArray[np.int64],
-    side_dir: NDArray[np.float64],
     core_rec: NDArray[np.void],
     rule_rec: NDArray[np.void],
     out: NDArray[np.float64],
@@ -324,12 +375,9 @@ def orca_batch(
     SP = np.empty((m_max, 3))
     W = np.ones(m_max)
     weighted = rs.gap_weighted_fallback
-    max_speed, right_bias, stuck = cs.max_speed, rs.right_bias, rs.stuck_fraction
-    side_on = rs.sidestep and right_bias > 0.0
-    stall_on = side_on or rs.make_way
+    max_speed, stuck = cs.max_speed, rs.stuck_fraction
+    stall_on = rs.deadlock_resolution and rs.right_bias > 0.0
     for i in range(n):
-        passing = side_of[i]  # SIDE_MEMORY: the neighbour i went round at the last tick (-1: none)
-        side_of[i] = -1
         n_bounds = core.bound_planes(lo, hi, i, N, P)
         n_hard = n_static = n_bounds
         if static:
@@ -348,78 +396,10 @@ def orca_batch(
         f = 0 if feasible else FLAG_INFEASIBLE
         sp = math.sqrt(dot(pr, pr))
         if stall_on and sp > rules.MIN_PREFERRED_SPEED and dot(res, pr) < stuck * sp * sp:
-            wake = rules.wake_growth(rs.wake_column and boxes, rs.wake_depth)
-            j, make_way, waits = rules.stalled_by(
-                i,
-                pos,
-                pr,
-                sp,
-                radius,
-                centre,
-                half,
-                boxes,
-                nbr,
-                goal,
-                has_goal[i],
-                2.0 * cs.margin,
-                rs.time_horizon,
-                rs.make_way,
-                wake,
-                rs.impatience and impatient[i],
-            )
-            if waits:
-                f |= FLAG_WAITING
-            held = False
-            side = (0.0, 0.0, 0.0)
-            if make_way:
-                feasible, res = core.solve(N, P, m, n_hard, max_speed, (0.0, 0.0, sp), SN, SP, W, weighted)
-                f = FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
-            elif j >= 0 and side_on:
-                held = True
-                if (
-                    rs.climb_past
-                    and pos[i, 2] > pos[j, 2]
-                    and climb_first(i, j, pos, centre, half, boxes, cs, rs, wake)
-                ):
-                    side = (0.0, 0.0, 1.0)  # above the one in the way: over it
-                elif rs.side_memory and passing == j:
-                    side = (side_dir[i, 0], side_dir[i, 1], side_dir[i, 2])  # the side chosen for j: keep it
-                else:
-                    side = rules.sidestep(scale(pr, 1.0 / sp), add(row(pos, j), row(pos, i), -1.0), rs.free_side)
-                side_of[i] = j
-                set_row(side_dir, i, side)
-            elif side_on and n_static > n_bounds:
-                held, side = rules.obstacle_in_way(
-                    i,
-                    pos,
-                    radius,
-                    centre,
-                    half,
-                    boxes,
-                    oc,
-                    oh,
-                    goal,
-                    has_goal[i],
-                    parts,
-                    scale(pr, 1.0 / sp),
-                    sp / rs.inv_tau_obstacle,
-                    cs.margin,
-                    cs.margin + rs.goal_reach,
-                    rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost),
-                    rs.climb_past,
-                )
-            if held:
-                feasible, res = core.solve(
-                    N, P, m, n_hard, max_speed, add(pr, side, right_bias * sp), SN, SP, W, weighted
-                )
-                pushed = rs.pushed_back and dot(res, pr) < 0.0 and dot(res, side) < stuck * sp
-                if pushed or dot(res, res) < stuck * stuck * sp * sp:
-                    # still held: the bias cancelled what the neighbours' planes left free (a box VO
-                    # leaves the axis across the blocking face free; the bias can exactly cancel the
-                    # preferred velocity along it), or (PUSHED_BACK) the agent moves backwards and
-                    # hardly sideways: ask for the sideways step alone
-                    feasible, res = core.solve(N, P, m, n_hard, max_speed, scale(side, sp), SN, SP, W, weighted)
-                f = FLAG_BIASED | (f & FLAG_WAITING) | (0 if feasible else FLAG_INFEASIBLE)
+            res, f = resolve_stall(
+                i, pos, radius, centre, half, boxes, nbr, goal, has_goal, oc, oh, parts, impatient[i], pr, sp,
+                n_static > n_bounds, cs, rs, N, P, SN, SP, W, m, n_hard, weighted, res, f,
+            )  # fmt: skip
         set_row(out, i, res)
         flags[i] = f | up
 
@@ -463,7 +443,6 @@ def orca_velocities(
     obstacles: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     parts: NDArray[np.float64] | None = None,
     impatient: NDArray[np.bool_] | None = None,
-    memory: tuple[NDArray[np.int64], NDArray[np.float64]] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Collision-avoiding velocities of all agents from sensed state (one compiled call).
 
@@ -493,10 +472,7 @@ def orca_velocities(
         parts: (n, 12) airframe and load boxes of each agent (``shape_parts``), which tell the
             target's own obstacles (default: each agent's shape as one part).
         impatient: (n,) True for the agents that have waited ``wait_patience_s`` for a neighbour on their
-            goal (``IMPATIENCE``; the caller counts the time from ``FLAG_WAITING``; default: none).
-        memory: (neighbour (n,) int, direction (n, 3)) of ``SIDE_MEMORY``, read and written: the neighbour
-            each agent went round at the last call and the direction it took (-1: none), kept by the caller
-            from call to call (default: fresh, nothing remembered).
+            goal (``DEADLOCK_RESOLUTION``; the caller counts the time from ``FLAG_WAITING``; default: none).
 
     Returns:
         (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE | FLAG_CLIMB |
@@ -535,12 +511,6 @@ def orca_velocities(
         parts[:, :3] = centre
         parts[:, 3:6] = half if use_boxes else radius[:, None]
     impatient = np.zeros(n, dtype=np.bool_) if impatient is None else np.ascontiguousarray(impatient, dtype=np.bool_)
-    if memory is None:
-        side_of, side_dir = np.full(n, -1, dtype=np.int64), np.zeros((n, 3))
-    else:
-        side_of, side_dir = memory
-        if side_of.dtype != np.int64 or side_dir.dtype != np.float64 or not side_dir.flags.c_contiguous:
-            raise ValueError("memory must be (int64 (n,), contiguous float64 (n, 3)) arrays, written in place")
     out = np.empty((n, 3))
     flags = np.zeros(n, dtype=np.int64)
     core_rec, rule_rec = _settings(params, None if v_max is None else tuple(map(float, vm)))
@@ -562,8 +532,6 @@ def orca_velocities(
         oh,
         np.ascontiguousarray(parts, dtype=float).reshape(n, 12),
         impatient.reshape(n),
-        side_of,
-        side_dir,
         core_rec,
         rule_rec,
         out,

@@ -133,8 +133,6 @@ class OrcaLayer:
         self.planner_dt = float(setup.planner_dt)  # s, between filter calls
         self._waited = np.zeros(self.n)  # s, how long each agent has waited for a neighbour on its goal
         self._free = np.zeros(self.n)  # s, how long each agent has been free of that wait (``wait_memory_s``)
-        self._side_of = np.full(self.n, -1, dtype=np.int64)  # the neighbour each agent goes round (SIDE_MEMORY)
-        self._side_dir = np.zeros((self.n, 3))  # the direction it took
         _warm_up()
         self._ticks = 0
         self._impatient = 0
@@ -210,9 +208,8 @@ class OrcaLayer:
             obstacles=(oc, oh),
             parts=parts,
             impatient=self._waited >= p.wait_patience_s,
-            memory=(self._side_of, self._side_dir),
         )
-        # IMPATIENCE: the time counts while the wait lasts, and through breaks shorter than wait_memory_s
+        # DEADLOCK_RESOLUTION: the time waited for a goal's occupant counts while the wait lasts, and through breaks shorter than wait_memory_s
         waiting = (flags & FLAG_WAITING) != 0
         self._free = np.where(waiting, 0.0, self._free + self.planner_dt)
         ended = ~waiting & (self._free > p.wait_memory_s + 1e-9)

@@ -138,7 +138,7 @@ class OrcaParams(Params):
     clearance_lookahead: float = Field(
         0.3, ge=0.0, le=10.0, description="s, a neighbour's box is swept along its velocity for this long"
     )
-    sidestep: bool = _switch(Rule.SIDESTEP)
+    deadlock_resolution: bool = _switch(Rule.DEADLOCK_RESOLUTION)
     right_bias: float = Field(
         0.5, ge=0.0, le=10.0, description="fraction of the preferred speed added sideways to a stalled agent (0: off)"
     )
@@ -146,10 +146,21 @@ class OrcaParams(Params):
         0.25,
         ge=0.0,
         lt=1.0,
-        description="progress below this fraction of the preferred speed counts as stalled (sidestep, make_way)",
+        description="progress below this fraction of the preferred speed counts as stalled (deadlock_resolution)",
     )
-    climb_past: bool = _switch(Rule.CLIMB_PAST)
-    make_way: bool = _switch(Rule.MAKE_WAY)
+    wait_patience_s: float = Field(
+        10.0,
+        gt=0.0,
+        le=1000.0,
+        description="s, with deadlock_resolution: an agent waiting this long for a neighbour on its goal goes round it",
+    )
+    wait_memory_s: float = Field(
+        2.0,
+        ge=0.0,
+        le=1000.0,
+        description="s, with deadlock_resolution: a wait goes on counting (and an impatient agent stays "
+        "impatient) while the agent is free of it for less than this; 0: every free tick ends the wait",
+    )
     static_obstacles: bool = _switch(Rule.STATIC_OBSTACLES)
     obstacle_horizon: float = Field(
         1.0, gt=0.0, le=60.0, description="s, collisions with static obstacles predicted later than this are ignored"
@@ -184,23 +195,6 @@ class OrcaParams(Params):
     headway: bool = _switch(Rule.HEADWAY)
     wake_share_on_course: bool = _switch(Rule.WAKE_SHARE_ON_COURSE)
     margin_overlap: bool = _switch(Rule.MARGIN_OVERLAP)
-    impatience: bool = _switch(Rule.IMPATIENCE)
-    wait_patience_s: float = Field(
-        10.0,
-        gt=0.0,
-        le=1000.0,
-        description="s, with impatience: an agent waiting this long for a neighbour on its goal goes round it",
-    )
-    wait_memory_s: float = Field(
-        2.0,
-        ge=0.0,
-        le=1000.0,
-        description="s, with impatience: a wait goes on counting (and an impatient agent stays impatient) while "
-        "the agent is free of it for less than this; 0: every free tick ends the wait",
-    )
-    climb_when_shorter: bool = _switch(Rule.CLIMB_WHEN_SHORTER)
-    side_memory: bool = _switch(Rule.SIDE_MEMORY)
-    pushed_back: bool = _switch(Rule.PUSHED_BACK)
     passthrough_turns: bool = _switch(Rule.PASSTHROUGH_TURNS)
     pinned_share: bool = _switch(Rule.PINNED_SHARE)
     ground_beside: bool = _switch(Rule.GROUND_BESIDE)
@@ -212,8 +206,6 @@ class OrcaParams(Params):
         description="m, with gap_weighted_fallback: pairs whose bare shapes are nearer than this (or overlap) "
         "weigh alike, as if this far apart",
     )
-
-    free_side: bool = _switch(Rule.FREE_SIDE)
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
 

@@ -37,24 +37,17 @@ class Rule(str, enum.Enum):
     COLUMN_RULE = "column_rule"
     MINIMAL_INTERVENTION = "minimal_intervention"
     PASSTHROUGH = "passthrough"
-    SIDESTEP = "sidestep"
-    CLIMB_PAST = "climb_past"
-    MAKE_WAY = "make_way"
+    DEADLOCK_RESOLUTION = "deadlock_resolution"
     STATIC_OBSTACLES = "static_obstacles"
     WAKE_COLUMN = "wake_column"
     WAKE_SHARE_BY_APPROACH = "wake_share_by_approach"
     HEADWAY = "headway"
     WAKE_SHARE_ON_COURSE = "wake_share_on_course"
     MARGIN_OVERLAP = "margin_overlap"
-    IMPATIENCE = "impatience"
-    CLIMB_WHEN_SHORTER = "climb_when_shorter"
-    SIDE_MEMORY = "side_memory"
-    PUSHED_BACK = "pushed_back"
     PASSTHROUGH_TURNS = "passthrough_turns"
     PINNED_SHARE = "pinned_share"
     GROUND_BESIDE = "ground_beside"
     GAP_WEIGHTED_FALLBACK = "gap_weighted_fallback"
-    FREE_SIDE = "free_side"
 
     @property
     def doc(self) -> str:
@@ -81,12 +74,8 @@ RULE_DOCS: dict[Rule, str] = {
     "(off: every agent flies the LP's velocity)",
     Rule.PASSTHROUGH: "a POSITION/HOLD command within capture_radius passes unchanged when the agent's swept box "
     "stays clear of every neighbour's",
-    Rule.SIDESTEP: "an agent stalled by a neighbour in its way adds right_bias of its preferred speed sideways, "
-    "to the right or the side left free",
-    Rule.CLIMB_PAST: "a stalled agent higher than the neighbour in its way climbs past it instead of stepping "
-    "sideways (acts with sidestep)",
-    Rule.MAKE_WAY: "a stalled agent descending onto a neighbour that sits on its goal rises straight up, the only "
-    "way that one can leave",
+    Rule.DEADLOCK_RESOLUTION: "a stalled agent steps aside to the free side, rises off its goal's occupant, and "
+    "goes round one after wait_patience_s",
     Rule.STATIC_OBSTACLES: "boxes, structure and arena obstacles are velocity obstacles avoided alone, but those "
     "the agent's target touches",
     Rule.WAKE_COLUMN: "against other agents each agent's box reaches wake_depth further down: nobody flies in "
@@ -99,14 +88,6 @@ RULE_DOCS: dict[Rule, str] = {
     "the freedom",
     Rule.MARGIN_OVERLAP: "overlapping boxes recover along the least overlap of the axes on which the bare shapes "
     "are apart",
-    Rule.IMPATIENCE: "after wait_patience_s waiting for a neighbour on its goal, an agent treats it as in its way: "
-    "a swap resolves",
-    Rule.CLIMB_WHEN_SHORTER: "climb_past only when the climb over the neighbour, wake column included, is shorter "
-    "than the step aside",
-    Rule.SIDE_MEMORY: "a stalled agent keeps the side it took round a neighbour while that one holds it up, "
-    "though their offset flips",
-    Rule.PUSHED_BACK: "a stalled agent that its biased velocity takes backwards and hardly sideways asks for the "
-    "sideways step alone",
     Rule.PASSTHROUGH_TURNS: "passthrough to a waypoint (a target touching nothing) needs clearance from what each "
     "neighbour can reach by turning",
     Rule.PINNED_SHARE: "against a neighbour that its bounds pin on the axis the pair's way out mostly runs along, "
@@ -115,8 +96,6 @@ RULE_DOCS: dict[Rule, str] = {
     "ground",
     Rule.GAP_WEIGHTED_FALLBACK: "with no common velocity, a plane's violation counts 1 / its pair's gap a lag later "
     "times: the nearest is closed on last",
-    Rule.FREE_SIDE: "sidestep takes the side a neighbour in the way leaves free at any bearing (off: within 30 "
-    "deg of ahead, else right)",
 }
 
 #: the rules' switches and parameters as the kernels read them (one record)
@@ -140,7 +119,6 @@ RULES = np.dtype(
 VERTICAL_COS2 = 0.5  # cos^2(45 deg): a direction (a way out, a descent) within 45 deg of vertical is vertical
 APPROACH_SPEED = 0.02  # m/s, a pair closing in slower than this is at rest (WAKE_SHARE_BY_APPROACH)
 LEVEL_SPEED = 0.02  # m/s, an agent climbing or sinking slower than this is in level flight
-AHEAD_SIN = 0.5  # sin(30 deg): a neighbour within 30 deg of the direction of travel is nearly straight ahead
 SIDE_OFFSET = 0.01  # m, a neighbour ahead further than this to one side has already chosen its side
 HORIZONTAL_MIN2 = 1e-6  # squared horizontal part of a unit direction below which it counts as vertical
 BESIDE_MIN2 = 1e-4  # m^2, a neighbour horizontally closer than 1 cm is right above or below
@@ -454,7 +432,7 @@ def stalled_by(
     wake: float,
     impatient: bool,
 ) -> tuple[int, bool, bool]:
-    """SIDESTEP, MAKE_WAY and IMPATIENCE: who holds up stalled agent i.
+    """DEADLOCK_RESOLUTION: who holds up stalled agent i.
 
     Returns the nearest neighbour ahead (reachable at speed ``sp`` m/s over ``tau`` s, shapes grown
     by ``margin2`` m, and vertically by ``wake`` m: ``WAKE_COLUMN``) that is in the way and does
@@ -462,7 +440,7 @@ def stalled_by(
     when, descending straight down, i first meets a neighbour below whose shape itself sits on
     its goal: that one can only leave upwards, through i. A neighbour on the goal is otherwise
     waited for (circling one that is about to leave would not help), and the third value says
-    that i waits for one; once i is ``impatient`` (``IMPATIENCE``: it has waited long enough),
+    that i waits for one; once i is ``impatient`` (it has waited ``wait_patience_s``),
     the first such neighbour is returned as the one in its way: it is not leaving, perhaps
     because i sits on its goal.
     """
@@ -500,37 +478,20 @@ def stalled_by(
 
 
 @njit
-def climb_is_shorter(c: Vec, H: Vec, wz: float) -> bool:
-    """CLIMB_WHEN_SHORTER: whether climbing over a neighbour below is the shorter way past it.
+def sidestep(d: Vec, rel: Vec) -> Vec:
+    """DEADLOCK_RESOLUTION: horizontal unit direction across unit direction ``d``, to pass a neighbour at ``rel`` m.
 
-    ``c`` m: the neighbour's box centre relative to the agent's (below it: ``c[2] < 0``); ``H`` m:
-    the half extents of the pair's boxes summed, margins and the wake column included. The climb
-    is what raises the agent's box (and the wake column under it) clear of the neighbour's,
-    weighted by ``wz`` (``way_out_weight``); the step aside, what takes the agent past a neighbour
-    straight ahead: the pair's narrower horizontal extent (the present offsets say little: a stall
-    is a meeting ahead, not an overlap now).
-    """
-    climb = H[2] + c[2]
-    return wz * climb <= min(H[0], H[1])
-
-
-@njit
-def sidestep(d: Vec, rel: Vec, free_side: bool = False) -> Vec:
-    """SIDESTEP: horizontal unit direction across unit direction ``d``, to pass a neighbour at ``rel`` m.
-
-    To the right (``right_of``): when everyone keeps right, a crowd turns into a roundabout. The
-    exception is a neighbour already a little to one side (more than 1 cm): then the side it leaves
-    free, rather than crossing in front of it; without ``free_side`` (``FREE_SIDE``) only when it is
-    nearly straight ahead (within 30 deg), and to the right beyond, even when the neighbour is there.
-    Both agents of a pair see mirrored numbers and so pick opposite sides.
+    The side a neighbour already a little to one side (more than 1 cm) leaves free, at any bearing,
+    rather than crossing in front of it; to the right (``right_of``) when it is dead ahead: when
+    everyone keeps right, a crowd turns into a roundabout. Both agents of a pair see mirrored
+    numbers and so pick opposite sides. Travelling vertically: horizontally away from the neighbour.
     """
     h2 = d[0] * d[0] + d[1] * d[1]
     if h2 > HORIZONTAL_MIN2:  # across the horizontal direction of travel
         hl = math.sqrt(h2)
         across = (-d[1] / hl, d[0] / hl, 0.0)  # left of d
         side = dot(rel, across)
-        rh = math.sqrt(rel[0] * rel[0] + rel[1] * rel[1])
-        if SIDE_OFFSET < abs(side) and (free_side or abs(side) < AHEAD_SIN * rh):
+        if abs(side) > SIDE_OFFSET:
             return scale(across, -1.0 if side > 0.0 else 1.0)
         return right_of(d)
     r2 = rel[0] * rel[0] + rel[1] * rel[1]  # vertical travel: horizontally away
@@ -770,16 +731,13 @@ def obstacle_in_way(
     length: float,
     margin: float,
     reach: float,
-    wz: float,
-    climb: bool,
 ) -> tuple[bool, Vec]:
-    """STATIC_OBSTACLES with SIDESTEP: the way past the nearest obstacle that holds up stalled agent i.
+    """STATIC_OBSTACLES with DEADLOCK_RESOLUTION: the way past the nearest obstacle that holds up stalled agent i.
 
     The obstacle is the nearest one (shapes grown by ``margin`` m, the target's own left out, see
     ``own_target``) that the agent's shape would enter within ``length`` m along its unit
-    preferred direction ``d``. Returns (found, unit direction of the bias): up (with ``climb``) when
-    climbing over the obstacle, weighted by ``wz``, is shorter than stepping across ``d`` past its
-    nearer side, else across ``d`` away from the obstacle's centre (right when it lies dead ahead).
+    preferred direction ``d``. Returns (found, unit direction of the bias): across ``d`` away from the
+    obstacle's centre (right when it lies dead ahead).
     Unlike ``sidestep``'s choice for a neighbour, the side does not turn with the bearing: an agent
     sliding along the face of a wide obstacle keeps going the way it started.
     """
@@ -794,16 +752,13 @@ def obstacle_in_way(
             best, best_t = o, t
     if best < 0:
         return False, (0.0, 0.0, 0.0)
-    c, H = obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, best)
+    c, _ = obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, best)
     h2 = d[0] * d[0] + d[1] * d[1]
     if h2 <= HORIZONTAL_MIN2:  # vertical travel: horizontally away
         return True, sidestep(d, c)
     hl = math.sqrt(h2)
     ax, ay = -d[1] / hl, d[0] / hl  # left of d, horizontal
     side = ax * c[0] + ay * c[1]
-    lateral = abs(ax) * (H[0] + margin) + abs(ay) * (H[1] + margin) - abs(side)
-    if climb and wz * (c[2] + H[2] + margin) < lateral:
-        return True, (0.0, 0.0, 1.0)
     if abs(side) > SIDE_OFFSET:
         s = -1.0 if side > 0.0 else 1.0
         return True, (s * ax, s * ay, 0.0)
