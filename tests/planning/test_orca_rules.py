@@ -54,6 +54,23 @@ def test_every_rule_has_a_switch_on_by_default_described_by_its_one_line():
     )
 
 
+def test_a_rule_that_patches_a_switched_off_rule_is_refused_in_one_line():
+    from pybullet_swarm.errors import ConfigError
+    from pybullet_swarm.planning.orca.rules import REQUIRES
+
+    for rule, base in REQUIRES.items():
+        with pytest.raises(ConfigError) as err:
+            pybullet_swarm.load_scenario("construction", {f"avoidance_params.{base.value}": False}, avoidance="orca")
+        text = str(err.value)
+        assert "\n" not in text and text.startswith("construction.yaml: avoidance_params.")
+        assert f"patches {base.value}, which is off" in text
+    # switched off together, or the paper's preset with a patch switched back on but its base not: refused
+    both = {"avoidance_params.headway": False, "avoidance_params.lag_margin": False}
+    assert pybullet_swarm.load_scenario("construction", both, avoidance="orca").avoidance_params.lag_margin is False
+    with pytest.raises(ValueError, match="patches lag_margin, which is off"):
+        OrcaParams.model_validate({"preset": "paper", "headway": True})
+
+
 def test_a_rule_is_switched_off_by_name_in_a_scenario():
     sc = pybullet_swarm.load_scenario("construction", {"avoidance_params.deadlock_resolution": False}, avoidance="orca")
     assert isinstance(sc.avoidance_params, OrcaParams)
@@ -229,7 +246,8 @@ def test_a_null_wake_depth_acts_only_where_the_run_models_downwash(downwash: boo
     with pytest.raises(ValueError, match="wake model's depth"):  # no typed default stands in for the model
         OrcaParams().wake(downwash=True)
     assert OrcaParams(wake_depth=0.3).wake(downwash=False) == 0.3  # an explicit depth always acts
-    assert OrcaParams(wake_depth=0.3, wake_column=False).wake(downwash=True) == 0.0
+    no_wake = dict(wake_column=False, wake_share_by_approach=False, wake_share_on_course=False)
+    assert OrcaParams(wake_depth=0.3, **no_wake).wake(downwash=True) == 0.0
     assert OrcaParams(wake_depth=0.3, shape="sphere").wake(downwash=True) == 0.0
 
 
@@ -504,9 +522,13 @@ def test_uncertainty_margin_grows_the_shapes_on_estimates(on: bool):
 # ----------------------------------------------------------------------------- runs with a rule off
 @pytest.mark.parametrize("off", [*(r.value for r in Rule), "paper"])
 def test_construction_runs_with_a_rule_switched_off(off: str):
-    """Each rule switched off alone (and all of them: the paper's ORCA) gives a run that goes to its end
-    (without downwash, where the rules were designed: with it, lag_margin or passthrough off crash seed 1)."""
-    params = {"avoidance_params.preset": "paper"} if off == "paper" else {f"avoidance_params.{off}": False}
+    """Each rule switched off (with the rules that patch it) and all of them (the paper's ORCA) gives a run that
+    goes to its end (without downwash, where the rules were designed: with it, lag_margin or passthrough off
+    crash seed 1)."""
+    from pybullet_swarm.planning.orca.rules import REQUIRES
+
+    gone = {off, *(r.value for r, base in REQUIRES.items() if base.value == off)}
+    params = {"avoidance_params.preset": "paper"} if off == "paper" else {f"avoidance_params.{g}": False for g in gone}
     sc = pybullet_swarm.load_scenario(
         "construction",
         {"task.time_limit_s": 15.0, "sim.downwash": False, **params},
@@ -517,7 +539,7 @@ def test_construction_runs_with_a_rule_switched_off(off: str):
     assert r.exit_status in (ExitStatus.COMPLETED, ExitStatus.TIMEOUT)
     assert r.metrics["orca_ticks"] >= 150
     assert r.metrics["orca_changed_fraction"] > 0.0
-    expected = () if off == "paper" else tuple(rule for rule in Rule if rule.value != off)
+    expected = () if off == "paper" else tuple(rule for rule in Rule if rule.value not in gone)
     assert isinstance(sc.avoidance_params, OrcaParams) and sc.avoidance_params.rules == expected
 
 

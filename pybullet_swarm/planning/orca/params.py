@@ -11,10 +11,11 @@ from __future__ import annotations
 import enum
 from typing import Any, ClassVar
 
+import pydantic
 from pydantic import Field
 
-from pybullet_swarm.planning.orca.rules import Rule
-from pybullet_swarm.planning.params import Params, Preset
+from pybullet_swarm.planning.orca.rules import REQUIRES, Rule
+from pybullet_swarm.planning.params import ParamRuleError, Params, Preset
 
 
 class Shape(enum.Enum):
@@ -208,6 +209,17 @@ class OrcaParams(Params):
     )
 
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {Preset.PAPER: {rule.value: False for rule in Rule}}
+
+    @pydantic.model_validator(mode="after")
+    def _patched_rules_on(self) -> OrcaParams:
+        """A rule that patches another (``rules.REQUIRES``) is refused on while that one is off."""
+        for rule, base in REQUIRES.items():
+            if self.on(rule) and not self.on(base):
+                raise ParamRuleError(
+                    rule.value,
+                    f"patches {base.value}, which is off: switch {rule.value} off too, or {base.value} on",
+                )
+        return self
 
     @property
     def margin(self) -> float:

@@ -98,6 +98,15 @@ RULE_DOCS: dict[Rule, str] = {
     "times: the nearest is closed on last",
 }
 
+#: rule -> the rule it patches: it acts only through that one, and is refused on while that one is off
+REQUIRES: dict[Rule, Rule] = {
+    Rule.HEADWAY: Rule.LAG_MARGIN,
+    Rule.PASSTHROUGH_TURNS: Rule.PASSTHROUGH,
+    Rule.GROUND_BESIDE: Rule.COLUMN_RULE,
+    Rule.WAKE_SHARE_BY_APPROACH: Rule.WAKE_COLUMN,
+    Rule.WAKE_SHARE_ON_COURSE: Rule.WAKE_COLUMN,
+}
+
 #: the rules' switches and parameters as the kernels read them (one record)
 RULES = np.dtype(
     [(r.value, np.bool_) for r in Rule]
