@@ -16,7 +16,6 @@ from pybullet_swarm.errors import ConfigError
 from pybullet_swarm.experiment.simulation import Simulation
 from pybullet_swarm.planning.base import Action, Command, CommandKind, TaskInfo, WorldView
 from pybullet_swarm.planning.orca import (
-    FLAG_CLIMB,
     FLAG_FREE,
     FLAG_INFEASIBLE,
     OrcaParams,
@@ -494,41 +493,6 @@ def _empty_meets_carrier(params: OrcaParams, carrier_vz: float = 0.0):
         goals=pos + 10.0 * vel,
         has_goal=np.ones(2, dtype=bool),
     )
-
-
-#: the climbing-over rule as it was the default before the simulator modelled downwash
-CLIMBING = dict(climb_over=True, vertical_cost=0.75)
-
-
-def test_an_empty_agent_climbs_over_a_carrier_that_flies_on_undisturbed():
-    v, flags = _empty_meets_carrier(OrcaParams(**CLIMBING))
-    assert flags[0] & FLAG_CLIMB and not flags[1] & FLAG_CLIMB
-    assert v[0, 2] > 0.05 and v[0, 0] > 0.05  # the empty one climbs and keeps going
-    assert flags[1] & FLAG_FREE  # the carrier's command stands
-    assert np.array_equal(v[1], [-0.15, 0.0, 0.0])
-    # reciprocal halves instead: the carrier may not sink (floor rule), so it is the one held up
-    v, flags = _empty_meets_carrier(OrcaParams(climb_over=False, vertical_cost=0.75))
-    assert not np.any(flags & FLAG_CLIMB)
-    assert abs(v[1, 0]) < 0.05 and v[0, 2] < 0.1
-    # a carrier on a vertical leg keeps the reciprocal half: its leg is not frozen under a neighbour
-    v, flags = _empty_meets_carrier(OrcaParams(**CLIMBING), carrier_vz=0.1)
-    assert not np.any(flags & FLAG_CLIMB)
-
-
-def test_climb_over_parameters_are_checked():
-    assert _refused_field(climb_over="yes") == "climb_over"
-    assert _refused_field(vertical_cost=0.0) == "vertical_cost"
-
-
-@pytest.mark.slow
-def test_stigmergy_with_orca_builds_the_wall_without_contact():
-    # ORCA's own guarantee, climbing over included: without downwash (with it, a vehicle passing over
-    # another pushes it down, and contacts follow in some runs: see the package notes)
-    over = {"sim.downwash": False, **{f"avoidance_params.{k}": v for k, v in CLIMBING.items()}}
-    r = pybullet_swarm.run("construction", planner="stigmergy", avoidance="orca", seed=6, plots=False, overrides=over)
-    assert r.exit_status is ExitStatus.COMPLETED
-    assert r.metrics["collisions"]["agent_agent"] == 0
-    assert r.metrics["orca_climbing_agent_ticks"] > 0  # agents passed over each other
 
 
 def test_an_agent_descending_onto_its_goals_occupant_makes_way_upwards():

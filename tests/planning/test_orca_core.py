@@ -173,7 +173,7 @@ def test_the_paper_preset_switches_every_rule_off_and_nothing_else():
     assert paper.rules == ()
     assert list(extensions(OrcaParams, "paper")) == [r.value for r in Rule]
     assert OrcaParams().rules == tuple(Rule)
-    assert OrcaParams.model_validate({"preset": "paper", "climb_over": True}).rules == (Rule.CLIMB_OVER,)
+    assert OrcaParams.model_validate({"preset": "paper", "lag_margin": True}).rules == (Rule.LAG_MARGIN,)
 
 
 def test_every_kernel_is_cached_with_the_whole_package_as_its_stamp():

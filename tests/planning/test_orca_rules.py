@@ -12,7 +12,6 @@ from pybullet_swarm.experiment.simulation import Simulation
 from pybullet_swarm.planning.base import Action, Command, CommandKind
 from pybullet_swarm.planning.orca import (
     FLAG_BIASED,
-    FLAG_CLIMB,
     FLAG_FREE,
     FLAG_WAITING,
     RULE_DOCS,
@@ -28,6 +27,7 @@ from pybullet_swarm.planning.orca import (
 from pybullet_swarm.planning.orca import layer as orca_layer
 from pybullet_swarm.planning.orca.core import box_u
 from pybullet_swarm.planning.orca.rules import (
+    REQUIRES,
     approach_growth,
     clear_paths,
     targets_touching,
@@ -56,7 +56,6 @@ def test_every_rule_has_a_switch_on_by_default_described_by_its_one_line():
 
 def test_a_rule_that_patches_a_switched_off_rule_is_refused_in_one_line():
     from pybullet_swarm.errors import ConfigError
-    from pybullet_swarm.planning.orca.rules import REQUIRES
 
     for rule, base in REQUIRES.items():
         with pytest.raises(ConfigError) as err:
@@ -204,14 +203,6 @@ def test_weighted_way_out_passes_over_instead_of_braking():
     assert np.all(v[:, 2] == 0.0) and v[0, 0] < 0.12  # the nearest way out: brake
     v, _ = _pair(OrcaParams.model_validate({**PAPER, "weighted_way_out": True}), gap=0.5, half=TALL)
     assert v[0, 2] < -0.05 and v[1, 2] > 0.05  # one under, one over, halves of the vertical way out
-
-
-def test_climb_over_gives_the_whole_share_to_the_upper_agent():
-    both = {**PAPER, "weighted_way_out": True}
-    v, flags = _pair(OrcaParams.model_validate({**both, "climb_over": True}), gap=0.5, half=TALL)
-    assert list(flags & FLAG_CLIMB) == [0, FLAG_CLIMB]
-    assert np.array_equal(v[0], [0.15, 0.0, 0.0])  # the lower one flies on level and undisturbed
-    assert v[1, 2] > 0.1  # the upper one takes the whole way out
 
 
 def _over(params: OrcaParams, dz: float, dx: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
@@ -482,7 +473,10 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
         cmds = [Command.goto(pos[0] + [0.01, 0.0, 0.0], Action.GRASP), Command.goto(pos[1] + [0.3, 0.0, 0.0])]
         for off in (None, *Rule):
             seen.clear()
-            layer.params = OrcaParams.model_validate({"wake_depth": 0.4} | ({} if off is None else {off.value: False}))
+            gone = {} if off is None else {r.value: False for r, base in REQUIRES.items() if base is off}
+            layer.params = OrcaParams.model_validate(
+                {"wake_depth": 0.4} | ({} if off is None else {off.value: False}) | gone
+            )
             out = layer.filter(cmds, sim.perceive(), sim.task.view(sim.time))
             kw = seen["velocity_bounds"][1]
             assert kw["floor"] is (off is not Rule.FLOOR_RULE)
@@ -525,8 +519,6 @@ def test_construction_runs_with_a_rule_switched_off(off: str):
     """Each rule switched off (with the rules that patch it) and all of them (the paper's ORCA) gives a run that
     goes to its end (without downwash, where the rules were designed: with it, lag_margin or passthrough off
     crash seed 1)."""
-    from pybullet_swarm.planning.orca.rules import REQUIRES
-
     gone = {off, *(r.value for r, base in REQUIRES.items() if base.value == off)}
     params = {"avoidance_params.preset": "paper"} if off == "paper" else {f"avoidance_params.{g}": False for g in gone}
     sc = pybullet_swarm.load_scenario(

@@ -170,7 +170,6 @@ from __future__ import annotations
 from pybullet_swarm.planning.orca.core import orca_plane, solve_velocity
 from pybullet_swarm.planning.orca.kernel import (
     FLAG_BIASED,
-    FLAG_CLIMB,
     FLAG_FREE,
     FLAG_INFEASIBLE,
     FLAG_OBSTACLE,
@@ -197,7 +196,6 @@ register_avoidance(
 
 __all__ = [
     "FLAG_BIASED",
-    "FLAG_CLIMB",
     "FLAG_FREE",
     "FLAG_INFEASIBLE",
     "FLAG_OBSTACLE",

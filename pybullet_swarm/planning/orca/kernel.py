@@ -4,7 +4,7 @@ Per agent: the hard planes (velocity limits, narrowed by ``FLOOR_RULE`` and ``CO
 with ``STATIC_OBSTACLES``, one plane per static obstacle within reach, of which the agent takes the
 whole u, as the paper's agents do with obstacles: never traded away by the fallback LP unless the
 agent already overlaps the obstacle), one ORCA plane per neighbour (``core``; shapes grown by
-``LAG_MARGIN``, the way out weighted by ``WEIGHTED_WAY_OUT``, the shares moved by ``CLIMB_OVER``),
+``LAG_MARGIN``, the way out weighted by ``WEIGHTED_WAY_OUT``, the shares moved by the wake rules),
 then either the command unchanged (``MINIMAL_INTERVENTION``) or the LP's velocity, which a
 stalled agent may solve again with a bias (``DEADLOCK_RESOLUTION``, ``resolve_stall``).
 
@@ -32,7 +32,6 @@ from pybullet_swarm.planning.orca.vec import Vec, add, dot, row, scale, set_row
 FLAG_INFEASIBLE = 1  # the ORCA planes had no common velocity: least-violating velocity used (core)
 FLAG_BIASED = 2  # stalled: the sideways (or upward) bias was applied (DEADLOCK_RESOLUTION)
 FLAG_FREE = 4  # the commanded velocity satisfies every plane: nothing was changed (MINIMAL_INTERVENTION)
-FLAG_CLIMB = 8  # took a pair's whole share of a vertical way out (CLIMB_OVER)
 FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach (STATIC_OBSTACLES)
 FLAG_WAITING = 32  # stalled, waiting for a neighbour that sits on its goal (the layer counts the time)
 
@@ -155,17 +154,15 @@ def agent_planes(
     k: int,
     lo: NDArray[np.float64],
     hi: NDArray[np.float64],
-) -> tuple[int, bool]:
+) -> int:
     """Append agent i's ORCA planes (one per neighbour in row i of ``nbr``) after row k; returns the new
-    count and whether agent i climbs over a neighbour (``CLIMB_OVER``). ``W`` gets each plane's weight
-    in the fallback (``GAP_WEIGHTED_FALLBACK``).
+    count. ``W`` gets each plane's weight in the fallback (``GAP_WEIGHTED_FALLBACK``).
 
     A pair's (n, u) is computed once in index order and negated for the other agent, so both
     halves match to the last bit.
     """
     n = pos.shape[0]
     vi = row(vel, i)
-    climbs = False
     m2 = 2.0 * cs.margin
     for c in range(nbr.shape[1]):
         j = nbr[i, c]
@@ -177,7 +174,7 @@ def agent_planes(
             nrm, u, gap = pair_u(j, i, pos, vel, radius, centre, half, boxes, cs, rs)
             nrm = scale(nrm, -1.0)
             u = scale(u, -1.0)
-        r, up = rules.climb_share(rs.climb_over, nrm, u, vel[i, 2], vel[j, 2], cs.responsibility)
+        r = cs.responsibility
         if boxes and rs.wake_column and rs.wake_depth > 0.0:
             d = add(row(pos, j), row(pos, i), -1.0)
             dn = math.sqrt(dot(d, d))
@@ -194,12 +191,11 @@ def agent_planes(
                 not rs.wake_share_on_course or dot(nrm, u) > 0.0,
             )
         r = rules.pinned_share(rs.pinned_share, u, lo, hi, i, j, r, cs.responsibility)
-        climbs = climbs or up
         set_row(N, k, nrm)
         set_row(P, k, add(vi, u, r))
         W[k] = rules.gap_weight(gap, rs.gap_floor)
         k += 1
-    return k, climbs
+    return k
 
 
 @njit
@@ -384,8 +380,8 @@ def orca_batch(
             n_hard, n_static = obstacle_planes(
                 i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, parts, cs, rs, N, P, W, n_bounds
             )
-        m, climbs = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, W, n_static, lo, hi)
-        up = (FLAG_CLIMB if climbs else 0) | (FLAG_OBSTACLE if n_static > n_bounds else 0)
+        m = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, W, n_static, lo, hi)
+        up = FLAG_OBSTACLE if n_static > n_bounds else 0
         vc = row(v_cmd, i)
         if rs.minimal_intervention and dot(vc, vc) <= max_speed * max_speed and not core.violates(N, P, m, vc):
             set_row(out, i, vc)  # nothing to avoid: the planner's command stands
@@ -475,7 +471,7 @@ def orca_velocities(
             goal (``DEADLOCK_RESOLUTION``; the caller counts the time from ``FLAG_WAITING``; default: none).
 
     Returns:
-        (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE | FLAG_CLIMB |
+        (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE |
         FLAG_OBSTACLE | FLAG_WAITING``).
     """
     pos = np.ascontiguousarray(positions, dtype=float)

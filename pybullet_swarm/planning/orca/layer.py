@@ -13,7 +13,6 @@ from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, O
 from pybullet_swarm.planning.orca import rules
 from pybullet_swarm.planning.orca.kernel import (
     FLAG_BIASED,
-    FLAG_CLIMB,
     FLAG_FREE,
     FLAG_INFEASIBLE,
     FLAG_OBSTACLE,
@@ -139,7 +138,6 @@ class OrcaLayer:
         self._agent_ticks = 0
         self._infeasible = 0
         self._biased = 0
-        self._climbing = 0
         self._obstacle = 0
         self._changed = 0
         self._time_total = 0.0
@@ -259,7 +257,6 @@ class OrcaLayer:
         self._agent_ticks += n
         self._infeasible += int(np.count_nonzero(flags & FLAG_INFEASIBLE))
         self._biased += int(np.count_nonzero(flags & FLAG_BIASED))
-        self._climbing += int(np.count_nonzero(flags & FLAG_CLIMB))
         self._obstacle += int(np.count_nonzero(flags & FLAG_OBSTACLE))
         self._impatient += int(np.count_nonzero(self._waited > p.wait_patience_s))
         self._changed += int(n - np.count_nonzero(keep))
@@ -275,7 +272,6 @@ class OrcaLayer:
             "orca_changed_fraction": self._changed / max(self._agent_ticks, 1),
             "orca_infeasible_agent_ticks": self._infeasible,
             "orca_biased_agent_ticks": self._biased,
-            "orca_climbing_agent_ticks": self._climbing,
             "orca_obstacle_agent_ticks": self._obstacle,
             "orca_impatient_agent_ticks": self._impatient,
             "orca_mean_solve_ms": 1e3 * self._time_total / ticks,

@@ -1,6 +1,6 @@
 """Parameters of the ORCA layer (scenario ``avoidance_params``): the core's, then each rule's switch and its own.
 
-Every extension rule of ``rules.py`` has one bool field of its name (``climb_over: false``), on by
+Every extension rule of ``rules.py`` has one bool field of its name (``lag_margin: false``), on by
 default, with its one-line description; the parameters a rule uses follow its switch and act
 only while it is on. ``preset: paper`` switches every rule off (the paper's ORCA); a rule given
 explicitly beside the preset keeps its value (``{preset: paper, floor_rule: true}``).
@@ -97,7 +97,6 @@ class OrcaParams(Params):
         description="boxes: weight of a vertical change of velocity against a horizontal one "
         "(< 1 favours passing over)",
     )
-    climb_over: bool = _switch(Rule.CLIMB_OVER)
     floor_rule: bool = _switch(Rule.FLOOR_RULE)
     floor_height: float = Field(0.5, ge=0.0, le=100.0, description="m, below this avoidance never pushes an agent down")
     floor_preferred: bool = Field(

@@ -32,7 +32,6 @@ class Rule(str, enum.Enum):
     UNCERTAINTY_MARGIN = "uncertainty_margin"
     CLIPPED_REFERENCE = "clipped_reference"
     WEIGHTED_WAY_OUT = "weighted_way_out"
-    CLIMB_OVER = "climb_over"
     FLOOR_RULE = "floor_rule"
     COLUMN_RULE = "column_rule"
     MINIMAL_INTERVENTION = "minimal_intervention"
@@ -64,8 +63,6 @@ RULE_DOCS: dict[Rule, str] = {
     "are not motion to answer",
     Rule.WEIGHTED_WAY_OUT: "a box VO's way out counts vertical changes vertical_cost times horizontal ones "
     "(off: the nearest way out)",
-    Rule.CLIMB_OVER: "on a collision course with a vertical way out, the upper agent takes the whole of it when "
-    "the lower one flies level",
     Rule.FLOOR_RULE: "below floor_height avoidance never pushes an agent down, above it by at most its height over "
     "it per horizon",
     Rule.COLUMN_RULE: "below floor_height an agent within column_radius of its target (horizontally) is only "
@@ -280,23 +277,6 @@ def pinned_share(
     else:
         pinned, free = hi[j, a] <= PIN_TOL, lo[i, a] < -PIN_TOL
     return 2.0 * resp if pinned and free else r
-
-
-@njit
-def climb_share(on: bool, nrm: Vec, u: Vec, vz_self: float, vz_other: float, resp: float) -> tuple[float, bool]:
-    """CLIMB_OVER: (share of the pair's u this agent takes, True when it climbs over the other).
-
-    Nearby nobody is pushed down (``FLOOR_RULE``), so the lower agent could not take its half of a
-    vertical way out: its plane would contradict its bound and the pair would not separate. So on
-    a collision course (``nrm . u > 0``) with a way out within 45 deg of vertical, when the lower
-    agent flies level, the upper agent takes the whole share and the lower one none: an empty
-    agent hops over a carrier and its hanging box. Both agents see the same numbers, so the shares
-    still add up. A lower agent that climbs or descends keeps the reciprocal half.
-    """
-    if on and dot(nrm, u) > 0.0 and nrm[2] * nrm[2] > VERTICAL_COS2 * dot(nrm, nrm):
-        if abs(vz_other if nrm[2] > 0.0 else vz_self) <= LEVEL_SPEED:
-            return (2.0 * resp if nrm[2] > 0.0 else 0.0), nrm[2] > 0.0
-    return resp, False
 
 
 # ----------------------------------------------------------------------------- hard bounds
