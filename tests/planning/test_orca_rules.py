@@ -13,7 +13,6 @@ from pybullet_swarm.planning.base import Action, Command, CommandKind
 from pybullet_swarm.planning.orca import (
     FLAG_BIASED,
     FLAG_FREE,
-    FLAG_WAITING,
     RULE_DOCS,
     OrcaLayer,
     OrcaParams,
@@ -21,7 +20,6 @@ from pybullet_swarm.planning.orca import (
     bounding_boxes,
     commanded_velocities,
     orca_velocities,
-    preferred_velocities,
     velocity_bounds,
 )
 from pybullet_swarm.planning.orca import layer as orca_layer
@@ -329,44 +327,6 @@ def test_deadlock_resolution_biases_stalled_agents_and_only_when_on():
         assert not np.any(flags & FLAG_BIASED)
 
 
-def test_an_agent_over_its_goals_occupant_rises_and_without_deadlock_resolution_waits():
-    # test_orca's case: carrier 0 descends onto its slot, where agent 1 has just placed a box: it rises, the
-    # only way the occupant can leave
-    pos = np.array([[2.7, 0.6, 0.31], [2.7, 0.6, 0.125]])
-    goals = np.array([[2.7, 0.6, 0.215], [2.7, 0.6, 0.45]])
-    kinds = np.full(2, int(CommandKind.POSITION))
-    has_goal = np.ones(2, dtype=bool)
-    boxes = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([True, False]), 0.1, 0.065)
-    for make_way in (True, False):
-        params = OrcaParams(deadlock_resolution=make_way)
-        pref = preferred_velocities(kinds, goals, pos, arrive_time=params.arrive_time, v_max=VM)
-        vcmd = commanded_velocities(kinds, goals, pos, v_max=VM, a_max=np.full(3, 1.0), dt=1.0 / 48.0)
-        bounds = velocity_bounds(
-            pos,
-            vcmd,
-            VM,
-            floor_height=params.floor_height,
-            time_horizon=params.time_horizon,
-            goals=goals,
-            has_goal=has_goal,
-            column=params.column_radius,
-        )
-        v, flags = orca_velocities(
-            pos,
-            np.zeros((2, 3)),
-            pref,
-            params=params,
-            sensing_radius=1.0,
-            v_max=VM,
-            boxes=boxes,
-            goals=goals,
-            has_goal=has_goal,
-            bounds=bounds,
-            commanded=vcmd,
-        )
-        assert bool(v[0, 2] > 0.05) is make_way and bool(flags[0] & FLAG_BIASED) is make_way
-
-
 # ----------------------------------------------------------------------------- rules in the layer
 def test_floor_and_column_rules_narrow_the_bounds_only_when_on():
     pos = np.array([[0.0, 0.0, 0.3], [1.0, 0.0, 0.9]])  # 0 low, on a vertical leg; 1 high
@@ -553,84 +513,6 @@ def _level_boxes(
         has_goal=np.ones(n, dtype=bool),
         **kw,
     )
-
-
-def _swap(params: OrcaParams, impatient: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Two agents level, 22 cm apart along x, each with its goal where the other is (a swap; the suite's
-    random_8 under shortest_path, seed 0: two carriers each over the other's slot stalled the run)."""
-    pos = np.array([[1.0, 0.5, 0.5], [1.22, 0.5, 0.5]])
-    goals = pos[::-1].copy()
-    kinds = np.full(2, int(CommandKind.POSITION))
-    pref = preferred_velocities(kinds, goals, pos, arrive_time=params.arrive_time, v_max=VM)
-    return _level_boxes(params, pos, pref, goals, impatient=np.full(2, impatient))
-
-
-def test_impatience_ends_a_wait_for_a_neighbour_on_the_goal_and_only_with_deadlock_resolution():
-    v, flags = _swap(OrcaParams(), impatient=False)
-    assert np.all(flags & FLAG_WAITING) and not np.any(flags & FLAG_BIASED)  # each waits for the other
-    assert np.all(np.abs(v[:, 1]) < 0.01)
-    v, flags = _swap(OrcaParams(), impatient=True)
-    assert np.all(flags & FLAG_BIASED) and np.all(flags & FLAG_WAITING)  # goes round it, still counted as waiting
-    assert np.all(np.abs(v[:, 1]) > 0.05) and v[0, 1] * v[1, 1] < 0.0  # opposite sides: they pass
-    v, flags = _swap(OrcaParams(deadlock_resolution=False), impatient=True)
-    assert not np.any(flags & FLAG_BIASED) and np.all(np.abs(v[:, 1]) < 0.01)
-
-
-def test_the_layer_counts_the_wait_and_loses_patience_after_wait_patience_s(monkeypatch: pytest.MonkeyPatch):
-    seen: list[np.ndarray] = []
-    real = orca_layer.orca_velocities
-
-    def spy(*args: Any, **kwargs: Any) -> Any:
-        if "impatient" in kwargs:  # a filter call (the warm-up at start passes none)
-            seen.append(kwargs["impatient"].copy())
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(orca_layer, "orca_velocities", spy)
-    sim = Simulation(_layer_scenario(wait_patience_s=0.5, wake_depth=0.0))
-    try:
-        layer = sim.avoidance_layer
-        assert isinstance(layer, OrcaLayer)
-        pos = sim.perceive().positions  # 25 cm apart along x: each goes where the other is
-        cmds = [Command.goto(pos[1]), Command.goto(pos[0])]
-        outs = [layer.filter(cmds, sim.perceive(), sim.task.view(sim.time)) for _ in range(9)]
-        ticks = round(0.5 / layer.planner_dt)
-        assert not any(s.any() for s in seen[:ticks]) and all(s.all() for s in seen[ticks:])
-        assert abs(outs[0][0].vector[1]) < 0.01  # waits ...
-        assert (
-            abs(outs[-1][0].vector[1]) > 0.05 and outs[-1][0].vector[1] * outs[-1][1].vector[1] < 0.0
-        )  # ... then passes
-        assert layer.metrics()["orca_impatient_agent_ticks"] > 0
-    finally:
-        sim.close()
-
-
-@pytest.mark.parametrize("memory", [0.0, 2.0])
-def test_a_wait_goes_on_through_a_break_shorter_than_wait_memory_s(monkeypatch: pytest.MonkeyPatch, memory: float):
-    """Two carriers head-on in a row of slots, each over the other's, stepped aside once impatient, were free of
-    each other for a tick, fell back into line and waited their wait_patience_s again, until the run stalled
-    (the suite's random_3, seed 2, shortest_path + orca). A break shorter than wait_memory_s ends no wait."""
-    seen: list[np.ndarray] = []
-    real = orca_layer.orca_velocities
-
-    def spy(*args: Any, **kwargs: Any) -> Any:
-        if "impatient" in kwargs:
-            seen.append(kwargs["impatient"].copy())
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(orca_layer, "orca_velocities", spy)
-    sim = Simulation(_layer_scenario(wait_patience_s=0.5, wait_memory_s=memory, wake_depth=0.0))
-    try:
-        layer = sim.avoidance_layer
-        assert isinstance(layer, OrcaLayer)
-        pos = sim.perceive().positions
-        swap = [Command.goto(pos[1]), Command.goto(pos[0])]
-        stay = [Command.goto(pos[0]), Command.goto(pos[1])]  # no wish to move: free of the wait
-        for cmds in [swap] * 8 + [stay] + [swap] * 2:
-            layer.filter(cmds, sim.perceive(), sim.task.view(sim.time))
-        assert seen[7].all()  # impatient before the break
-        assert seen[9].all() == (memory > 0.0) and seen[10].all() == (memory > 0.0)
-    finally:
-        sim.close()
 
 
 @pytest.mark.parametrize("on", [True, False])

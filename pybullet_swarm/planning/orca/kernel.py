@@ -33,7 +33,6 @@ FLAG_INFEASIBLE = 1  # the ORCA planes had no common velocity: least-violating v
 FLAG_BIASED = 2  # stalled: the sideways (or upward) bias was applied (DEADLOCK_RESOLUTION)
 FLAG_FREE = 4  # the commanded velocity satisfies every plane: nothing was changed (MINIMAL_INTERVENTION)
 FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach (STATIC_OBSTACLES)
-FLAG_WAITING = 32  # stalled, waiting for a neighbour that sits on its goal (the layer counts the time)
 
 HARD_PLANES = 6  # at most two velocity bounds per axis
 NO_BARE = (-1.0, -1.0, -1.0)  # box_u without MARGIN_OVERLAP
@@ -274,7 +273,6 @@ def resolve_stall(
     oc: NDArray[np.float64],
     oh: NDArray[np.float64],
     parts: NDArray[np.float64],
-    impatient: bool,
     pr: Vec,
     sp: float,
     obstacles_near: bool,
@@ -295,25 +293,17 @@ def resolve_stall(
     ``res`` makes progress below ``stuck_fraction`` of its preferred speed ``sp`` along ``pr``).
 
     One mechanism: find what holds the agent up (``rules.stalled_by``: the nearest neighbour ahead in its
-    way, or one on its goal, which is waited for, ``FLAG_WAITING``, until the agent is ``impatient``; or,
-    with none, the nearest static obstacle ahead), then solve again with the preferred velocity biased by
-    ``right_bias`` x ``sp`` sideways, to the side the one in the way leaves free (``rules.sidestep``), or,
-    descending onto the occupant of its goal, straight up: the only way that one can leave. When the
-    biased velocity is still held, or takes the agent backwards and hardly sideways (ORCA linearises
+    way that does not sit on its goal, which is waited for; or, with none, the nearest static obstacle
+    ahead), then solve again with the preferred velocity biased by ``right_bias`` x ``sp`` sideways, to
+    the side the one in the way leaves free (``rules.sidestep``). When the biased velocity is still held, or takes the agent backwards and hardly sideways (ORCA linearises
     about present velocities: an agent pushed back at the speed of one flying at it keeps retreating),
     the agent asks for the sideways step alone.
     """
     stuck, right_bias = rs.stuck_fraction, rs.right_bias
     wake = rules.wake_growth(rs.wake_column and boxes, rs.wake_depth)
-    j, make_way, waits = rules.stalled_by(
-        i, pos, pr, sp, radius, centre, half, boxes, nbr, goal, has_goal[i], 2.0 * cs.margin, rs.time_horizon,
-        True, wake, impatient,
-    )  # fmt: skip
-    if waits:
-        f |= FLAG_WAITING
-    if make_way:
-        feasible, out = core.solve(N, P, m, n_hard, cs.max_speed, (0.0, 0.0, sp), SN, SP, W, weighted)
-        return out, FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
+    j = rules.stalled_by(
+        i, pos, pr, sp, radius, centre, half, boxes, nbr, goal, has_goal[i], 2.0 * cs.margin, rs.time_horizon, wake
+    )
     held = False
     side = (0.0, 0.0, 0.0)
     if j >= 0:
@@ -332,7 +322,7 @@ def resolve_stall(
         # across the blocking face free, and the bias can exactly cancel the preferred velocity along it),
         # or pushed backwards and hardly sideways: ask for the sideways step alone
         feasible, out = core.solve(N, P, m, n_hard, cs.max_speed, scale(side, sp), SN, SP, W, weighted)
-    return out, FLAG_BIASED | (f & FLAG_WAITING) | (0 if feasible else FLAG_INFEASIBLE)
+    return out, FLAG_BIASED | (0 if feasible else FLAG_INFEASIBLE)
 
 
 @njit
@@ -353,7 +343,6 @@ def orca_batch(
     oc: NDArray[np.float64],
     oh: NDArray[np.float64],
     parts: NDArray[np.float64],
-    impatient: NDArray[np.bool_],
     core_rec: NDArray[np.void],
     rule_rec: NDArray[np.void],
     out: NDArray[np.float64],
@@ -393,7 +382,7 @@ def orca_batch(
         sp = math.sqrt(dot(pr, pr))
         if stall_on and sp > rules.MIN_PREFERRED_SPEED and dot(res, pr) < stuck * sp * sp:
             res, f = resolve_stall(
-                i, pos, radius, centre, half, boxes, nbr, goal, has_goal, oc, oh, parts, impatient[i], pr, sp,
+                i, pos, radius, centre, half, boxes, nbr, goal, has_goal, oc, oh, parts, pr, sp,
                 n_static > n_bounds, cs, rs, N, P, SN, SP, W, m, n_hard, weighted, res, f,
             )  # fmt: skip
         set_row(out, i, res)
@@ -438,7 +427,6 @@ def orca_velocities(
     neighbours: NDArray[np.int64] | None = None,
     obstacles: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     parts: NDArray[np.float64] | None = None,
-    impatient: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Collision-avoiding velocities of all agents from sensed state (one compiled call).
 
@@ -467,12 +455,10 @@ def orca_velocities(
             touched by the agent at its goal, ``goals`` and ``has_goal``) is left out for it.
         parts: (n, 12) airframe and load boxes of each agent (``shape_parts``), which tell the
             target's own obstacles (default: each agent's shape as one part).
-        impatient: (n,) True for the agents that have waited ``wait_patience_s`` for a neighbour on their
-            goal (``DEADLOCK_RESOLUTION``; the caller counts the time from ``FLAG_WAITING``; default: none).
 
     Returns:
         (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE |
-        FLAG_OBSTACLE | FLAG_WAITING``).
+        FLAG_OBSTACLE``).
     """
     pos = np.ascontiguousarray(positions, dtype=float)
     n = pos.shape[0]
@@ -506,7 +492,6 @@ def orca_velocities(
         parts = np.zeros((n, 12))
         parts[:, :3] = centre
         parts[:, 3:6] = half if use_boxes else radius[:, None]
-    impatient = np.zeros(n, dtype=np.bool_) if impatient is None else np.ascontiguousarray(impatient, dtype=np.bool_)
     out = np.empty((n, 3))
     flags = np.zeros(n, dtype=np.int64)
     core_rec, rule_rec = _settings(params, None if v_max is None else tuple(map(float, vm)))
@@ -527,7 +512,6 @@ def orca_velocities(
         oc,
         oh,
         np.ascontiguousarray(parts, dtype=float).reshape(n, 12),
-        impatient.reshape(n),
         core_rec,
         rule_rec,
         out,

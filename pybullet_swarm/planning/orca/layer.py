@@ -16,7 +16,6 @@ from pybullet_swarm.planning.orca.kernel import (
     FLAG_FREE,
     FLAG_INFEASIBLE,
     FLAG_OBSTACLE,
-    FLAG_WAITING,
     commanded_velocities,
     neighbour_table,
     orca_velocities,
@@ -130,11 +129,8 @@ class OrcaLayer:
             self.r_agent, math.hypot(math.sqrt(2.0) * 0.5 * self.box_size, self.box_drop + 0.5 * self.box_size)
         )
         self.planner_dt = float(setup.planner_dt)  # s, between filter calls
-        self._waited = np.zeros(self.n)  # s, how long each agent has waited for a neighbour on its goal
-        self._free = np.zeros(self.n)  # s, how long each agent has been free of that wait (``wait_memory_s``)
         _warm_up()
         self._ticks = 0
-        self._impatient = 0
         self._agent_ticks = 0
         self._infeasible = 0
         self._biased = 0
@@ -205,13 +201,7 @@ class OrcaLayer:
             neighbours=nbr,
             obstacles=(oc, oh),
             parts=parts,
-            impatient=self._waited >= p.wait_patience_s,
         )
-        # DEADLOCK_RESOLUTION: the time waited for a goal's occupant counts while the wait lasts, and through breaks shorter than wait_memory_s
-        waiting = (flags & FLAG_WAITING) != 0
-        self._free = np.where(waiting, 0.0, self._free + self.planner_dt)
-        ended = ~waiting & (self._free > p.wait_memory_s + 1e-9)
-        self._waited = np.where(waiting, self._waited + self.planner_dt, np.where(ended, 0.0, self._waited))
         passthrough = np.zeros(n, dtype=np.bool_)
         if p.passthrough:
             near = has_goal & (np.linalg.norm(goals - pos, axis=1) <= p.capture_radius)
@@ -258,7 +248,6 @@ class OrcaLayer:
         self._infeasible += int(np.count_nonzero(flags & FLAG_INFEASIBLE))
         self._biased += int(np.count_nonzero(flags & FLAG_BIASED))
         self._obstacle += int(np.count_nonzero(flags & FLAG_OBSTACLE))
-        self._impatient += int(np.count_nonzero(self._waited > p.wait_patience_s))
         self._changed += int(n - np.count_nonzero(keep))
         self._time_total += dt
         self._time_max = max(self._time_max, dt)
@@ -273,7 +262,6 @@ class OrcaLayer:
             "orca_infeasible_agent_ticks": self._infeasible,
             "orca_biased_agent_ticks": self._biased,
             "orca_obstacle_agent_ticks": self._obstacle,
-            "orca_impatient_agent_ticks": self._impatient,
             "orca_mean_solve_ms": 1e3 * self._time_total / ticks,
             "orca_max_solve_ms": 1e3 * self._time_max,
             "orca_wake_depth_m": float(self.params.wake_depth or 0.0),

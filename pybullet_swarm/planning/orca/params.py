@@ -148,19 +148,6 @@ class OrcaParams(Params):
         lt=1.0,
         description="progress below this fraction of the preferred speed counts as stalled (deadlock_resolution)",
     )
-    wait_patience_s: float = Field(
-        10.0,
-        gt=0.0,
-        le=1000.0,
-        description="s, with deadlock_resolution: an agent waiting this long for a neighbour on its goal goes round it",
-    )
-    wait_memory_s: float = Field(
-        2.0,
-        ge=0.0,
-        le=1000.0,
-        description="s, with deadlock_resolution: a wait goes on counting (and an impatient agent stays "
-        "impatient) while the agent is free of it for less than this; 0: every free tick ends the wait",
-    )
     static_obstacles: bool = _switch(Rule.STATIC_OBSTACLES)
     obstacle_horizon: float = Field(
         1.0, gt=0.0, le=60.0, description="s, collisions with static obstacles predicted later than this are ignored"

@@ -71,8 +71,8 @@ RULE_DOCS: dict[Rule, str] = {
     "(off: every agent flies the LP's velocity)",
     Rule.PASSTHROUGH: "a POSITION/HOLD command within capture_radius passes unchanged when the agent's swept box "
     "stays clear of every neighbour's",
-    Rule.DEADLOCK_RESOLUTION: "a stalled agent steps aside to the free side, rises off its goal's occupant, and "
-    "goes round one after wait_patience_s",
+    Rule.DEADLOCK_RESOLUTION: "a stalled agent steps aside, to the side the one in its way leaves free, and waits "
+    "for one sitting on its goal",
     Rule.STATIC_OBSTACLES: "boxes, structure and arena obstacles are velocity obstacles avoided alone, but those "
     "the agent's target touches",
     Rule.WAKE_COLUMN: "against other agents each agent's box reaches wake_depth further down: nobody flies in "
@@ -417,26 +417,18 @@ def stalled_by(
     has_goal: bool,
     margin2: float,
     tau: float,
-    make_way: bool,
     wake: float,
-    impatient: bool,
-) -> tuple[int, bool, bool]:
+) -> int:
     """DEADLOCK_RESOLUTION: who holds up stalled agent i.
 
     Returns the nearest neighbour ahead (reachable at speed ``sp`` m/s over ``tau`` s, shapes grown
     by ``margin2`` m, and vertically by ``wake`` m: ``WAKE_COLUMN``) that is in the way and does
-    not sit on i's goal (its wake column included), or -1; with ``make_way``, True instead
-    when, descending straight down, i first meets a neighbour below whose shape itself sits on
-    its goal: that one can only leave upwards, through i. A neighbour on the goal is otherwise
-    waited for (circling one that is about to leave would not help), and the third value says
-    that i waits for one; once i is ``impatient`` (it has waited ``wait_patience_s``),
-    the first such neighbour is returned as the one in its way: it is not leaving, perhaps
-    because i sits on its goal.
+    not sit on i's goal (its wake column included), or -1. A neighbour on the goal is waited for:
+    circling one that is about to leave would not help.
     """
     n = pos.shape[0]
     pi = row(pos, i)
     dh = scale(pref, 1.0 / sp)
-    waits = False
     for c in range(nbr.shape[1]):  # nearest first
         j = nbr[i, c]
         if j < 0 or j >= n or j == i:
@@ -448,22 +440,10 @@ def stalled_by(
         ci, cj, hi, hj = row(centre, i), row(centre, j), row(half, i), row(half, j)
         if not overlap(pi, pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2 + sp * tau, wake):
             continue
-        gi = row(goal, i)
-        if has_goal and overlap(gi, pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2, wake):
-            if (
-                make_way
-                and dh[2] < 0.0
-                and dh[2] * dh[2] > VERTICAL_COS2
-                and rel[2] < 0.0
-                and (wake == 0.0 or overlap(gi, pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2))
-            ):
-                return -1, True, False  # over the goal's occupant: make way upwards
-            if impatient:
-                return j, False, True  # waited long enough: the occupant is in the way
-            waits = True
+        if has_goal and overlap(row(goal, i), pj, radius[i], radius[j], ci, cj, hi, hj, boxes, margin2, wake):
             continue  # the neighbour occupies the goal: wait, do not circle it
-        return j, False, waits
-    return -1, False, waits
+        return j
+    return -1
 
 
 @njit
