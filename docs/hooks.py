@@ -2,8 +2,9 @@
 
 A page holds a marker line where generated Markdown goes (see ``pybullet_swarm.cli.docgen``):
 ``<!-- reference: cli | scenario | parameters | presets -->``, ``<!-- results-table: NAME -->`` (from
-``docs/results/data/NAME.json``) and ``<!-- benchmark-table: PATH -->`` (a ``pybullet-swarm benchmark``
-JSON file, PATH relative to the repository's root). A marker that cannot be filled (a missing or
+``docs/results/data/NAME.json``), ``<!-- benchmark-table: PATH -->`` and ``<!-- benchmark-compare: PATH -->``
+(JSON written by ``pybullet-swarm benchmark`` and ``benchmark compare --out``, PATH relative to the
+repository's root). A marker that cannot be filled (a missing or
 malformed file) fails the build with one line naming the page and the file.
 """
 

@@ -11,6 +11,8 @@ functions return, so that the reference follows the code and no result table is 
   registered planner and avoidance layer, read from their parameter models;
 - ``<!-- reference: presets -->``: ``preset_reference()``, what each preset of those models changes;
 - ``<!-- results-table: NAME -->``: ``results_table(data)`` of ``docs/results/data/NAME.json``;
+- ``<!-- benchmark-compare: PATH -->``: the benchmark module's ``compare_table`` of a JSON file
+  written by ``pybullet-swarm benchmark compare A B --out PATH``;
 - ``<!-- benchmark-table: PATH -->``: the benchmark module's own ``markdown_table`` of a JSON
   file written by ``pybullet-swarm benchmark``.
 
@@ -52,7 +54,9 @@ RESULTS_TABLE_KEYS: dict[str, str] = {
     "notes": "a list of strings",
 }
 
-MARKER = re.compile(r"^<!--\s*(reference|results-table|benchmark-table):\s*(\S+)\s*-->\s*$", re.MULTILINE)
+MARKER = re.compile(
+    r"^<!--\s*(reference|results-table|benchmark-table|benchmark-compare):\s*(\S+)\s*-->\s*$", re.MULTILINE
+)
 
 
 # ----------------------------------------------------------------- markdown helpers
@@ -481,6 +485,16 @@ def benchmark_table_file(path: str, root: Path) -> str:
     return str(markdown_table(read_json(root / path, source=path)))
 
 
+def benchmark_compare_file(path: str, root: Path) -> str:
+    """A ``benchmark compare`` JSON file (``path`` relative to ``root``) rendered by ``compare_table``."""
+    from pybullet_swarm.experiment.benchmark import compare_table
+
+    data = read_json(root / path, source=path)
+    if not isinstance(data, dict) or data.get("kind") != "pybullet_swarm.benchmark_compare":
+        raise ConfigError("is not the JSON of `pybullet-swarm benchmark compare --out`", source=path)
+    return str(compare_table(data))
+
+
 #: a generated block of the README (read on GitHub, where no hook runs): the marker, the table, the end marker
 README_BLOCK = re.compile(r"(<!-- benchmark-table: (\S+) -->\n)(.*?)(<!-- /benchmark-table -->)", re.DOTALL)
 
@@ -519,6 +533,8 @@ def render_markers(markdown: str, *, root: Path, data_dir: Path) -> str:
         if kind == "results-table":
             source = (data_dir / f"{arg}.json").relative_to(root) if data_dir.is_relative_to(root) else None
             return results_table_file(arg, data_dir, source=str(source) if source else None)
+        if kind == "benchmark-compare":
+            return benchmark_compare_file(arg, root)
         return benchmark_table_file(arg, root)
 
     def replace(match: re.Match[str]) -> str:  # a block of its own: a blank line after it

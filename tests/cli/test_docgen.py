@@ -235,6 +235,25 @@ def test_a_benchmark_table_is_rendered_by_the_benchmark_module(tmp_path: Path, m
         docgen.render_markers("<!-- benchmark-table: runs/absent.json -->\n", root=tmp_path, data_dir=tmp_path)
 
 
+def test_a_compare_marker_renders_a_compare_json_and_refuses_another(tmp_path: Path) -> None:
+    from pybullet_swarm.experiment import benchmark
+
+    runs = [
+        {"layout": "l", "planner": "p", "avoidance": "orca", "seed": s, "exit_status": "completed",
+         "completion_time_s": 10.0 + s, "contacts": {"agent_agent": 0}, "incidents": 0.0}
+        for s in range(3)
+    ]  # fmt: skip
+    data = {"commit": "abc", "suite": "s", "suite_version": 1, "split": "holdout", "runs": runs,
+            "configurations": [{"planner": "p", "avoidance": "orca"}], "contact_classes": ["agent_agent"]}  # fmt: skip
+    (tmp_path / "c.json").write_text(json.dumps(benchmark.compare(data, data)))
+    out = docgen.render_markers("<!-- benchmark-compare: c.json -->\n", root=tmp_path, data_dir=tmp_path)
+    assert "| p + orca | 3 | completion_rate |" in out
+    assert out.count("\n|") >= 3
+    (tmp_path / "b.json").write_text(json.dumps(data))
+    with pytest.raises(ConfigError, match=r"^b\.json: is not the JSON of `pybullet-swarm benchmark compare"):
+        docgen.render_markers("<!-- benchmark-compare: b.json -->\n", root=tmp_path, data_dir=tmp_path)
+
+
 def test_a_benchmark_table_needs_the_benchmark_module(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "pybullet_swarm.experiment.benchmark", None)  # import fails
     (tmp_path / "b.json").write_text("{}")
