@@ -1,15 +1,10 @@
 """The extension rules on top of the paper's ORCA, each named, documented in one line and switched alone.
 
-The paper's ORCA (``core.py``) knows points or shapes that move at the velocity they are given.
-Our agents are quadrotors that follow a velocity late and overshoot it, fly close to the ground
-and to boxes the paper's agents do not know about, must grasp and place with millimetre
-precision, and meet in narrow depots where symmetric crowds stall. Each rule below answers one of
-these; each is a ``Rule`` whose value is its switch in ``OrcaParams`` (all on by default;
-``preset: paper`` switches every one off, leaving the paper's ORCA). ``RULE_DOCS`` gives each its
-line, which is also the switch's description; the functions below that carry out a rule name it
-first in their docstring (``MINIMAL_INTERVENTION`` is a test in the kernel: ``core.violates``).
-
-The compiled kernel reads the switches and the rules' parameters from one ``RULES`` record.
+Each is a ``Rule`` whose value is its switch in ``OrcaParams`` (all on by default; ``preset: paper``
+switches every one off, leaving the paper's ORCA); ``RULE_DOCS`` gives each its line, which is also
+the switch's description, and ``REQUIRES`` the rule each patch acts through. The functions below
+that carry out a rule name it first in their docstring. The compiled kernel reads the switches and
+the rules' parameters from one ``RULES`` record. The package notes order the rules by stage.
 """
 
 from __future__ import annotations
@@ -143,9 +138,8 @@ def gap_weight(gap: float, floor: float) -> float:
     Violating a plane by dv (m/s) closes the pair's gap dv faster than ORCA allows; weighing it by
     1/gap makes the fallback maximise the shortest time in which any such extra closing eats up its
     pair's gap (rather than the paper's, which spreads one violation over near and far alike). The
-    gap a lag later, not the present one: with the present gap an agent squeezed between two
-    neighbours in a row kept fleeing the nearer one until, a lag late, it touched the other, back
-    and forth every 1.2 s (the suite's random_3, seeds 5 and 9).
+    gap a lag later, not the present one: with the present gap an agent squeezed in a row flees the
+    nearer neighbour into the other, back and forth.
     """
     return 1.0 / max(gap, floor)
 
@@ -264,9 +258,7 @@ def pinned_share(
     """PINNED_SHARE: the share of the pair's ``u`` agent i takes against neighbour j: the whole when j's velocity
     bounds forbid it any velocity along -``u`` on the horizontal axis along which ``u`` mostly runs (``COLUMN_RULE``:
     on a leg over a box or the structure it may only slow down, never move sideways away) and i's allow it velocity
-    along ``u`` there, else ``r``. A pinned neighbour cannot take its half: an empty agent held over a depot box,
-    free to move only towards its box, was touched by a carrier lifting off beside it that took only half the way
-    out (the suite's random_3, seed 4)."""
+    along ``u`` there, else ``r``: a pinned neighbour cannot take its half."""
     if not on:
         return r
     a = 0 if abs(u[0]) >= abs(u[1]) else 1
@@ -321,9 +313,7 @@ def velocity_bounds(
             approached slowly, while the shaped command may still ask for the velocity limit).
         column_tick: s, given, the column rule lets through no more sideways speed than reaches the target's
             column in this time: the layer's velocity is held for a planner tick, while the shaped command's
-            speed over a few millimetres (``sqrt(2 a_max |e|)``) is meant for one shaper tick. Held over
-            a box still on the ground, that speed walked the reference off the column, tick after tick,
-            until the carrier tipped over (construction seed 1 without downwash, ``climb_over`` off).
+            speed over a few millimetres (``sqrt(2 a_max |e|)``) is meant for one shaper tick.
     """
     n = len(positions)
     vm = np.full(3, np.inf) if v_max is None else np.broadcast_to(np.asarray(v_max, dtype=float), (3,)).copy()
@@ -361,9 +351,7 @@ def obstacles_beside(
     structure beside or under it. Each agent's shape is its union box (``centres`` offsets (n, 3) m from
     ``positions``, ``halves`` (n, 3) m); obstacles are axis-aligned boxes (m, 3) / (m, 3) m. With ``ground``
     (``GROUND_BESIDE``) an agent whose shape reaches within ``reach`` of the ground (z = 0) counts too: a
-    carrier held at its grasp height by a neighbour in its wake column, its box still on the ground, was
-    stepped sideways; the box dragged and held it, its position integrators wound up, and when the box came
-    free it flipped over (construction, seed 3, stigmergy + orca without downwash).
+    carrier whose box still rests on the ground must not be stepped sideways.
     """
     n = len(positions)
     c = positions + centres
