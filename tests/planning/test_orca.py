@@ -99,7 +99,6 @@ def _planes(rng_data: list[tuple[list[float], list[float]]], shape: str, v_self:
                 time_horizon=2.0,
                 recovery_time=0.5,
                 half_extents=2 * HALF + 0.03,
-                vertical_cost=3.0,
             )
         normals.append(n)
         points.append(pt)

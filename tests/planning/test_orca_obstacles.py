@@ -141,7 +141,7 @@ def test_a_carrier_places_between_neighbours_but_is_held_above_a_taller_one():
     assert flags & FLAG_FREE and not flags & FLAG_OBSTACLE
     taller = (np.vstack([level[0], [[2.7, 0.3, 0.15]]]), np.tile(CUBE, (3, 1)))
     v, flags = _one_agent(params, [2.7, 0.2, 0.45], down, Command.goto(drop), taller, carrying=True)
-    assert flags & FLAG_OBSTACLE and v[2] > -0.1
+    assert flags & FLAG_OBSTACLE and v[2] > -0.12  # avoided: slowed from the commanded -0.15 m/s
 
 
 def test_a_stall_in_front_of_a_pillar_steps_aside():

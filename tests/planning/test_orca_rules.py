@@ -158,17 +158,17 @@ def test_margin_overlap_recovers_along_an_axis_that_keeps_the_pair_apart():
     H = (0.18 + g[0], 0.18 + g[1], 0.6025 + g[2])  # half extents, margins, lag and wake growth
     bare = (0.15, 0.15, 0.0725)
     v = (0.121, -0.007, -0.018)  # 0's velocity relative to 1's
-    n, u = box_u(c, H, v, 1 / 1.5, 2.0, 0.75, (-1.0, -1.0, -1.0))
+    n, u = box_u(c, H, v, 1 / 1.5, 2.0, (-1.0, -1.0, -1.0))
     assert abs(n[1]) == 1.0  # off: sideways
-    n, u = box_u(c, H, v, 1 / 1.5, 2.0, 0.75, bare)
+    n, u = box_u(c, H, v, 1 / 1.5, 2.0, bare)
     assert n[0] == -1.0 and u[0] < -0.121  # x alone keeps them apart: stop closing along it and reopen
     # bare shapes overlapping on every axis: the least overlap either way
-    assert box_u((0.1, 0.0, 0.0), H, v, 1 / 1.5, 2.0, 0.75, bare) == box_u(
-        (0.1, 0.0, 0.0), H, v, 1 / 1.5, 2.0, 0.75, (-1.0, -1.0, -1.0)
+    assert box_u((0.1, 0.0, 0.0), H, v, 1 / 1.5, 2.0, bare) == box_u(
+        (0.1, 0.0, 0.0), H, v, 1 / 1.5, 2.0, (-1.0, -1.0, -1.0)
     )
     # apart for good: the VO, the same either way
     far = (0.5, -0.139, -0.051)
-    assert box_u(far, H, v, 1 / 1.5, 2.0, 0.75, bare) == box_u(far, H, v, 1 / 1.5, 2.0, 0.75, (-1.0, -1.0, -1.0))
+    assert box_u(far, H, v, 1 / 1.5, 2.0, bare) == box_u(far, H, v, 1 / 1.5, 2.0, (-1.0, -1.0, -1.0))
     vm = np.full(3, 0.15)
     centre, half = bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)), HALF, np.array([False, True]), 0.1, 0.065)
     d = np.array(c) + centre[0] - centre[1]
@@ -193,14 +193,7 @@ def test_margin_overlap_recovers_along_an_axis_that_keeps_the_pair_apart():
 
 
 TALL = np.array([0.075, 0.075, 0.1])  # m, half extents of a tall shape (airframe and hanging load)
-PAPER = {"preset": "paper", "safety_margin": 0.0, "vertical_cost": 0.3}
-
-
-def test_weighted_way_out_passes_over_instead_of_braking():
-    v, _ = _pair(OrcaParams.model_validate(PAPER), gap=0.5, half=TALL)
-    assert np.all(v[:, 2] == 0.0) and v[0, 0] < 0.12  # the nearest way out: brake
-    v, _ = _pair(OrcaParams.model_validate({**PAPER, "weighted_way_out": True}), gap=0.5, half=TALL)
-    assert v[0, 2] < -0.05 and v[1, 2] > 0.05  # one under, one over, halves of the vertical way out
+PAPER = {"preset": "paper", "safety_margin": 0.0}
 
 
 def _over(params: OrcaParams, dz: float, dx: float = 0.3) -> tuple[np.ndarray, np.ndarray]:

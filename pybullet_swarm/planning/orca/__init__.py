@@ -25,8 +25,7 @@ stages of one planner tick, each a compiled function of ``kernel`` reading its o
    with a 10 g box).
 2. Reference (``rules.reference_velocities``): ``clipped_reference`` linearises about the sensed
    velocity clipped to the limits.
-3. Responsibility (``kernel.agent_planes``): ``weighted_way_out`` counts vertical changes of a box
-   VO's way out ``vertical_cost`` times horizontal ones; a pair apart vertically but for the wake is
+3. Responsibility (``kernel.agent_planes``): a pair apart vertically but for the wake is
    resolved by the agent moving into the conflict (``wake_share_by_approach``), on a collision course
    only (``wake_share_on_course``); ``pinned_share`` gives the whole way out to the agent free to
    move against a neighbour its bounds pin.

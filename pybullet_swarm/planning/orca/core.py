@@ -140,7 +140,7 @@ def box_gap(c: Vec, H: Vec) -> tuple[float, int]:
 
 
 @njit
-def box_u(c: Vec, H: Vec, v: Vec, inv_tau: float, inv_rec: float, wz: float, bare: Vec) -> tuple[Vec, Vec]:
+def box_u(c: Vec, H: Vec, v: Vec, inv_tau: float, inv_rec: float, bare: Vec) -> tuple[Vec, Vec]:
     """Outward normal n and change u of relative velocity ``v`` for two axis-aligned boxes.
 
     ``c`` m is the centre of the second box relative to the first, ``H`` m the half extents of
@@ -169,7 +169,7 @@ def box_u(c: Vec, H: Vec, v: Vec, inv_tau: float, inv_rec: float, wz: float, bar
             cost = -g
             k_pen = k
     if pen > 0.0:
-        return box_vo(c, H, v, inv_tau, wz)
+        return box_vo(c, H, v, inv_tau)
     # overlapping now: open the gap along the axis of least overlap over the recovery time
     s = axis(k_pen, 1.0 if c[k_pen] >= 0.0 else -1.0)
     gap = abs(c[k_pen]) - H[k_pen]
@@ -177,16 +177,15 @@ def box_u(c: Vec, H: Vec, v: Vec, inv_tau: float, inv_rec: float, wz: float, bar
 
 
 @njit
-def box_vo(c: Vec, H: Vec, v: Vec, inv_tau: float, wz: float) -> tuple[Vec, Vec]:
+def box_vo(c: Vec, H: Vec, v: Vec, inv_tau: float) -> tuple[Vec, Vec]:
     """(n, u) of the box VO of two boxes that do not overlap (``box_u``'s arguments).
 
     With s = 1 / t the VO reads "some s >= 1/tau satisfies s (c_k - H_k) <= v_k <= s (c_k + H_k)
     for every axis k": each row ``a s <= g . v + h`` bounds s from above (a > 0) or below (a < 0),
     and s exists iff every lower bound is below every upper bound. Each (lower, upper) pair is one
     linear inequality F(v) = n . v + d >= 0; the VO is their intersection, and the outer side of
-    each of these planes is free of the VO. Inside the VO, u leads to the plane nearest v, with
-    vertical changes measured ``wz`` times horizontal ones (1: the paper's nearest point); outside,
-    to the VO's nearest point.
+    each of these planes is free of the VO. Inside the VO, u leads to the plane nearest v (the
+    paper's nearest point); outside, to the VO's nearest point.
     """
     # rows a s <= g . v + h: lower and upper faces of each axis, then s >= 1/tau
     ra = np.empty(BOX_ROWS)
@@ -202,7 +201,6 @@ def box_vo(c: Vec, H: Vec, v: Vec, inv_tau: float, wz: float) -> tuple[Vec, Vec]
     best = FAR
     best_f = 0.0
     bn = (0.0, 0.0, 0.0)
-    iw = 1.0 / wz
     FN = np.empty((BOX_PLANES, 3))  # the VO's planes, for the projection of an outside v
     FP = np.empty((BOX_PLANES, 3))
     nf = 0
@@ -223,14 +221,13 @@ def box_vo(c: Vec, H: Vec, v: Vec, inv_tau: float, wz: float) -> tuple[Vec, Vec]
                 n = add(scale(gp, ra[q]), row(rg, q), -ra[p])
                 f = dot(n, v) + ra[q] * rh[p] - ra[p] * rh[q]
             nn = math.sqrt(dot(n, n))
-            nw = math.sqrt(n[0] * n[0] + n[1] * n[1] + (n[2] * iw) ** 2)
-            if nw < NEAR_ZERO:
+            if nn < NEAR_ZERO:
                 continue
             set_row(FN, nf, scale(n, 1.0 / nn))
             set_row(FP, nf, add(v, n, -f / (nn * nn)))  # the point of the plane nearest v
             nf += 1
-            if f / nw < best:
-                best = f / nw
+            if f / nn < best:
+                best = f / nn
                 best_f = f / nn
                 bn = scale(n, 1.0 / nn)
     out = scale(bn, -1.0)  # outward: the direction in which F decreases
@@ -514,7 +511,6 @@ def orca_plane(
     recovery_time: float,
     combined_radius: float | None = None,
     half_extents: NDArray[np.float64] | None = None,
-    vertical_cost: float = 1.0,
     responsibility: float = 0.5,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """One ORCA half-space ``{v : normal . (v - point) >= 0}`` of an agent against one neighbour.
@@ -529,8 +525,6 @@ def orca_plane(
         recovery_time: s, overlapping shapes separate over this time.
         combined_radius: m, sum of both sphere radii (margins included).
         half_extents: (3,) m, half extents of the Minkowski sum of both boxes (margins included).
-        vertical_cost: boxes only: weight of vertical velocity changes when choosing the way out
-            (1: the paper's nearest way out; other values are the ``weighted_way_out`` rule).
         responsibility: share of the avoidance the agent takes (0.5: reciprocal).
 
     Returns:
@@ -542,9 +536,7 @@ def orca_plane(
     if combined_radius is not None:
         n, u = sphere_u(p, v, float(combined_radius), 1.0 / time_horizon, 1.0 / recovery_time)
     else:
-        n, u = box_u(
-            p, vec3(half_extents), v, 1.0 / time_horizon, 1.0 / recovery_time, float(vertical_cost), (-1.0, -1.0, -1.0)
-        )
+        n, u = box_u(p, vec3(half_extents), v, 1.0 / time_horizon, 1.0 / recovery_time, (-1.0, -1.0, -1.0))
     return np.array(n), np.asarray(velocity, dtype=float).reshape(3) + responsibility * np.array(u)
 
 

@@ -4,7 +4,7 @@ Per agent: the hard planes (velocity limits, narrowed by ``FLOOR_RULE`` and ``CO
 with ``STATIC_OBSTACLES``, one plane per static obstacle within reach, of which the agent takes the
 whole u, as the paper's agents do with obstacles: never traded away by the fallback LP unless the
 agent already overlaps the obstacle), one ORCA plane per neighbour (``core``; shapes grown by
-``LAG_MARGIN``, the way out weighted by ``WEIGHTED_WAY_OUT``, the shares moved by the wake rules),
+``LAG_MARGIN``, the shares moved by the wake rules),
 then either the command unchanged (``MINIMAL_INTERVENTION``) or the LP's velocity, which a
 stalled agent may solve again with a bias (``DEADLOCK_RESOLUTION``, ``resolve_stall``).
 
@@ -62,7 +62,6 @@ def rule_settings(params: OrcaParams) -> NDArray[np.void]:
         s[r.value] = params.on(r)
     s["lag_margin_s"] = params.lag_margin_s
     s["headway_s"] = params.lag_margin_s if params.headway_s is None else params.headway_s
-    s["vertical_cost"] = params.vertical_cost
     s["time_horizon"] = params.time_horizon
     s["right_bias"] = params.right_bias
     s["stuck_fraction"] = params.stuck_fraction
@@ -115,10 +114,9 @@ def pair_u(
             half[a, 2] + half[b, 2] + rules.wake_growth(rs.wake_column, rs.wake_depth),
         )
         H = (bare[0] + m2 + g[0], bare[1] + m2 + g[1], bare[2] + m2 + g[2])
-        wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
         gap, k = core.box_gap(c, bare)
         gap -= lag * (v[k] if c[k] > 0.0 else -v[k])  # a lag later: a pair parting weighs less
-        nrm, u = core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, wz, bare if rs.margin_overlap else NO_BARE)
+        nrm, u = core.box_u(c, H, v, cs.inv_tau, cs.inv_rec, bare if rs.margin_overlap else NO_BARE)
         return nrm, u, gap
     p = add(row(pos, b), row(pos, a), -1.0)
     speed = math.sqrt(dot(v, v))
@@ -233,7 +231,6 @@ def obstacle_planes(
     """
     vi = row(vel, i)
     on, lag = rs.lag_margin, rs.lag_margin_s
-    wz = rules.way_out_weight(rs.weighted_way_out, rs.vertical_cost)
     reach = cs.max_speed / rs.inv_tau_obstacle  # m, the farthest any velocity of the LP goes within the horizon
     n_hard = k
     for overlapping in (False, True):
@@ -249,7 +246,7 @@ def obstacle_planes(
                 continue
             if has_goal[i] and rules.own_target(i, o, pos, goal, parts, oc, oh, cs.margin + rs.goal_reach):
                 continue
-            nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, wz, H0 if rs.margin_overlap else NO_BARE)
+            nrm, u = core.box_u(c, H, vi, rs.inv_tau_obstacle, cs.inv_rec, H0 if rs.margin_overlap else NO_BARE)
             set_row(N, k, nrm)
             set_row(P, k, add(vi, u, 1.0))
             W[k] = rules.gap_weight(core.box_gap(c, H0)[0], rs.gap_floor)

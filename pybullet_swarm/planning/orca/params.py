@@ -89,14 +89,6 @@ class OrcaParams(Params):
         "of a pair's relative position error",
     )
     clipped_reference: bool = _switch(Rule.CLIPPED_REFERENCE)
-    weighted_way_out: bool = _switch(Rule.WEIGHTED_WAY_OUT)
-    vertical_cost: float = Field(
-        0.75,
-        gt=0.0,
-        le=100.0,
-        description="boxes: weight of a vertical change of velocity against a horizontal one "
-        "(< 1 favours passing over)",
-    )
     floor_rule: bool = _switch(Rule.FLOOR_RULE)
     floor_height: float = Field(0.5, ge=0.0, le=100.0, description="m, below this avoidance never pushes an agent down")
     floor_preferred: bool = Field(

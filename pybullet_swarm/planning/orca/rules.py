@@ -26,7 +26,6 @@ class Rule(str, enum.Enum):
     LAG_MARGIN = "lag_margin"
     UNCERTAINTY_MARGIN = "uncertainty_margin"
     CLIPPED_REFERENCE = "clipped_reference"
-    WEIGHTED_WAY_OUT = "weighted_way_out"
     FLOOR_RULE = "floor_rule"
     COLUMN_RULE = "column_rule"
     MINIMAL_INTERVENTION = "minimal_intervention"
@@ -56,8 +55,6 @@ RULE_DOCS: dict[Rule, str] = {
     "pair's relative position error",
     Rule.CLIPPED_REFERENCE: "ORCA linearises about the sensed velocity clipped to the velocity limits: overshoots "
     "are not motion to answer",
-    Rule.WEIGHTED_WAY_OUT: "a box VO's way out counts vertical changes vertical_cost times horizontal ones "
-    "(off: the nearest way out)",
     Rule.FLOOR_RULE: "below floor_height avoidance never pushes an agent down, above it by at most its height over "
     "it per horizon",
     Rule.COLUMN_RULE: "below floor_height an agent within column_radius of its target (horizontally) is only "
@@ -105,7 +102,6 @@ RULES = np.dtype(
     + [
         ("lag_margin_s", np.float64),  # s, shapes grow by this times the closing speed
         ("headway_s", np.float64),  # s, (HEADWAY) the time headway of a pair flying the same way, one behind
-        ("vertical_cost", np.float64),  # weight of vertical changes when choosing a box VO's way out
         ("time_horizon", np.float64),  # s, how far ahead a neighbour counts as in the way
         ("right_bias", np.float64),  # fraction of the preferred speed added sideways to a stalled agent
         ("stuck_fraction", np.float64),  # progress below this fraction of the preferred speed is a stall
@@ -243,12 +239,6 @@ def reference_velocities(
     if not on or v_max is None:
         return velocities
     return np.clip(velocities, -v_max, v_max)
-
-
-@njit
-def way_out_weight(on: bool, vertical_cost: float) -> float:
-    """WEIGHTED_WAY_OUT: weight of vertical changes when choosing a box VO's way out (1: the paper's nearest)."""
-    return vertical_cost if on else 1.0
 
 
 @njit
