@@ -72,8 +72,6 @@ CONFIGS: dict[str, tuple[str, ...]] = {
     "rule: margin_overlap": ("margin_overlap",),
     "rule: headway": ("headway",),
     "rule: clipped_reference": ("clipped_reference",),
-    "rule: passthrough_turns": ("passthrough_turns",),
-    "rule: minimal_intervention": ("minimal_intervention",),
 }
 
 #: the metrics of the table: (key in compare's output, column, True when a rise is worse)
