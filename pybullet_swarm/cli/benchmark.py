@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from pybullet_swarm.cli import add_overrides_option
 from pybullet_swarm.errors import ConfigError
 
 USAGE = (
@@ -53,13 +54,9 @@ def register(sub: Any) -> None:
         metavar="N",
         help="a study on the split: N seeds from its first seed on, instead of its own (more runs per layout)",
     )
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY.PATH=VALUE",
-        help="a study on the split: scenario override on top of the suite's (an ablation: "
+    add_overrides_option(
+        p,
+        "a study on the split: scenario override on top of the suite's (an ablation: "
         "avoidance_params.wake_column=false); a directory holds one set of overrides",
     )
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as errors")

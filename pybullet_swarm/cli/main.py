@@ -15,6 +15,7 @@ import traceback
 from pathlib import Path
 from typing import Any, Sequence
 
+from pybullet_swarm.cli import add_overrides_option
 from pybullet_swarm.errors import ConfigError
 
 PROG = "pybullet-swarm"
@@ -42,14 +43,7 @@ def _add_run(sub: Any) -> None:
     p.add_argument(
         "--out", type=Path, default=None, help="run directory (default: runs/<name>-<planner>-s<seed>-<time>)"
     )
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY.PATH=VALUE",
-        help="override a scenario field (repeatable), e.g. --set agents.count=20",
-    )
+    add_overrides_option(p, "override a scenario field (repeatable), e.g. --set agents.count=20")
     p.add_argument(
         "-c",
         "--config",
@@ -302,7 +296,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 def _add_check(sub: Any) -> None:
     p = sub.add_parser("check", help="validate a scenario and print it resolved")
     p.add_argument("scenario")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY.PATH=VALUE")
+    add_overrides_option(p)
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cmd_check)
 
@@ -615,14 +609,7 @@ def _add_sweep(sub: Any) -> None:
     )
     p.add_argument("--seeds", type=int, required=True, metavar="N", help="runs per configuration: N seeds")
     p.add_argument("--seed-start", type=int, default=0, metavar="S", help="first seed (default 0): seeds S .. S+N-1")
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY.PATH=VALUE",
-        help="override a scenario field in every run (repeatable)",
-    )
+    add_overrides_option(p, "override a scenario field in every run (repeatable)")
     p.add_argument(
         "--grid",
         action="append",

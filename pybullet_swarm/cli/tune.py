@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from pybullet_swarm.cli import add_overrides_option
 from pybullet_swarm.errors import ConfigError
 
 _PROG = "pybullet-swarm"
@@ -80,14 +81,7 @@ def register(subparsers: Any) -> None:
         help="Optuna sampler (default: tpe; nsga2 with --objectives; cmaes on the planner's own search space)",
     )
     p.add_argument("--sampler-seed", type=int, default=0, help="seed of the sampler (default 0)")
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY.PATH=VALUE",
-        help="override a scenario field in every run (repeatable)",
-    )
+    add_overrides_option(p, "override a scenario field in every run (repeatable)")
     p.add_argument(
         "--executor",
         choices=("local", "ray"),
