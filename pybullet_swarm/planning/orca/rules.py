@@ -113,9 +113,7 @@ RULES = np.dtype(
     align=True,
 )
 
-VERTICAL_COS2 = 0.5  # cos^2(45 deg): a direction (a way out, a descent) within 45 deg of vertical is vertical
 APPROACH_SPEED = 0.02  # m/s, a pair closing in slower than this is at rest (WAKE_SHARE_BY_APPROACH)
-LEVEL_SPEED = 0.02  # m/s, an agent climbing or sinking slower than this is in level flight
 SIDE_OFFSET = 0.01  # m, a neighbour ahead further than this to one side has already chosen its side
 HORIZONTAL_MIN2 = 1e-6  # squared horizontal part of a unit direction below which it counts as vertical
 BESIDE_MIN2 = 1e-4  # m^2, a neighbour horizontally closer than 1 cm is right above or below
