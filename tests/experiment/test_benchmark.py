@@ -1,4 +1,4 @@
-"""Benchmarks: dry-run lines, JSON keys, table and figure of a tiny suite, resume after a kill, paired compare."""
+"""Benchmarks: dry-run lines, JSON keys, table and figure of a tiny suite, resume after a kill, paired compare, ablation."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import yaml
 
 from pybullet_swarm.cli.main import main
 from pybullet_swarm.errors import ConfigError
-from pybullet_swarm.experiment import benchmark
+from pybullet_swarm.experiment import ablation, benchmark
 from pybullet_swarm.experiment.jobs import RunSpec, make_row
 from pybullet_swarm.experiment.results import RUNS_CSV, RunsTable
 
@@ -310,3 +310,74 @@ def test_ray_executor_runs_a_tiny_benchmark(tmp_path):
         tiny_suite(tmp_path), "dev", tmp_path / "bench", executor="ray", workers=1, figure=False
     )
     assert res.n_run == 2 and res.data["configurations"][0]["timeout"] == 2
+
+
+# ------------------------------------------------------------------ ablation
+
+
+def _paired(worse_completion: bool) -> dict[str, Any]:
+    """A baseline that completes every run against a configuration that stalls every third one, or not at all."""
+    a = _bench([_run(f"L{i % 5}", i, "completed", 100.0 + i % 7) for i in range(60)], "aaa")
+    b = _bench(
+        [_run(f"L{i % 5}", i, "stalled" if worse_completion and i % 3 == 0 else "completed", 100.0 + i % 7)
+         for i in range(60)],
+        "bbb",
+    )  # fmt: skip
+    return benchmark.compare(a, b)
+
+
+def test_a_configuration_pays_only_when_switching_it_off_is_significantly_worse():
+    worse = _paired(worse_completion=True)["configurations"][0]["metrics"]
+    same = _paired(worse_completion=False)["configurations"][0]["metrics"]
+    assert ablation.verdict(worse) == "pays (completion, stalls)"
+    assert ablation.verdict(same) == "does not pay"
+    # a significant improvement when switched off is not a reason to keep the rule
+    better = benchmark.compare(
+        _bench([_run(f"L{i % 5}", i, "completed", 120.0 + i % 7) for i in range(60)], "a"),
+        _bench([_run(f"L{i % 5}", i, "completed", 100.0 + i % 7) for i in range(60)], "b"),
+    )["configurations"][0]["metrics"]
+    assert better["median_time_s"]["significant"] and ablation.verdict(better) == "does not pay"
+
+
+def test_the_table_has_one_row_per_configuration_with_its_rules_and_verdict():
+    cfgs = [
+        ablation.switched_off("rule: claims", "stigmergy", "planner.params", ["claims"]),
+        ablation.switched_off("rules: a, b", "stigmergy", "avoidance_params", ["headway", "lag_margin"]),
+    ]
+    results = {"rule: claims": _paired(True), "rules: a, b": _paired(False)}
+    data = ablation.results_table(results, cfgs, title="T", command="cmd", notes=["n"])
+    assert data["columns"][:3] == ["configuration", "rules off", "pairs"] and data["columns"][-1] == "verdict"
+    (r1, r2) = data["rows"]
+    assert r1[:3] == ["rule: claims", "claims", 60] and r1[-1].startswith("pays")
+    assert r2[1] == "headway, lag_margin" and r2[-1] == "does not pay"
+    assert r1[3].startswith("1 -> 0.667 [") and r1[3].endswith("*")
+    assert data["commit"] == "bbb" and "n" in data["notes"]
+
+
+def test_slugs_are_file_names_that_keep_configurations_apart():
+    a = ablation.switched_off("rule: claims", "stigmergy", "planner.params", ["claims"])
+    b = ablation.switched_off("rule: claims", "layered_stigmergy", "planner.params", ["claims"])
+    c = ablation.switched_off("rules: wake_lanes, wake_clear (shortest_path)", "shortest_path", "planner.params", [])
+    assert a.slug == "stigmergy-claims" and b.slug != a.slug
+    assert c.slug == "shortest_path-wake_lanes+wake_clear"
+
+
+def test_an_ablation_runs_each_configuration_and_pairs_it_with_the_given_baseline(tmp_path):
+    suite = tiny_suite(tmp_path)
+    base = benchmark.run_benchmark(suite, "dev", tmp_path / "base", workers=1, figure=False).data
+    cfg = ablation.switched_off("rule: retry_slots", "shortest_path", "planner.params", ["retry_slots"])
+    out = tmp_path / "abl"
+    results = ablation.run_ablation([cfg], out, suite=str(suite), split="dev", workers=1, baseline=base)
+    (conf,) = results["rule: retry_slots"]["configurations"]
+    assert conf["pairs"] == 2 and conf["planner"] == "shortest_path"
+    recorded = benchmark.read_benchmark(out / f"abl-{cfg.slug}" / "benchmark.json")
+    assert recorded["variant"]["set"] == {"planner.params.retry_slots": False}
+    # resumable: a second call runs nothing and gives the same comparison
+    again = ablation.run_ablation([cfg], out, suite=str(suite), split="dev", workers=1, baseline=base)
+    assert again["rule: retry_slots"]["configurations"] == results["rule: retry_slots"]["configurations"]
+
+
+@pytest.mark.parametrize("name", ["rule: x", "stage: a, b"])
+def test_rules_column_names_the_last_key_component(name):
+    cfg = ablation.Ablation(name, "stigmergy", (("avoidance_params.wake_column", False),))
+    assert cfg.rules == "wake_column"
