@@ -57,9 +57,7 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=Path("runs/planner-ablation"))
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--only", nargs="*", default=[], help="run only these configurations (directory names)")
-    ap.add_argument(
-        "--baseline", type=Path, default=Path("docs/results/data/benchmarks/construction-v1-holdout.json")
-    )
+    ap.add_argument("--baseline", type=Path, default=Path("docs/results/data/benchmarks/construction-v1-holdout.json"))
     ap.add_argument("--table", type=Path, default=None, help="write the results table JSON here")
     args = ap.parse_args()
     configs = [c for c in CONFIGS if not args.only or c.slug in args.only]
