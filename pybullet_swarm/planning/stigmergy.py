@@ -77,8 +77,6 @@ extension with its own switch (bold; the table below).
   the structure's far corner).
 * **claims**: an agent leaves a box or slot to a neighbour already working over it (lower, or at
   the same height and nearer), so two agents never descend onto one object.
-  **claims_by_load**: only a neighbour that can serve the object claims it (one carrying a box a
-  slot, an empty one a box): an empty agent searching over a slot kept every carrier off it.
 * **queue_at_slots**: a carrier whose slot's working square (an airframe's width and
   ``QUEUE_MARGIN`` per axis round the column it serves the slot from) holds another carrier, and
   which is not in that square itself, waits ``QUEUE_GAP`` outside every slot's square until it is
@@ -116,7 +114,6 @@ switch                        default     thesis      source of the thesis's val
 ============================  ==========  ==========  =================================================
 ``ties``                      random      first       appendix A: ``[maxval, maxind] = max(pheromones(:))``
 ``claims``                    true        false       neither: a box is skipped only once carried
-``claims_by_load``            true        false       not in the thesis
 ``wide_view``                 true        false       Table 5.1 (2 x agent radius), appendix A (max-norm)
 ``view_window``               0.15 m      0.15 m      Table 3.2: 15 x 15 cm airframe, radius 7.5 cm
 ``layout_altitudes``          true        false       appendix A: one ``search_height``, points as drawn
@@ -406,11 +403,6 @@ class StigmergyParams(Params):
     )
     # ---- extensions of the thesis's algorithm (thesis value in brackets)
     claims: bool = Field(True, description="leave a box or slot to a neighbour already working over it [false]")
-    claims_by_load: bool = Field(
-        True,
-        description="with claims, only a neighbour that can serve the object claims it: an empty one a box, "
-        "one carrying a box a slot [false: any neighbour over it]",
-    )
     wide_view: bool = Field(
         True,
         description="notice every object the task shows (view_radius + grasp height "
@@ -503,7 +495,6 @@ class StigmergyParams(Params):
             "distance_scale": None,
             "ties": TieBreak.FIRST.value,
             "claims": False,
-            "claims_by_load": False,
             "wide_view": False,
             "view_window": THESIS_VIEW_M,
             "layout_altitudes": False,
@@ -1318,7 +1309,7 @@ class Stigmergy:
             return -1
         par = self.params
         cols = where[:, :2] - shift[:2]
-        free = np.array([not (par.claims and self._claimed(obs, c, by_carrier=not boxes)) for c in cols])
+        free = np.array([not (par.claims and self._claimed(obs, c)) for c in cols])
         free &= self._in_window(obs, where)
         if skip is not None:
             free &= ~skip
@@ -1338,12 +1329,9 @@ class Stigmergy:
             return np.ones(len(where), dtype=np.bool_)
         return np.asarray(np.max(np.abs(where[:, :2] - obs.position[:2]), axis=1) <= self.params.view_window)
 
-    def _claimed(self, obs: ConstructionObservation, xy: NDArray[np.float64], *, by_carrier: bool) -> bool:
+    def _claimed(self, obs: ConstructionObservation, xy: NDArray[np.float64]) -> bool:
         """True when a neighbour works over the column at ``xy`` (2,) m: within one agent radius of
-        it and lower than this agent, or level with it and nearer (a tie goes to the lower id). With
-        ``claims_by_load``, only a neighbour that can serve the object counts: one carrying a box
-        (``by_carrier``: a slot) or an empty one (a box); an empty neighbour hovering over a slot
-        would otherwise keep every carrier off it, and itself be kept off its search point by them."""
+        it and lower than this agent, or level with it and nearer (a tie goes to the lower id)."""
         if len(obs.neighbour_ids) == 0:
             return False
         q = obs.neighbour_positions
@@ -1353,10 +1341,7 @@ class Stigmergy:
         lower = q[:, 2] < p[2] - 0.05
         level = np.abs(q[:, 2] - p[2]) <= 0.05
         nearer = (dn < dm - 1e-3) | ((np.abs(dn - dm) <= 1e-3) & (obs.neighbour_ids < self.id))
-        claim = (dn < self.info.agent_radius) & (lower | (level & nearer))
-        if self.params.claims_by_load and len(obs.neighbour_carrying) == len(obs.neighbour_ids):
-            claim &= obs.neighbour_carrying == by_carrier
-        return bool(np.any(claim))
+        return bool(np.any((dn < self.info.agent_radius) & (lower | (level & nearer))))
 
     def _gone(self, p: NDArray[np.float64], obj: NDArray[np.float64]) -> bool:
         """True when an object the agent should see from here (well inside its view range) is not there."""
@@ -1371,7 +1356,7 @@ class Stigmergy:
         if seen.size:
             self.box.pos = obs.seen.boxes[seen[0]].copy()
         if (not seen.size and self._gone(obs.position, self.box.pos)) or (
-            claims and self.params.claims and self._claimed(obs, self.box.pos[:2], by_carrier=False)
+            claims and self.params.claims and self._claimed(obs, self.box.pos[:2])
         ):
             self.phase = Phase.SEEK_BOX  # taken or claimed by another agent: keep looking
             self.box = Sighting(-1, self.box.pos)
@@ -1430,7 +1415,7 @@ class Stigmergy:
         a neighbour works over it."""
         seen = bool(np.any(obs.seen.slot_ids == self.slot.id))
         if (not seen and self._gone(obs.position, self.slot.pos)) or (
-            claims and self.params.claims and self._claimed(obs, self.slot.pos[:2] - self.offset[:2], by_carrier=True)
+            claims and self.params.claims and self._claimed(obs, self.slot.pos[:2] - self.offset[:2])
         ):
             self.phase = Phase.SEEK_GOAL  # filled or claimed by another agent: keep looking
             self.slot = Sighting(-1, self.slot.pos)

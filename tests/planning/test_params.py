@@ -30,7 +30,6 @@ THESIS_STIGMERGY = {
     "distance_scale": None,
     "ties": "first",
     "claims": False,
-    "claims_by_load": False,
     "wide_view": False,
     "view_window": 0.15,
     "layout_altitudes": False,
@@ -114,7 +113,6 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
     assert list(extensions(StigmergyParams)) == [
         "ties",
         "claims",
-        "claims_by_load",
         "wide_view",
         "layout_altitudes",
         "leave_boxes_by_structure",

@@ -574,16 +574,12 @@ def test_without_claims_a_box_a_neighbour_descends_onto_is_fetched_all_the_same(
         assert a.phase == phase
 
 
-def test_only_a_neighbour_that_can_serve_an_object_claims_it():
-    """An empty neighbour searching over a slot leaves it to a carrier (with claims_by_load), a carrying
-    one keeps it; over a box it is the other way round. Without claims_by_load any neighbour claims."""
+def test_any_neighbour_working_over_an_object_claims_it_whatever_it_carries():
+    """A neighbour level with the agent and nearer to a slot claims it, empty or carrying; one below
+    a box claims the box, empty or carrying."""
     slot = SLOTS[1]
-    for by_load, carrying, claimed in (
-        (True, False, False),
-        (True, True, True),
-        (False, False, True),
-    ):
-        a = _agent(claims_by_load=by_load)
+    for carrying in (False, True):
+        a = _agent()
         g = a.geo
         a.carry, a.phase = Carry(3, np.array([0.0, 0.0, -GH])), Phase.SEEK_GOAL
         a.target = np.array([2.6, 0.5])
@@ -591,14 +587,14 @@ def test_only_a_neighbour_that_can_serve_an_object_claims_it():
         over = [slot[0], slot[1], p[2]]  # level with the agent, nearer to the slot
         obs = _obs(p, carrying=3, slots=[slot], slot_ids=[1], nb_ids=[1], nb_pos=[over], nb_carrying=[carrying])
         a.plan(obs, _medium())
-        assert (a.phase == Phase.SEEK_GOAL) == claimed, (by_load, carrying)
+        assert a.phase == Phase.SEEK_GOAL, carrying
     box = DEPOT[0]
     below = [box[0] + 0.01, box[1], 0.15]
-    for carrying, phase in ((True, Phase.TO_BOX), (False, Phase.SEEK_BOX)):
+    for carrying in (True, False):
         a = _agent(agent=2)
         p = [box[0] + 0.15, box[1], a.geo.look_altitude]
         a.plan(_obs(p, boxes=[box], box_ids=[0], nb_ids=[1], nb_pos=[below], nb_carrying=[carrying]), _medium())
-        assert a.phase == phase, carrying
+        assert a.phase == Phase.SEEK_BOX, carrying
 
 
 def test_without_layout_altitudes_one_altitude_over_floor_and_depot_and_search_points_as_drawn():
