@@ -56,8 +56,7 @@ extension with its own switch (bold; the table below).
   **drift_breakoff**: a descent pushed more than ``DRIFT_TOL`` off its column (by a neighbour's
   avoidance, say) is broken off; the agent climbs straight back and comes over the object again,
   rather than sweeping what hangs under it diagonally through a neighbouring stack.
-  **leave_boxes_by_structure**: boxes lying beside the structure, whose descent would scrape it,
-  are left alone. **loose_box_check**: no agent descends with a box onto a slot with a loose box
+  **loose_box_check**: no agent descends with a box onto a slot with a loose box
   in it. **retake**: a box that did not come to rest in its slot is still a free box: the agent that
   let it go watches it for ``SETTLE_S``, takes it again and serves the slot once more.
   **descent_timeout_s**: a descent that does not end in a release by then is broken off.
@@ -117,7 +116,6 @@ switch                        default     thesis      source of the thesis's val
 ``wide_view``                 true        false       Table 5.1 (2 x agent radius), appendix A (max-norm)
 ``view_window``               0.15 m      0.15 m      Table 3.2: 15 x 15 cm airframe, radius 7.5 cm
 ``layout_altitudes``          true        false       appendix A: one ``search_height``, points as drawn
-``leave_boxes_by_structure``  true        false       not in the thesis
 ``drift_breakoff``            true        false       not in the thesis
 ``loose_box_check``           true        false       not in the thesis
 ``retake``                    true        false       appendix A: a box let go counts as placed
@@ -422,9 +420,6 @@ class StigmergyParams(Params):
         "[false: one altitude at which a carried box clears the "
         "boxes on the floor, points as drawn]",
     )
-    leave_boxes_by_structure: bool = Field(
-        True, description="leave alone boxes lying beside the structure, whose descent would scrape it [false]"
-    )
     drift_breakoff: bool = Field(
         True, description="break off a descent pushed off its column and climb straight back [false]"
     )
@@ -498,7 +493,6 @@ class StigmergyParams(Params):
             "wide_view": False,
             "view_window": THESIS_VIEW_M,
             "layout_altitudes": False,
-            "leave_boxes_by_structure": False,
             "drift_breakoff": False,
             "loose_box_check": False,
             "retake": False,
@@ -690,8 +684,6 @@ class FlightGeometry:
         view_range: m, an agent sees an object whose grasp point is this close (task rule).
         standoff: m, how far before a higher zone an agent climbs.
         columns: (c, 2) m, centres of the structure's columns of slots.
-        clearance: m, least horizontal (per-axis) distance from a column at which an agent's descent
-            does not touch it.
         hidden: (h, 2) m, centres of the columns with a slot an agent beside the structure does not see
             (searched for from above them).
         sight: m, the farthest horizontal (per-axis) distance from a search point beside the structure at
@@ -706,7 +698,6 @@ class FlightGeometry:
     view_range: float
     standoff: float
     columns: NDArray[np.float64]
-    clearance: float
     hidden: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros((0, 2)))
     sight: float = 0.0
 
@@ -768,7 +759,6 @@ class FlightGeometry:
             view,
             standoff=max(0.03, p.structure_margin),
             columns=cols,
-            clearance=0.5 * bs + r,
             sight=view - p.arrive_tol,
         )
         if not seeing:
@@ -885,14 +875,6 @@ class FlightGeometry:
             return xy
         pts = pts[ok]
         return pts[int(np.argmin(np.linalg.norm(pts - xy, axis=1)))]
-
-    def clear_of_structure(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """(k,) True for points (k, 2) m straight over a structure column (on top of a stack) or far
-        enough from every column for an agent to descend there without touching it."""
-        if len(self.columns) == 0:
-            return np.ones(len(xy), dtype=bool)
-        d = np.max(np.abs(xy[:, None, :] - self.columns[None, :, :]), axis=2)  # (k, c) m, per-axis distance
-        return np.all(d >= self.clearance, axis=1) | np.any(d <= COLUMN_TOL + 0.02, axis=1)
 
 
 @dataclasses.dataclass
@@ -1220,7 +1202,7 @@ class Stigmergy:
     def _step_seek_box(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """SEEK_BOX -> TO_BOX (a free box in view) | CHOOSE_BOX (search point reached); trail 0.2 on the way."""
         p = obs.position
-        b = self._pick(obs, obs.seen.box_ids, obs.seen.boxes, np.zeros(3), boxes=True)
+        b = self._pick(obs, obs.seen.box_ids, obs.seen.boxes, np.zeros(3))
         if b >= 0:
             self.box = Sighting(int(obs.seen.box_ids[b]), obs.seen.boxes[b].copy())
             self.phase = Phase.TO_BOX
@@ -1298,13 +1280,11 @@ class Stigmergy:
         where: NDArray[np.float64],
         shift: NDArray[np.float64],
         *,
-        boxes: bool = False,
         skip: NDArray[np.bool_] | None = None,
     ) -> int:
         """Index (into ``ids``) of the nearest visible object nobody else is working on, or -1.
-        ``shift`` (3,) m moves an object's centre to where the agent's column over it is; with
-        ``boxes``, boxes beside the structure (whose descent would scrape it) are left alone;
-        objects marked in ``skip`` (k,) are left alone too."""
+        ``shift`` (3,) m moves an object's centre to where the agent's column over it is; objects
+        marked in ``skip`` (k,) are left alone."""
         if len(ids) == 0 or self._ignoring_objects(obs):
             return -1
         par = self.params
@@ -1313,8 +1293,6 @@ class Stigmergy:
         free &= self._in_window(obs, where)
         if skip is not None:
             free &= ~skip
-        if boxes and par.leave_boxes_by_structure:
-            free &= self.geo.clear_of_structure(cols)
         if not free.any():
             return -1
         d = np.hypot(*(cols - obs.position[:2]).T)

@@ -267,14 +267,6 @@ def test_a_box_a_neighbour_is_working_on_is_left_to_it():
     assert a.phase == Phase.TO_BOX and a.box.id == 0
 
 
-def test_a_box_beside_the_structure_is_left_alone_but_one_on_top_of_a_stack_is_fetched():
-    a = _agent()
-    g = a.geo
-    beside, on_top = np.array([[2.81, 0.4]]), np.array([[2.7, 0.4]])
-    assert not g.clear_of_structure(beside)[0]
-    assert g.clear_of_structure(on_top)[0] and g.clear_of_structure(DEPOT[:, :2]).all()
-
-
 # ----------------------------------------------------------------------------- structure
 def test_a_carrying_agent_climbs_before_the_structure_and_crosses_it_at_cruise_altitude():
     a = _agent()
@@ -633,14 +625,6 @@ def test_first_ties_follow_the_thesis_grid_order_random_ties_spread():
             out.add(tuple(np.round(a.target, 6)))
     assert firsts == {(2.05, 0.25)}
     assert drawn == {(2.05, 0.25), (0.45, 0.75)}
-
-
-def test_a_box_beside_the_structure_is_fetched_without_leave_boxes_by_structure():
-    beside = np.array([2.81, 0.4, 0.05])
-    for leave, phase in ((True, Phase.SEEK_BOX), (False, Phase.TO_BOX)):
-        a = _seeking(leave_boxes_by_structure=leave)
-        a.plan(_obs([2.81, 0.5, 0.2], boxes=[beside], box_ids=[7]), _medium())
-        assert a.phase == phase
 
 
 def _descending_onto(slot_id: int, **params) -> tuple[Stigmergy, np.ndarray]:
