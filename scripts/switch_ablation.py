@@ -1,15 +1,16 @@
 #!/usr/bin/env python3
-"""Ablation of the construction planners' on/off switches on the benchmark's holdout split.
+"""Ablation of on/off switches on the benchmark's holdout split: the construction planners' and ORCA's remaining ones.
 
-    python scripts/planner_ablation.py [--out runs/planner-ablation] [--workers 2] [--only NAME ...]
+    python scripts/switch_ablation.py [--out runs/switch-ablation] [--workers 2] [--only NAME ...]
         [--baseline docs/results/data/benchmarks/construction-v1-holdout.json]
-        [--table docs/results/data/planner_ablation.json]
+        [--table docs/results/data/switch_ablation.json]
 
 Each configuration is the split's runs of one planner with one switch (or a named group) off
-(``--set planner.params.SWITCH=false``), run by ``pybullet_swarm.experiment.ablation`` into
-``OUT/abl-PLANNER-NAME`` (resumable), and paired with the baseline: the committed holdout benchmark
-of main, every switch on, on the runs both have. A switch whose row does not pay is deleted
-(docs/guides/benchmark.md).
+(``--set planner.params.SWITCH=false``, ``--set avoidance_params.RULE=false``), run by
+``pybullet_swarm.experiment.ablation`` into ``OUT/abl-PLANNER-NAME`` (resumable), and paired with
+the baseline: the committed holdout benchmark of main, every switch on, on the runs both have. A
+switch whose row does not pay is deleted (docs/guides/benchmark.md). The ORCA rules here are those
+``scripts/orca_stage_ablation.py`` did not ablate one by one (stigmergy + orca).
 
 ``CONFIGS`` lists the switches as the planners had them at the commit the table names; switches
 deleted since are named as they were, so the table keeps its history (later commits refuse them).
@@ -44,17 +45,43 @@ SWITCHES: dict[str, tuple[str, ...]] = {
     "layered_stigmergy": ("footprint", "ahead_cone", "detour", "replan_climb"),
 }
 
-#: the configurations: one switch off at a time
+#: shortest_path's switches, ablated in groups of one purpose (its runs cost three times stigmergy's)
+GROUPS: dict[str, tuple[str, ...]] = {
+    "placement": ("retry_slots", "release_over_neighbours", "soft_landing", "recentre_box", "plumb_legs"),
+    "traffic": ("swap_boxes", "round_parked"),
+}
+
+#: ORCA rules not ablated one by one before (a rule whose patch would be left on goes off with it)
+ORCA_RULES: tuple[tuple[str, ...], ...] = (
+    ("passthrough_turns",),
+    ("minimal_intervention",),
+    ("floor_preferred",),
+    ("column_tick",),
+    ("floor_rule", "floor_preferred"),
+    ("ground_beside",),
+)
+
+#: the configurations: one switch off at a time, or one of shortest_path's groups
 CONFIGS = [
-    ablation.switched_off(f"switch: {s} ({planner})", planner, "planner.params", [s])
-    for planner, switches in SWITCHES.items()
-    for s in switches
+    *(
+        ablation.switched_off(f"switch: {s} ({planner})", planner, "planner.params", [s])
+        for planner, switches in SWITCHES.items()
+        for s in switches
+    ),
+    *(
+        ablation.switched_off(f"group: {g} (shortest_path)", "shortest_path", "planner.params", switches)
+        for g, switches in GROUPS.items()
+    ),
+    *(
+        ablation.switched_off(f"orca rules: {', '.join(rules)}", "stigmergy", "avoidance_params", rules)
+        for rules in ORCA_RULES
+    ),
 ]
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=Path("runs/planner-ablation"))
+    ap.add_argument("--out", type=Path, default=Path("runs/switch-ablation"))
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--only", nargs="*", default=[], help="run only these configurations (directory names)")
     ap.add_argument("--baseline", type=Path, default=Path("docs/results/data/benchmarks/construction-v1-holdout.json"))
@@ -66,12 +93,12 @@ def main() -> int:
     data = ablation.results_table(
         results,
         configs,
-        title="Construction planners' switches on the holdout split (one switch off against every switch on)",
-        command="python scripts/planner_ablation.py",
+        title="Switches on the holdout split (one switch or group off against every switch on)",
+        command="python scripts/switch_ablation.py",
         notes=[
             f"Baseline: {args.baseline.as_posix()} (commit {str(base.get('commit', ''))[:10]}), every switch on; "
             "each configuration: the split's 2 seeds on its 21 generated layouts, with orca, paired on the runs "
-            "both have.",
+            "both have. ORCA rows: stigmergy + orca.",
         ],
     )
     for row in data["rows"]:
