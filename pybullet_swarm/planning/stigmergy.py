@@ -69,11 +69,6 @@ extension with its own switch (bold; the table below).
   slots filled since, and in a large structure the strongest-pheromone search would otherwise draw
   among every column ever built on, the last open slot's as likely as any (a column whose upper
   slot opens later gets a fresh mark from the placement that opens it, next to it).
-* **mark_seen_slots**: an empty agent that sees an open slot marks its own cell as a goal (-1), as a
-  placement does (never over a goal or box mark). Only placements mark goals in the thesis, so a slot
-  that empty agents pass by is found by a carrier's random search alone: the last open slot of a build
-  went unfound for 150 s in 4 of 150 runs of the thesis task with ``orca`` (3 of them the bottom slot in
-  the structure's far corner).
 * **claims**: an agent leaves a box or slot to a neighbour already working over it (lower, or at
   the same height and nearer), so two agents never descend onto one object.
 * **queue_at_slots**: a carrier whose slot's working square (an airframe's width and
@@ -97,10 +92,7 @@ extension with its own switch (bold; the table below).
   under it sticks there and drags the agent), and only once the estimate has stayed within
   ``release_tol`` of the drop point for ``release_dwell_s``.
 * Layered only: **lookahead** (20 cm along the way instead of the next 10 cm cell),
-  **footprint** (the swept airframe, one agent radius around its centre, and the carried box are
-  marked and checked, not only the agent's own cell), **ahead_cone** (only marks within
-  ``AHEAD_DEG`` of the way block it: an agent may always move away from a neighbour beside or
-  behind it), **detour** (after a re-plan the agent keeps to its new search point for as long as a
+  **detour** (after a re-plan the agent keeps to its new search point for as long as a
   mark lasts, 1 s, before going for a seen object again: two agents wanting to pass each other would
   otherwise block each other for ever), **replan_climb** (a re-plan also forgets where the agent
   latched to climb before a higher zone: two carriers climbing at the structure's edge under a third
@@ -123,10 +115,7 @@ switch                        default     thesis      source of the thesis's val
 ``release_over_neighbours``   true        false       not in the thesis (its boxes passed through each other)
 ``clear_spent_goals``         true        false       appendix A: goal marks never change (fatigue 0)
 ``raise_drop_point``          true        false       not in the thesis
-``mark_seen_slots``           true        false       appendix A: goals are marked on placing only
 ``lookahead``                 0.2 m       0.1 m       appendix B: the cells next to the agent's own
-``footprint``                 true        false       appendix B: the agent marks its own cell only
-``ahead_cone``                true        false       chapter 6.0.4: "any area they move into"
 ``detour``                    true        false       not in the thesis
 ``replan_climb``              true        false       not in the thesis (one altitude: no climb latch)
 ``queue_at_slots``            true        false       not in the thesis (five agents, a gapped wall)
@@ -152,8 +141,8 @@ the preset follows:
   neighbours (``taken``) without ever using them: as printed it avoids nothing, which would make
   layered stigmergy 3-D stigmergy, against the different results of Table 6.2. The chapter for the
   values and the reaction; the appendix for the area checked (the cells next to the agent's own:
-  ``lookahead`` one cell, no ``footprint``), read with the chapter's "area they move into" (the
-  cells along its way, no cone needed).
+  ``lookahead`` one cell), read with the chapter's "area they move into" (the cells along its
+  way).
 * The view: Table 5.1 gives "2 x agent-radius" and appendix A measures it in the max-norm from the
   agent's centre to the object's (``dist = max(abs(object - agent))``) at the objects' level. Our
   agents fly above the objects (physical boxes), so the window is measured horizontally and the
@@ -295,8 +284,6 @@ VIEW_MARGIN = ALTITUDE_TOL
 (horizontally the margin is ``arrive_tol``: an agent arrives that near its search point)."""
 GRASP_FRACTION = 0.6
 """An agent asks to grasp within this fraction of the attach threshold (margin for tracking error)."""
-AHEAD_DEG = 70.0
-"""deg: a presence mark blocks the way when its cell lies within this angle of the direction of travel."""
 CLEARANCE_SIGMAS = 3.0
 """Least release clearance, in standard deviations of the agent's own position estimate."""
 SETTLE_S = 0.3
@@ -470,11 +457,6 @@ class StigmergyParams(Params):
         "serving it (a descent breaks off after descent_timeout_s), and no longer holds a waiting one out "
         "[null: it holds it for ever]",
     )
-    mark_seen_slots: bool = Field(
-        True,
-        description="an empty agent that sees an open slot marks its own cell as a goal (-1), as a placement "
-        "does [false: only placements mark]",
-    )
 
     #: pheromone layers of the grid (sizes its memory)
     LAYERS: ClassVar[int] = 1
@@ -500,7 +482,6 @@ class StigmergyParams(Params):
             "release_over_neighbours": False,
             "clear_spent_goals": False,
             "raise_drop_point": False,
-            "mark_seen_slots": False,
             "queue_at_slots": False,
             "search_near": False,
         }
@@ -542,16 +523,6 @@ class LayeredStigmergyParams(StigmergyParams):
         le=2.0,
         description="m, how far along its way an agent checks for other agents' marks [0.1: the next cell]",
     )
-    footprint: bool = Field(
-        True,
-        description="mark and check the airframe's extent (one agent radius) and the "
-        "carried box, not only the agent's own cell [false]",
-    )
-    ahead_cone: bool = Field(
-        True,
-        description="only marks ahead of the way block it (within AHEAD_DEG): an agent "
-        "may move away from a neighbour beside or behind it [false]",
-    )
     detour: bool = Field(
         True,
         description="after a re-plan keep to the new search point for as long as a mark "
@@ -570,8 +541,6 @@ class LayeredStigmergyParams(StigmergyParams):
             "presence_pheromone": 2.0,
             "presence_fatigue": 2.0,
             "lookahead": 0.1,
-            "footprint": False,
-            "ahead_cone": False,
             "detour": False,
             "replan_climb": False,
         }
@@ -1062,8 +1031,6 @@ class Stigmergy:
     def plan(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command:
         """The agent's command for the next planner period."""
         self._sync(obs, medium)
-        if self.params.mark_seen_slots and medium is not None and len(obs.seen.slot_ids):
-            self._mark_seen_slot(obs, medium)
         for _ in range(MAX_STEPS):  # a step returns None when it changed the phase and the next one should act now
             cmd = self._steps[self.phase](obs, medium)
             if cmd is not None:
@@ -1110,20 +1077,6 @@ class Stigmergy:
         self.carry = None
         self.slot = Sighting(-1, self.slot.pos)
         self.watch.clear()
-
-    def _mark_seen_slot(self, obs: ConstructionObservation, medium: PheromoneGrid) -> None:
-        """``mark_seen_slots``: an open slot in the view of an empty agent leaves a goal mark in the agent's own
-        cell (where a carrier will see the slot again), unless the cell holds a goal or a box mark already.
-        Without it only a placement marks a goal, and a slot seen by empty agents alone is found by a
-        carrier's random search only (the last open slot of a build, in a corner, for minutes)."""
-        if self.holding:
-            return  # a carrier goes for an open slot it sees, and marks it when it places its box there
-        if not self._in_window(obs, obs.seen.slots).any():
-            return
-        v = medium.sample(Layer.TASK.value, obs.position)
-        if v <= self.params.goal_pheromone or v >= self.params.box_pheromone:
-            return
-        self._mark(medium, obs.position, self.params.goal_pheromone, "goals_seen")
 
     def _mark(self, medium: PheromoneGrid | None, p: NDArray[np.float64], value: float, tally: str) -> None:
         if medium is not None:
@@ -1643,11 +1596,9 @@ class LayeredStigmergy(Stigmergy):
                 # two agents wanting to pass each other would otherwise block each other for ever
                 self.detour_until = obs.time_s + self.params.presence_pheromone / self.params.presence_fatigue
             cmd = Command.hold()
-        marks = self._origins(obs.position)
-        for q in marks:
-            medium.deposit(
-                Layer.PRESENCE.value, q, self.params.presence_pheromone, rule=DepositRule.SET, source=self.id
-            )
+        medium.deposit(
+            Layer.PRESENCE.value, obs.position, self.params.presence_pheromone, rule=DepositRule.SET, source=self.id
+        )
         return cmd
 
     def _ignoring_objects(self, obs: ConstructionObservation) -> bool:
@@ -1656,9 +1607,7 @@ class LayeredStigmergy(Stigmergy):
 
     def _blocked(self, obs: ConstructionObservation, cmd: Command, medium: PheromoneGrid) -> bool:
         """True when another agent's presence mark lies in the area the agent is about to move into:
-        its footprint (one agent radius around its centre, and around its box when it carries one)
-        swept along the way to the command's target for ``lookahead``, in cells ahead of it (within
-        ``AHEAD_DEG`` of the way; an agent may always move away from a neighbour beside or behind it)."""
+        the cells along the way to the command's target for ``lookahead`` from its centre."""
         if cmd.kind != CommandKind.POSITION:
             return False
         p = obs.position
@@ -1669,32 +1618,13 @@ class LayeredStigmergy(Stigmergy):
         u = way / dist
         step = 0.5 * self.params.cell_size
         s = np.arange(step, min(self.params.lookahead, dist) + step - 1e-9, step)  # (k,) m along the way
-        swept = (np.outer(s, u)[:, None, :] + self._footprint[None, :, :]).reshape(-1, 3)  # offsets from a centre
-        for o in self._origins(p):
-            pts = o + swept
-            marked = pts[medium.values_at(Layer.PRESENCE.value, pts, exclude_source=self.id) > 0.0]
-            if len(marked) == 0:
-                continue
-            if not self.params.ahead_cone:
-                return True
-            rel = medium.centre(medium.index(marked)) - o  # (m, 3) m
-            if np.any(rel @ u > math.cos(math.radians(AHEAD_DEG)) * np.linalg.norm(rel, axis=1)):
-                return True
-        return False
-
-    def _origins(self, p: NDArray[np.float64]) -> list[NDArray[np.float64]]:
-        """Points (3,) m the agent marks and checks from: itself, and with ``footprint`` its box."""
-        return [p, p + self.offset] if self.holding and self.params.footprint else [p]
+        pts = p + np.outer(s, u)
+        return bool(np.any(medium.values_at(Layer.PRESENCE.value, pts, exclude_source=self.id) > 0.0))
 
     def reset(self, agent_id: int, rng: np.random.Generator, info: ConstructionInfo) -> None:
         """Start a run as agent ``agent_id`` (see ``Stigmergy.reset``)."""
         super().reset(agent_id, rng, info)
         self.detour_until = -math.inf  # s, until then the agent keeps to its search point
-        r = info.agent_radius
-        h = 0.5 * self.params.cell_size
-        grid = np.array(np.meshgrid([-r, 0.0, r], [-r, 0.0, r], [-h, 0.0, h], indexing="ij"))
-        # (27, 3) m, offsets covering the airframe and its neighbourhood; without ``footprint`` its centre only
-        self._footprint = grid.reshape(3, -1).T if self.params.footprint else np.zeros((1, 3))
 
 
 from pybullet_swarm.planning.registry import register_planner  # noqa: E402

@@ -40,7 +40,6 @@ THESIS_STIGMERGY = {
     "release_over_neighbours": False,
     "clear_spent_goals": False,
     "raise_drop_point": False,
-    "mark_seen_slots": False,
     "search_near": False,
     "queue_at_slots": False,
 }
@@ -49,8 +48,6 @@ THESIS_LAYERED = {
     "presence_pheromone": 2.0,
     "presence_fatigue": 2.0,
     "lookahead": 0.1,
-    "footprint": False,
-    "ahead_cone": False,
     "detour": False,
     "replan_climb": False,
 }
@@ -123,13 +120,10 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "clear_spent_goals",
         "search_near",
         "queue_at_slots",
-        "mark_seen_slots",
     ]
     assert list(extensions(LayeredStigmergyParams)) == [
         *extensions(StigmergyParams),
         "lookahead",
-        "footprint",
-        "ahead_cone",
         "detour",
         "replan_climb",
     ]

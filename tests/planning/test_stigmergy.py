@@ -368,7 +368,7 @@ def test_layered_agent_replans_before_entering_another_agents_cell_but_not_its_o
     med.step(0.1)
     cmd = a.plan(_obs(p), med)
     assert cmd.kind == CommandKind.POSITION and a.phase == Phase.SEEK_BOX
-    med.deposit(Layer.PRESENCE.value, p + [0.15, 0.05, 0.0], 2.0, rule=DepositRule.SET, source=3)  # ahead
+    med.deposit(Layer.PRESENCE.value, p + [0.15, 0.0, 0.0], 2.0, rule=DepositRule.SET, source=3)  # ahead
     med.step(0.1)
     cmd = a.plan(_obs(p), med)
     assert cmd.kind == CommandKind.HOLD
@@ -400,14 +400,14 @@ def test_layered_agent_passes_a_neighbour_beside_it_and_after_a_replan_detours_b
     assert a.phase == Phase.TO_BOX and a.box.id == 4
 
 
-def test_presence_marks_fade_in_a_second_and_a_carrying_agent_also_marks_its_box():
+def test_presence_marks_fade_in_a_second_and_mark_the_agent_s_cell_only():
     med = _medium(layered=True)
     a = _agent(LayeredStigmergy, agent=1)
     a.carry, a.phase, a.target = Carry(2, np.array([0.0, 0.0, -0.115])), Phase.SEEK_GOAL, np.array([1.0, 0.5])
     p = np.array([1.55, 0.55, 0.255])
     a.plan(_obs(p, carrying=2, agent=1), med)
     med.step(0.1)
-    assert med.sample(Layer.PRESENCE.value, p) == 2.0 and med.sample(Layer.PRESENCE.value, p + a.offset) == 2.0
+    assert med.sample(Layer.PRESENCE.value, p) == 2.0 and med.sample(Layer.PRESENCE.value, p + a.offset) == 0.0
     for _ in range(10):
         med.step(0.1)
     assert med.sample(Layer.PRESENCE.value, p) == 0.0
@@ -503,8 +503,9 @@ def test_same_seed_same_run_and_each_agent_draws_its_own_random_numbers():
 @pytest.mark.slow
 def test_thesis_task_both_planners_complete_and_the_presence_layer_cuts_time_in_collision():
     """Thesis chapters 5 and 6 on the full task (5 agents, 9 boxes, ghost collisions): both finish;
-    the layered variant spends far less time with agents overlapping each other and the boxes others carry
-    (ghost mode counts an agent in another's load as physical mode would: 18 onsets plain, 6 layered)."""
+    the layered variant spends less time with agents overlapping each other and the boxes others carry
+    (ghost mode counts an agent in another's load as physical mode would). Agent-agent: 55.8 s plain,
+    36.1 s layered, marking and checking the agent's own cells as the thesis's appendix B does."""
     # without downwash, as the thesis (with it, an agent flying over another pushes it down, here into a box)
     over = {"sim.downwash": False}
     m = {
@@ -517,7 +518,7 @@ def test_thesis_task_both_planners_complete_and_the_presence_layer_cuts_time_in_
         assert metrics["collisions"]["agent_structure"] == 0
     for cls in ("agent_agent", "agent_box"):
         plain, layered = (m[p]["collision_time_s"][cls] for p in ("stigmergy", "layered_stigmergy"))
-        assert layered < 0.5 * plain, cls
+        assert layered < 0.8 * plain, cls
     assert m["layered_stigmergy"]["pheromone"]["tallies"]["presence_replans"] > 0
 
 
@@ -693,28 +694,13 @@ def _blocked_by(mark_offset, **params) -> bool:
     return a.plan(_obs(p), med).kind == CommandKind.HOLD
 
 
-def test_layered_lookahead_footprint_and_cone_each_change_what_blocks_the_way():
+def test_layered_lookahead_changes_what_blocks_the_way():
     # a mark 15 cm ahead: within a 20 cm lookahead, not within the thesis's next cell (10 cm)
-    assert _blocked_by([0.15, 0.0, 0.0], footprint=False)
-    assert not _blocked_by([0.15, 0.0, 0.0], footprint=False, lookahead=0.1)
-    # a mark ahead and 9 cm aside: in the swept airframe, not on the centre line
-    assert _blocked_by([0.10, 0.09, 0.0])
-    assert not _blocked_by([0.10, 0.09, 0.0], footprint=False)
-    # a mark behind, touched by the swept airframe: ignored within the cone, blocking without it
+    assert _blocked_by([0.15, 0.0, 0.0])
+    assert not _blocked_by([0.15, 0.0, 0.0], lookahead=0.1)
+    # the cells along the centre line only: a mark ahead and 9 cm aside, or behind, does not block
+    assert not _blocked_by([0.10, 0.09, 0.0])
     assert not _blocked_by([-0.15, 0.0, 0.0])
-    assert _blocked_by([-0.15, 0.0, 0.0], ahead_cone=False)
-
-
-def test_layered_without_footprint_marks_only_its_own_cell_not_its_box():
-    for footprint in (True, False):
-        a = _agent(LayeredStigmergy, agent=1, footprint=footprint)
-        a.carry, a.phase, a.target = Carry(2, np.array([0.0, 0.0, -0.115])), Phase.SEEK_GOAL, np.array([1.0, 0.5])
-        med = _medium(layered=True)
-        p = np.array([1.55, 0.55, 0.255])
-        a.plan(_obs(p, carrying=2, agent=1), med)
-        med.step(0.1)
-        assert med.sample(Layer.PRESENCE.value, p) == 2.0
-        assert med.sample(Layer.PRESENCE.value, p + a.offset) == (2.0 if footprint else 0.0)
 
 
 @pytest.mark.parametrize("on", [True, False])
@@ -831,40 +817,6 @@ def test_the_drop_point_is_release_tol_higher_unless_switched_off():
     assert on.clearance == pytest.approx(on.params.release_clearance + on.params.release_tol)
     assert off.clearance == pytest.approx(off.params.release_clearance)
     assert _agent(preset="thesis").clearance == pytest.approx(off.clearance)
-
-
-@pytest.mark.parametrize("mark", [True, False])
-def test_an_empty_agent_that_sees_an_open_slot_marks_its_cell_as_a_goal(mark):
-    """``mark_seen_slots``: an empty agent beside the structure that sees slot 3 open leaves -1 in its own
-    cell (where a carrier sees the slot again), over a trail but never over a box mark; a carrier's next
-    pheromone search point is that cell. Without the switch (the thesis) only a placement marks a goal."""
-    med = _medium()
-    a = _agent(mark_seen_slots=mark)
-    g = a.geo
-    p = np.array([g.structure.lo[:, 0].min() - g.standoff, 0.8, g.floor_altitude])
-    assert _visible(p, SLOTS[3])
-    med.deposit(Layer.TASK.value, p, 0.2, rule=DepositRule.SET)  # a trail was laid here
-    med.step(0.1)
-    a.plan(_obs(p, slots=[SLOTS[3]], slot_ids=[3]), med)
-    med.step(0.1)
-    assert med.sample(Layer.TASK.value, p) == (-1.0 if mark else 0.2)
-    assert med.tallies.get("goals_seen", 0) == (1 if mark else 0)
-    # the carrier: random search point first, then the strongest goal mark, which is this one
-    c = _agent(agent=1, mark_seen_slots=mark)
-    c.carry, c.phase = Carry(4, np.array([0.0, 0.0, -GH])), Phase.CHOOSE_GOAL
-    c.strategy = Strategy.RANDOM
-    c.plan(_obs([1.0, 0.5, g.floor_altitude], carrying=4, agent=1), med)
-    if mark:
-        assert c.strategy is Strategy.PHEROMONE and np.max(np.abs(c.target - p[:2])) <= 0.1
-    else:
-        assert c.strategy is Strategy.RANDOM  # no goal mark anywhere: a random point again
-    # no mark over a box mark
-    q = p + [0.0, -0.1, 0.0]
-    med.deposit(Layer.TASK.value, q, 1.0, rule=DepositRule.SET)
-    med.step(0.1)
-    a.plan(_obs(q, slots=[SLOTS[3]], slot_ids=[3]), med)
-    med.step(0.1)
-    assert med.sample(Layer.TASK.value, q) == 1.0
 
 
 @pytest.mark.parametrize("queue", [True, False])
