@@ -45,10 +45,23 @@ SWITCHES: dict[str, tuple[str, ...]] = {
     "layered_stigmergy": ("footprint", "ahead_cone", "detour", "replan_climb"),
 }
 
-#: shortest_path's switches, ablated in groups of one purpose (its runs cost three times stigmergy's)
-GROUPS: dict[str, tuple[str, ...]] = {
-    "placement": ("retry_slots", "release_over_neighbours", "soft_landing", "recentre_box", "plumb_legs"),
-    "traffic": ("swap_boxes", "round_parked"),
+#: (planner, name) -> switches off together: shortest_path's in groups of one purpose (its runs cost three
+#: times stigmergy's); stigmergy's switches whose single rows did not pay with adverse point estimates
+GROUPS: dict[tuple[str, str], tuple[str, ...]] = {
+    ("stigmergy", "adverse single rows"): (
+        "claims",
+        "release_over_neighbours",
+        "clear_spent_goals",
+        "queue_at_slots",
+    ),
+    ("shortest_path", "placement"): (
+        "retry_slots",
+        "release_over_neighbours",
+        "soft_landing",
+        "recentre_box",
+        "plumb_legs",
+    ),
+    ("shortest_path", "traffic"): ("swap_boxes", "round_parked"),
 }
 
 #: ORCA rules not ablated one by one before (a rule whose patch would be left on goes off with it)
@@ -69,8 +82,8 @@ CONFIGS = [
         for s in switches
     ),
     *(
-        ablation.switched_off(f"group: {g} (shortest_path)", "shortest_path", "planner.params", switches)
-        for g, switches in GROUPS.items()
+        ablation.switched_off(f"group: {g} ({planner})", planner, "planner.params", switches)
+        for (planner, g), switches in GROUPS.items()
     ),
     *(
         ablation.switched_off(f"orca rules: {', '.join(rules)}", "stigmergy", "avoidance_params", rules)
