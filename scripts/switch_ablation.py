@@ -62,6 +62,8 @@ GROUPS: dict[tuple[str, str], tuple[str, ...]] = {
         "plumb_legs",
     ),
     ("shortest_path", "traffic"): ("swap_boxes", "round_parked"),
+    ("shortest_path", "wake patches"): ("wait_away", "park_clear", "held_pass"),
+    ("shortest_path", "waits"): ("wait_beside", "spaced_descents"),
 }
 
 #: ORCA rules not ablated one by one before (a rule whose patch would be left on goes off with it)
