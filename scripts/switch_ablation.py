@@ -2,7 +2,7 @@
 """Ablation of on/off switches on the benchmark's holdout split: the construction planners' and ORCA's remaining ones.
 
     python scripts/switch_ablation.py [--out runs/switch-ablation] [--workers 2] [--only NAME ...]
-        [--baseline docs/results/data/benchmarks/construction-v1-holdout.json]
+        [--baseline docs/results/data/benchmarks/construction-v1-holdout-376f91a.json]
         [--table docs/results/data/switch_ablation.json]
 
 Each configuration is the split's runs of one planner with one switch (or a named group) off
@@ -99,7 +99,9 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=Path("runs/switch-ablation"))
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--only", nargs="*", default=[], help="run only these configurations (directory names)")
-    ap.add_argument("--baseline", type=Path, default=Path("docs/results/data/benchmarks/construction-v1-holdout.json"))
+    ap.add_argument(
+        "--baseline", type=Path, default=Path("docs/results/data/benchmarks/construction-v1-holdout-376f91a.json")
+    )
     ap.add_argument("--table", type=Path, default=None, help="write the results table JSON here")
     args = ap.parse_args()
     configs = [c for c in CONFIGS if not args.only or c.slug in args.only]
