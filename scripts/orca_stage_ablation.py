@@ -24,7 +24,6 @@ so the table keeps its history; later commits refuse them, so the ablation rerun
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from pybullet_swarm.experiment import ablation
@@ -108,11 +107,7 @@ def main() -> int:
             "paired on the runs both have.",
         ],
     )
-    for row in data["rows"]:
-        print(" | ".join(str(c) for c in row))
-    if args.table is not None:
-        args.table.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
-        print(args.table)
+    ablation.report(data, args.table)
     return 0
 
 

@@ -19,7 +19,6 @@ deleted since are named as they were, so the table keeps its history (later comm
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from pybullet_swarm.experiment import ablation, benchmark
@@ -118,11 +117,7 @@ def main() -> int:
             "both have. ORCA rows: stigmergy + orca.",
         ],
     )
-    for row in data["rows"]:
-        print(" | ".join(str(c) for c in row))
-    if args.table is not None:
-        args.table.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
-        print(args.table)
+    ablation.report(data, args.table)
     return 0
 
 

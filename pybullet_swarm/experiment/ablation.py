@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import json
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from pybullet_swarm.experiment import benchmark
+from pybullet_swarm.experiment.rundir import atomic_write
 
 #: the metrics of a table: (key in compare's output, column, True when a rise is worse)
 METRICS = (
@@ -150,3 +152,12 @@ def results_table(
             "configurations that do not pay are deleted (docs/guides/benchmark.md).",
         ],
     }
+
+
+def report(data: Mapping[str, Any], table: Path | None) -> None:
+    """Print a results table's rows, one line each, and write it (atomically) to ``table`` when given."""
+    for row in data["rows"]:
+        print(" | ".join(str(c) for c in row))
+    if table is not None:
+        atomic_write(table, lambda f: f.write(json.dumps(data, indent=1) + "\n"))
+        print(table)

@@ -381,3 +381,13 @@ def test_an_ablation_runs_each_configuration_and_pairs_it_with_the_given_baselin
 def test_rules_column_names_the_last_key_component(name):
     cfg = ablation.Ablation(name, "stigmergy", (("avoidance_params.wake_column", False),))
     assert cfg.rules == "wake_column"
+
+
+def test_report_prints_one_line_per_row_and_writes_the_table(tmp_path, capsys):
+    cfg = ablation.switched_off("rule: claims", "stigmergy", "planner.params", ["claims"])
+    data = ablation.results_table({"rule: claims": _paired(True)}, [cfg], title="T", command="cmd")
+    path = tmp_path / "t.json"
+    ablation.report(data, path)
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("rule: claims | claims | 60 |") and out[-1] == str(path)
+    assert json.loads(path.read_text()) == data
