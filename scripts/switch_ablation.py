@@ -1,14 +1,14 @@
 #!/usr/bin/env python3
 """Ablation of on/off switches on the benchmark's holdout split: the construction planners' and ORCA's remaining ones.
 
-    python scripts/switch_ablation.py [--out runs/switch-ablation] [--workers 2] [--only NAME ...]
-        [--baseline docs/results/data/benchmarks/construction-v1-holdout-376f91a.json]
-        [--table docs/results/data/switch_ablation.json]
+    python scripts/switch_ablation.py [--round 1|2|estimated] [--out runs/switch-ablation-ROUND] [--workers 2]
+        [--only NAME ...] [--baseline BENCHMARK.json] [--table docs/results/data/switch_ablation.json]
 
 Each configuration is the split's runs of one planner with one switch (or a named group) off
 (``--set planner.params.SWITCH=false``, ``--set avoidance_params.RULE=false``), run by
 ``pybullet_swarm.experiment.ablation`` into ``OUT/abl-PLANNER-NAME`` (resumable), and paired with
-the baseline: the committed holdout benchmark of main, every switch on, on the runs both have. A
+the baseline on the runs both have: the committed holdout benchmark of main, every switch on (rounds
+1 and 2), or a run of it under the same condition (``estimated``: agents fly on their estimates). A
 switch whose row does not pay is deleted (docs/guides/benchmark.md). The ORCA rules here are those
 ``scripts/orca_stage_ablation.py`` did not ablate one by one (stigmergy + orca).
 
@@ -61,21 +61,40 @@ GROUPS: dict[tuple[str, str], tuple[str, ...]] = {
         "plumb_legs",
     ),
     ("shortest_path", "traffic"): ("swap_boxes", "round_parked"),
-    ("shortest_path", "wake patches"): ("wait_away", "park_clear", "held_pass"),
-    ("shortest_path", "waits"): ("wait_beside", "spaced_descents"),
 }
 
-#: ORCA rules not ablated one by one before (a rule whose patch would be left on goes off with it)
+#: ORCA rules not ablated one by one before
 ORCA_RULES: tuple[tuple[str, ...], ...] = (
     ("passthrough_turns",),
     ("minimal_intervention",),
     ("floor_preferred",),
     ("column_tick",),
-    ("floor_rule", "floor_preferred"),
-    ("ground_beside",),
 )
 
-#: the configurations: one switch off at a time, or one of shortest_path's groups
+#: round 2 (a74ccbc, against the holdout benchmark after round 1's deletions): the switches round 1
+#: did not run, and the undecided rows of both ablations switched off together
+ROUND_2: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
+    ("group: undecided ORCA rules", "stigmergy", "avoidance_params",
+     ("passthrough_turns", "minimal_intervention", "column_tick", "floor_preferred")),
+    ("group: undecided ORCA rules of the stage ablation", "stigmergy", "avoidance_params",
+     ("clipped_reference", "wake_share_by_approach", "wake_share_on_course", "margin_overlap")),
+    ("orca rules: floor_rule, floor_preferred", "stigmergy", "avoidance_params", ("floor_rule", "floor_preferred")),
+    ("orca rule: ground_beside", "stigmergy", "avoidance_params", ("ground_beside",)),
+    ("group: placement and traffic (shortest_path)", "shortest_path", "planner.params",
+     ("retry_slots", "release_over_neighbours", "soft_landing", "recentre_box", "plumb_legs", "swap_boxes",
+      "round_parked")),
+    ("group: waits (shortest_path)", "shortest_path", "planner.params", ("wait_beside", "spaced_descents")),
+    ("group: wake patches (shortest_path)", "shortest_path", "planner.params", ("wait_away", "park_clear", "held_pass")),
+    ("switch: wake_lanes (shortest_path)", "shortest_path", "planner.params", ("wake_lanes",)),
+    ("switch: wake_clear (shortest_path)", "shortest_path", "planner.params", ("wake_clear", "held_pass")),
+)  # fmt: skip
+
+#: flying on estimates (``sensing.state=estimated``, baseline run the same way): the switches built for it
+ESTIMATED: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
+    ("group: estimate rules (stigmergy)", "stigmergy", "planner.params", ("drift_breakoff", "loose_box_check", "retake")),
+)  # fmt: skip
+
+#: round 1 (e1f23e8, against the holdout benchmark of 376f91a): one switch off at a time, or a group
 CONFIGS = [
     *(
         ablation.switched_off(f"switch: {s} ({planner})", planner, "planner.params", [s])
@@ -92,29 +111,54 @@ CONFIGS = [
     ),
 ]
 
+#: round -> (configurations, default baseline JSON or None to run one, common overrides, what the notes say)
+ROUNDS: dict[str, tuple[list[ablation.Ablation], str | None, tuple[tuple[str, str], ...], str]] = {
+    "1": (CONFIGS, "docs/results/data/benchmarks/construction-v1-holdout-376f91a.json", (), "every switch on"),
+    "2": (
+        [ablation.switched_off(*row) for row in ROUND_2],
+        "docs/results/data/benchmarks/construction-v1-holdout.json",
+        (),
+        "every switch on, after round 1's deletions",
+    ),
+    "estimated": (
+        [ablation.switched_off(*row) for row in ESTIMATED],
+        None,
+        (("sensing.state", "estimated"),),
+        "every switch on, run the same way (agents fly on their Kalman estimates)",
+    ),
+}
+
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=Path("runs/switch-ablation"))
+    ap.add_argument("--round", choices=sorted(ROUNDS), default="1", help="which configurations (see ROUNDS)")
+    ap.add_argument("--out", type=Path, default=None, help="default runs/switch-ablation-ROUND")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--only", nargs="*", default=[], help="run only these configurations (directory names)")
-    ap.add_argument(
-        "--baseline", type=Path, default=Path("docs/results/data/benchmarks/construction-v1-holdout-376f91a.json")
-    )
+    ap.add_argument("--baseline", type=Path, default=None, help="benchmark JSON (default: the round's)")
     ap.add_argument("--table", type=Path, default=None, help="write the results table JSON here")
     args = ap.parse_args()
-    configs = [c for c in CONFIGS if not args.only or c.slug in args.only]
-    base = benchmark.read_benchmark(args.baseline)
-    results = ablation.run_ablation(configs, args.out, workers=args.workers, baseline=base)
+    round_configs, default_base, common, base_note = ROUNDS[args.round]
+    configs = [c for c in round_configs if not args.only or c.slug in args.only]
+    out = args.out or Path(f"runs/switch-ablation-{args.round}")
+    base_path = args.baseline or (Path(default_base) if default_base else None)
+    base = benchmark.read_benchmark(base_path) if base_path else None
+    results = ablation.run_ablation(configs, out, workers=args.workers, baseline=base, common=common)
+    where = (
+        f"{base_path.as_posix()} (commit {str(base.get('commit', ''))[:10]})"
+        if base_path and base
+        else f"run into {out.as_posix()}/base"
+    )
+    under = "".join(f" --set {k}={v}" for k, v in common)
     data = ablation.results_table(
         results,
         configs,
-        title="Switches on the holdout split (one switch or group off against every switch on)",
-        command="python scripts/switch_ablation.py",
+        title=f"Switches on the holdout split{' flying on estimates' if common else ''}, round {args.round} "
+        "(one switch or group off against every switch on)",
+        command=f"python scripts/switch_ablation.py --round {args.round}",
         notes=[
-            f"Baseline: {args.baseline.as_posix()} (commit {str(base.get('commit', ''))[:10]}), every switch on; "
-            "each configuration: the split's 2 seeds on its 21 generated layouts, with orca, paired on the runs "
-            "both have. ORCA rows: stigmergy + orca.",
+            f"Baseline: {where}, {base_note}; each configuration: the split's 2 seeds on its 21 generated layouts, "
+            f"with orca{under and ', ' + under.strip()}, paired on the runs both have. ORCA rows: stigmergy + orca.",
         ],
     )
     ablation.report(data, args.table)

@@ -76,12 +76,15 @@ def run_ablation(
     workers: int | None = None,
     baseline: Mapping[str, Any] | None = None,
     baseline_seeds: Mapping[str, int] | None = None,
+    common: Sequence[tuple[str, Any]] = (),
 ) -> dict[str, dict[str, Any]]:
     """Run (or resume) every configuration into ``out/abl-SLUG``; returns name -> compare result.
 
     The baseline of each planner is ``baseline`` (a benchmark JSON with that planner's runs) when
     given, or else is run into ``out/base`` with ``baseline_seeds[planner]`` seeds per layout (the
-    split's own seeds when absent).
+    split's own seeds when absent). ``common`` overrides apply to the baseline run and every
+    configuration alike (a study under another condition: ``(("sensing.state", "estimated"),)``);
+    a given ``baseline`` must have been run under them.
     """
     bases: dict[str, Mapping[str, Any]] = {}
     results = {}
@@ -93,11 +96,11 @@ def run_ablation(
                 n = (baseline_seeds or {}).get(cfg.planner)
                 bases[cfg.planner] = benchmark.run_benchmark(
                     suite, split, out / "base", workers=workers, figure=False,
-                    variant=benchmark.Variant(planners=(cfg.planner,), seeds=n),
+                    variant=benchmark.Variant(planners=(cfg.planner,), seeds=n, overrides=tuple(common)),
                 ).data  # fmt: skip
         res = benchmark.run_benchmark(
             suite, split, out / f"abl-{cfg.slug}", workers=workers, figure=False,
-            variant=benchmark.Variant(planners=(cfg.planner,), seeds=seeds, overrides=cfg.overrides),
+            variant=benchmark.Variant(planners=(cfg.planner,), seeds=seeds, overrides=(*common, *cfg.overrides)),
         )  # fmt: skip
         results[cfg.name] = benchmark.compare(bases[cfg.planner], res.data)
     return results

@@ -377,6 +377,21 @@ def test_an_ablation_runs_each_configuration_and_pairs_it_with_the_given_baselin
     assert again["rule: retry_slots"]["configurations"] == results["rule: retry_slots"]["configurations"]
 
 
+def test_common_overrides_reach_the_run_baseline_and_every_configuration(tmp_path):
+    suite = tiny_suite(tmp_path)
+    cfg = ablation.switched_off("rule: retry_slots", "shortest_path", "planner.params", ["retry_slots"])
+    common = (("planner.params.arrive_tol", 0.02),)
+    out = tmp_path / "abl"
+    results = ablation.run_ablation(
+        [cfg], out, suite=str(suite), split="dev", workers=1, baseline_seeds={"shortest_path": 1}, common=common
+    )
+    base = benchmark.read_benchmark(out / "base" / "benchmark.json")
+    row = benchmark.read_benchmark(out / f"abl-{cfg.slug}" / "benchmark.json")
+    assert base["variant"]["set"] == {"planner.params.arrive_tol": 0.02} and base["variant"]["seeds"] == 1
+    assert row["variant"]["set"] == {"planner.params.arrive_tol": 0.02, "planner.params.retry_slots": False}
+    assert results["rule: retry_slots"]["configurations"][0]["pairs"] == 1  # paired on the runs both have
+
+
 @pytest.mark.parametrize("name", ["rule: x", "stage: a, b"])
 def test_rules_column_names_the_last_key_component(name):
     cfg = ablation.Ablation(name, "stigmergy", (("avoidance_params.wake_column", False),))
