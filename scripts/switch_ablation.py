@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Ablation of on/off switches on the benchmark's holdout split: the construction planners' and ORCA's remaining ones.
 
-    python scripts/switch_ablation.py [--round 1|2|estimated] [--out runs/switch-ablation-ROUND] [--workers 2]
+    python scripts/switch_ablation.py [--round 1|2|2-six|estimated] [--out runs/switch-ablation-ROUND] [--workers 2]
         [--only NAME ...] [--baseline BENCHMARK.json] [--table docs/results/data/switch_ablation.json]
 
 Each configuration is the split's runs of one planner with one switch (or a named group) off
@@ -19,6 +19,7 @@ deleted since are named as they were, so the table keeps its history (later comm
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 from pybullet_swarm.experiment import ablation, benchmark
@@ -111,16 +112,47 @@ CONFIGS = [
     ),
 ]
 
-#: round -> (configurations, default baseline JSON or None to run one, common overrides, what the notes say)
-ROUNDS: dict[str, tuple[list[ablation.Ablation], str | None, tuple[tuple[str, str], ...], str]] = {
-    "1": (CONFIGS, "docs/results/data/benchmarks/construction-v1-holdout-376f91a.json", (), "every switch on"),
-    "2": (
+#: round 2 at 6 seeds per layout (126 runs, baseline run the same way): round 2's undecided ORCA rows
+ROUND_2_SIX: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
+    ("group: undecided ORCA rules of the stage ablation", "stigmergy", "avoidance_params",
+     ("clipped_reference", "wake_share_by_approach", "wake_share_on_course", "margin_overlap")),
+    ("group: floor rules", "stigmergy", "avoidance_params", ("floor_rule", "floor_preferred", "ground_beside")),
+)  # fmt: skip
+
+
+@dataclasses.dataclass(frozen=True)
+class Round:
+    """One round of the ablation: its configurations and what they are paired with.
+
+    Attributes:
+        configs: the configurations.
+        baseline: benchmark JSON of main to pair with, or None: a baseline is run the same way.
+        common: overrides of the baseline and every configuration (a condition such as flying on estimates).
+        note: what the baseline is, for the table's notes.
+        seeds: seeds per layout (None: the split's 2).
+    """
+
+    configs: list[ablation.Ablation]
+    baseline: str | None
+    common: tuple[tuple[str, str], ...] = ()
+    note: str = "every switch on"
+    seeds: int | None = None
+
+
+ROUNDS: dict[str, Round] = {
+    "1": Round(CONFIGS, "docs/results/data/benchmarks/construction-v1-holdout-376f91a.json"),
+    "2": Round(
         [ablation.switched_off(*row) for row in ROUND_2],
         "docs/results/data/benchmarks/construction-v1-holdout.json",
-        (),
-        "every switch on, after round 1's deletions",
+        note="every switch on, after round 1's deletions",
     ),
-    "estimated": (
+    "2-six": Round(
+        [ablation.switched_off(*row) for row in ROUND_2_SIX],
+        None,
+        note="every switch on, after round 1's deletions, run the same way",
+        seeds=6,
+    ),
+    "estimated": Round(
         [ablation.switched_off(*row) for row in ESTIMATED],
         None,
         (("sensing.state", "estimated"),),
@@ -138,27 +170,36 @@ def main() -> int:
     ap.add_argument("--baseline", type=Path, default=None, help="benchmark JSON (default: the round's)")
     ap.add_argument("--table", type=Path, default=None, help="write the results table JSON here")
     args = ap.parse_args()
-    round_configs, default_base, common, base_note = ROUNDS[args.round]
-    configs = [c for c in round_configs if not args.only or c.slug in args.only]
+    rnd = ROUNDS[args.round]
+    configs = [c for c in rnd.configs if not args.only or c.slug in args.only]
     out = args.out or Path(f"runs/switch-ablation-{args.round}")
-    base_path = args.baseline or (Path(default_base) if default_base else None)
+    base_path = args.baseline or (Path(rnd.baseline) if rnd.baseline else None)
     base = benchmark.read_benchmark(base_path) if base_path else None
-    results = ablation.run_ablation(configs, out, workers=args.workers, baseline=base, common=common)
+    results = ablation.run_ablation(
+        configs,
+        out,
+        seeds=rnd.seeds,
+        workers=args.workers,
+        baseline=base,
+        baseline_seeds={c.planner: rnd.seeds for c in configs if rnd.seeds is not None},
+        common=rnd.common,
+    )
     where = (
         f"{base_path.as_posix()} (commit {str(base.get('commit', ''))[:10]})"
         if base_path and base
         else f"run into {out.as_posix()}/base"
     )
-    under = "".join(f" --set {k}={v}" for k, v in common)
+    under = "".join(f" --set {k}={v}" for k, v in rnd.common)
+    runs = f"the split's {rnd.seeds or 2} seeds on its 21 generated layouts"
     data = ablation.results_table(
         results,
         configs,
-        title=f"Switches on the holdout split{' flying on estimates' if common else ''}, round {args.round} "
+        title=f"Switches on the holdout split{' flying on estimates' if rnd.common else ''}, round {args.round} "
         "(one switch or group off against every switch on)",
         command=f"python scripts/switch_ablation.py --round {args.round}",
         notes=[
-            f"Baseline: {where}, {base_note}; each configuration: the split's 2 seeds on its 21 generated layouts, "
-            f"with orca{under and ', ' + under.strip()}, paired on the runs both have. ORCA rows: stigmergy + orca.",
+            f"Baseline: {where}, {rnd.note}; each configuration: {runs}, with orca"
+            f"{under and ', ' + under.strip()}, paired on the runs both have. ORCA rows: stigmergy + orca.",
         ],
     )
     ablation.report(data, args.table)

@@ -7,7 +7,7 @@ directory (resumable), then compared with a baseline of the same planner on the 
 
 The verdict follows the acceptance rule of ``docs/guides/benchmark.md``: a configuration *pays* when
 switching its rules off makes a primary metric worse with an interval that excludes zero
-(completion down; stalls, runs with a contact or the median time up). The rules of a configuration
+(completion down; stalls, runs with a contact of any class or of one class, or the median time up). The rules of a configuration
 that does not pay are deleted. :func:`results_table` writes the comparisons as a results table
 (``docs/results/data/NAME.json``, rendered by the docs).
 """
@@ -107,10 +107,18 @@ def run_ablation(
 
 
 def verdict(metrics: Mapping[str, Any]) -> str:
-    """``pays (METRICS)`` when switching the rules off made a primary metric significantly worse."""
+    """``pays (METRICS)`` when switching the rules off made a primary metric significantly worse: a column of
+    the table, or the runs with a contact of one class (``contact_rate_load_structure`` -> "load-structure
+    contact"; the benchmark records runs with a contact per class)."""
+    shown = {key for key, _, _ in METRICS}
+    classes = [
+        (k, k.removeprefix("contact_rate_").replace("_", "-") + " contact", True)
+        for k in sorted(metrics)
+        if k.startswith("contact_rate_") and k not in shown
+    ]
     worse = [
         col
-        for key, col, rise_is_worse in METRICS
+        for key, col, rise_is_worse in (*METRICS, *classes)
         if key in metrics and metrics[key]["significant"] and (metrics[key]["diff"] > 0) == rise_is_worse
     ]
     return "pays (" + ", ".join(worse) + ")" if worse else "does not pay"

@@ -339,6 +339,19 @@ def test_a_configuration_pays_only_when_switching_it_off_is_significantly_worse(
     assert better["median_time_s"]["significant"] and ablation.verdict(better) == "does not pay"
 
 
+def test_a_configuration_also_pays_on_the_runs_with_a_contact_of_one_class():
+    flat = {"diff": 0.0, "significant": False}
+    metrics = {
+        "completion_rate": flat,
+        "contact_rate_any": {"diff": 0.1, "significant": False},
+        "contact_rate_load_structure": {"diff": 0.12, "significant": True},
+        "contact_rate_agent_box": {"diff": -0.1, "significant": True},  # fewer: no reason to keep
+    }
+    assert ablation.verdict(metrics) == "pays (load-structure contact)"
+    metrics["contact_rate_load_structure"] = {"diff": 0.12, "significant": False}
+    assert ablation.verdict(metrics) == "does not pay"
+
+
 def test_the_table_has_one_row_per_configuration_with_its_rules_and_verdict():
     cfgs = [
         ablation.switched_off("rule: claims", "stigmergy", "planner.params", ["claims"]),
