@@ -12,8 +12,9 @@ the baseline on the runs both have: the committed holdout benchmark of main, eve
 switch whose row does not pay is deleted (docs/guides/benchmark.md). The ORCA rules here are those
 ``scripts/orca_stage_ablation.py`` did not ablate one by one (stigmergy + orca).
 
-``CONFIGS`` lists the switches as the planners had them at the commit the table names; switches
-deleted since are named as they were, so the table keeps its history (later commits refuse them).
+``ROUNDS`` lists each round's switches as the planners had them at the commit its table names;
+switches deleted since are named as they were, so the tables keep their history (later commits
+refuse them, so a round reruns at its commit).
 """
 
 from __future__ import annotations
@@ -187,7 +188,7 @@ def main() -> int:
     where = (
         f"{base_path.as_posix()} (commit {str(base.get('commit', ''))[:10]})"
         if base_path and base
-        else f"run into {out.as_posix()}/base"
+        else "run by the script into OUT/base"
     )
     under = "".join(f" --set {k}={v}" for k, v in rnd.common)
     runs = f"the split's {rnd.seeds or 2} seeds on its 21 generated layouts"
