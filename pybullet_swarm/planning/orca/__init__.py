@@ -51,8 +51,9 @@ stages of one planner tick, each a compiled function of ``kernel`` reading its o
    ``passthrough_turns`` asking a waypoint's neighbours for the room they may turn into.
 
 Which rules pay was measured on the construction benchmark's holdout split, stage by stage and then
-rule by rule within the stages that paid (``scripts/orca_stage_ablation.py``, docs/results/orca-ablation.md);
-the rules that did not pay were deleted.
+rule by rule within the stages that paid (``scripts/orca_stage_ablation.py``, docs/results/orca-ablation.md),
+then the rest in groups (``scripts/switch_ablation.py``, docs/results/switch-ablation.md); the rules that
+did not pay were deleted.
 
 Shared design decisions: each pair's (n, u) is computed once in index order and negated for the
 other agent, so both halves match to the last bit, from sensed state only (no agent reads another's
