@@ -7,9 +7,9 @@ directory (resumable), then compared with a baseline of the same planner on the 
 
 The verdict follows the acceptance rule of ``docs/guides/benchmark.md``: a configuration *pays* when
 switching its rules off makes a primary metric worse with an interval that excludes zero
-(completion down; stalls, runs with a contact of any class or of one class, or the median time up). The rules of a configuration
-that does not pay are deleted. :func:`results_table` writes the comparisons as a results table
-(``docs/results/data/NAME.json``, rendered by the docs).
+(completion down; stalls, runs with a contact of any class or of one class, or the median time
+up). The rules of a configuration that does not pay are deleted. :func:`results_table` writes the
+comparisons as a results table (``docs/results/data/NAME.json``, rendered by the docs).
 """
 
 from __future__ import annotations
