@@ -73,13 +73,18 @@ ORCA_RULES: tuple[tuple[str, ...], ...] = (
     ("column_tick",),
 )
 
+#: the stage ablation's rules kept with adverse estimates, off together (rounds 2 and 2-six)
+STAGE_UNDECIDED = (
+    "group: undecided ORCA rules of the stage ablation", "stigmergy", "avoidance_params",
+    ("clipped_reference", "wake_share_by_approach", "wake_share_on_course", "margin_overlap"),
+)  # fmt: skip
+
 #: round 2 (a74ccbc, against the holdout benchmark after round 1's deletions): the switches round 1
 #: did not run, and the undecided rows of both ablations switched off together
 ROUND_2: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
     ("group: undecided ORCA rules", "stigmergy", "avoidance_params",
      ("passthrough_turns", "minimal_intervention", "column_tick", "floor_preferred")),
-    ("group: undecided ORCA rules of the stage ablation", "stigmergy", "avoidance_params",
-     ("clipped_reference", "wake_share_by_approach", "wake_share_on_course", "margin_overlap")),
+    STAGE_UNDECIDED,
     ("orca rules: floor_rule, floor_preferred", "stigmergy", "avoidance_params", ("floor_rule", "floor_preferred")),
     ("orca rule: ground_beside", "stigmergy", "avoidance_params", ("ground_beside",)),
     ("group: placement and traffic (shortest_path)", "shortest_path", "planner.params",
@@ -115,8 +120,7 @@ CONFIGS = [
 
 #: round 2 at 6 seeds per layout (126 runs, baseline run the same way): round 2's undecided ORCA rows
 ROUND_2_SIX: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
-    ("group: undecided ORCA rules of the stage ablation", "stigmergy", "avoidance_params",
-     ("clipped_reference", "wake_share_by_approach", "wake_share_on_course", "margin_overlap")),
+    STAGE_UNDECIDED,
     ("group: floor rules", "stigmergy", "avoidance_params", ("floor_rule", "floor_preferred", "ground_beside")),
 )  # fmt: skip
 
