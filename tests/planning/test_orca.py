@@ -20,9 +20,7 @@ from pybullet_swarm.planning.orca import (
     FLAG_INFEASIBLE,
     OrcaParams,
     Shape,
-    bounding_boxes,
     commanded_velocities,
-    velocity_bounds,
     orca_plane,
     orca_velocities,
     preferred_velocities,
@@ -459,36 +457,3 @@ def test_line_of_stalled_agents_is_broken_sideways():
     assert np.all(speed >= params.stuck_fraction * np.linalg.norm(pref, axis=1))
     assert abs(v[1, 1]) > 0.05  # the middle one steps aside along the free axis
     assert np.all(np.abs(v) <= vm + 1e-9)
-
-
-# ----------------------------------------------------------------------------- climbing over
-R_CARRY = 0.15  # m, enclosing radius of a quad150 with a 10 cm box hanging 6.5 cm below
-
-
-def _level_boxes(carrying: list[bool]) -> tuple[np.ndarray, np.ndarray]:
-    """Bounding boxes of level quad150 airframes, a 10 cm box hanging 6.5 cm below those that carry."""
-    n = len(carrying)
-    return bounding_boxes(np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)), HALF, np.array(carrying), 0.1, 0.065)
-
-
-def _empty_meets_carrier(params: OrcaParams, carrier_vz: float = 0.0):
-    """One tick of an empty agent (0) and a carrier (1, box hanging below) head-on at one altitude,
-    0.4 m apart at 0.15 m/s each (construction.yaml's limits), under the floor rule."""
-    pos = np.array([[0.0, 0.5, 0.245], [0.4, 0.5, 0.245]])
-    vel = np.array([[0.15, 0.0, 0.0], [-0.15, 0.0, carrier_vz]])
-    centre, half = _level_boxes([False, True])
-    vm = np.full(3, 0.15)
-    bounds = velocity_bounds(pos, vel, vm, floor_height=0.5, time_horizon=params.time_horizon)
-    return orca_velocities(
-        pos,
-        vel,
-        vel,
-        params=params,
-        sensing_radius=1.0,
-        v_max=vm,
-        radii=np.array([R_AGENT, R_CARRY]),
-        boxes=(centre, half),
-        bounds=bounds,
-        goals=pos + 10.0 * vel,
-        has_goal=np.ones(2, dtype=bool),
-    )
