@@ -109,19 +109,24 @@ def run_ablation(
 def verdict(metrics: Mapping[str, Any]) -> str:
     """``pays (METRICS)`` when switching the rules off made a primary metric significantly worse: a column of
     the table, or the runs with a contact of one class (``contact_rate_load_structure`` -> "load-structure
-    contact"; the benchmark records runs with a contact per class)."""
+    contact"; the benchmark records runs with a contact per class); else ``does not pay``. A metric that is
+    significantly better with the rules off is named after it (``does not pay; better off: median time``):
+    what the rules cost."""
     shown = {key for key, _, _ in METRICS}
     classes = [
         (k, k.removeprefix("contact_rate_").replace("_", "-") + " contact", True)
         for k in sorted(metrics)
         if k.startswith("contact_rate_") and k not in shown
     ]
-    worse = [
-        col
+    significant = [
+        (col, (metrics[key]["diff"] > 0) == rise_is_worse)
         for key, col, rise_is_worse in (*METRICS, *classes)
-        if key in metrics and metrics[key]["significant"] and (metrics[key]["diff"] > 0) == rise_is_worse
+        if key in metrics and metrics[key]["significant"]
     ]
-    return "pays (" + ", ".join(worse) + ")" if worse else "does not pay"
+    worse = [col for col, off_worse in significant if off_worse]
+    better = [col for col, off_worse in significant if not off_worse]
+    head = "pays (" + ", ".join(worse) + ")" if worse else "does not pay"
+    return head + ("; better off: " + ", ".join(better) if better else "")
 
 
 def _cell(x: Mapping[str, Any] | None) -> str:
