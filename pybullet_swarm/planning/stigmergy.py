@@ -88,9 +88,7 @@ extension with its own switch (bold; the table below).
 * Layered only: **lookahead** (20 cm along the way instead of the next 10 cm cell),
   **detour** (after a re-plan the agent keeps to its new search point for as long as a
   mark lasts, 1 s, before going for a seen object again: two agents wanting to pass each other would
-  otherwise block each other for ever), **replan_climb** (a re-plan also forgets where the agent
-  latched to climb before a higher zone: two carriers climbing at the structure's edge under a third
-  sinking towards them were re-planned, tick after tick, onto the same blocked climb).
+  otherwise block each other for ever).
 
 **The thesis preset** (``planner.params.preset: thesis``) switches every extension off:
 
@@ -108,7 +106,6 @@ switch                        default     thesis      source of the thesis's val
 ``raise_drop_point``          true        false       not in the thesis
 ``lookahead``                 0.2 m       0.1 m       appendix B: the cells next to the agent's own
 ``detour``                    true        false       not in the thesis
-``replan_climb``              true        false       not in the thesis (one altitude: no climb latch)
 ``queue_at_slots``            true        false       not in the thesis (five agents, a gapped wall)
 ``search_near``               true        false       section 5.2.5 (limit the search space); not appendix A
 ============================  ==========  ==========  =================================================
@@ -488,11 +485,6 @@ class LayeredStigmergyParams(StigmergyParams):
         description="after a re-plan keep to the new search point for as long as a mark "
         "lasts before going for a seen object again [false]",
     )
-    replan_climb: bool = Field(
-        True,
-        description="a re-plan also forgets where the agent latched to climb before a higher zone, so the "
-        "new way may climb elsewhere [false: every way climbs at the latched point again]",
-    )
 
     LAYERS: ClassVar[int] = 2
     PRESETS: ClassVar[dict[Preset, dict[str, Any]]] = {
@@ -502,7 +494,6 @@ class LayeredStigmergyParams(StigmergyParams):
             "presence_fatigue": 2.0,
             "lookahead": 0.1,
             "detour": False,
-            "replan_climb": False,
         }
     }
 
@@ -1441,8 +1432,6 @@ class LayeredStigmergy(Stigmergy):
         if self.phase in TRAVELLING and self._blocked(obs, cmd, medium):
             medium.tally("presence_replans")
             self._replan()
-            if self.params.replan_climb:
-                self.climb_at = None
             if self.params.detour:
                 # search elsewhere for as long as a mark lasts before going for a seen object again:
                 # two agents wanting to pass each other would otherwise block each other for ever

@@ -46,7 +46,6 @@ THESIS_LAYERED = {
     "presence_fatigue": 2.0,
     "lookahead": 0.1,
     "detour": False,
-    "replan_climb": False,
 }
 THESIS_SHORTEST_PATH = {
     "altitude_step": 0.0,
@@ -119,7 +118,6 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         *extensions(StigmergyParams),
         "lookahead",
         "detour",
-        "replan_climb",
     ]
     assert extensions(LayeredStigmergyParams)["lookahead"] == (0.1, 0.2)  # (thesis, default)
 

@@ -646,25 +646,6 @@ def test_layered_lookahead_changes_what_blocks_the_way():
     assert not _blocked_by([-0.15, 0.0, 0.0])
 
 
-@pytest.mark.parametrize("on", [True, False])
-def test_layered_replan_climb_forgets_where_a_blocked_climb_was_latched(on: bool):
-    """A carrier latched to climb before the structure, with another agent's mark right above it: the re-plan
-    drops the latch (``replan_climb``), so its next way may climb elsewhere; without, every way climbs there
-    (suite double_wall seed 9: two carriers climbing under a third that sank towards them held for 150 s)."""
-    a = _agent(LayeredStigmergy, replan_climb=on)
-    a.carry, a.phase, a.strategy = Carry(3, np.array([0.0, 0.0, -GH])), Phase.SEEK_GOAL, Strategy.RANDOM
-    a.target = np.array([2.7, 0.5])
-    med = _medium(layered=True)
-    g = a.geo
-    stop = np.array([g.structure.lo[:, 0].min() - g.standoff, 0.5, g.floor_altitude])
-    cmd = a.plan(_obs(stop, carrying=3), med)
-    assert np.allclose(cmd.vector, [stop[0], stop[1], g.cruise_altitude]) and a.climb_at is not None
-    med.deposit(Layer.PRESENCE.value, stop + [0.0, 0.0, 0.1], 2.0, rule=DepositRule.SET, source=3)
-    med.step(0.1)
-    assert a.plan(_obs(stop, t=0.1, carrying=3), med).kind == CommandKind.HOLD
-    assert (a.climb_at is None) is on
-
-
 def test_layered_without_detour_goes_for_a_seen_box_right_after_a_replan():
     box = DEPOT[4]
     for detour, phase in ((True, Phase.SEEK_BOX), (False, Phase.TO_BOX)):
