@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Ablation of on/off switches on the benchmark's holdout split: the construction planners' and ORCA's remaining ones.
 
-    python scripts/switch_ablation.py [--round 1|2|2-six|3|3-six|estimated] [--out runs/switch-ablation-ROUND] [--workers 2]
+    python scripts/switch_ablation.py [--round 1|2|2-six|3-six|estimated] [--out runs/switch-ablation-ROUND] [--workers 2]
         [--only NAME ...] [--baseline BENCHMARK.json] [--table docs/results/data/switch_ablation.json]
 
 Each configuration is the split's runs of one planner with one switch (or a named group) off
@@ -124,13 +124,10 @@ ROUND_2_SIX: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
     ("group: floor rules", "stigmergy", "avoidance_params", ("floor_rule", "floor_preferred", "ground_beside")),
 )  # fmt: skip
 
-#: round 3 (run on b008ec3, against the holdout benchmark of 4170d6c, the same code): the one ORCA rule never ablated
-ROUND_3: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
-    ("orca rule: static_obstacles", "stigmergy", "avoidance_params", ("static_obstacles",)),
-)  # fmt: skip
-
-#: round 3 at 6 seeds per layout (126 runs on b008ec3, baseline run the same way): the planner switches still undecided
+#: round 3 at 6 seeds per layout (126 runs on b008ec3, baseline run the same way): the planner switches still
+#: undecided, and the one ORCA rule never ablated
 ROUND_3_SIX: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
+    ("orca rule: static_obstacles", "stigmergy", "avoidance_params", ("static_obstacles",)),
     ("switch: replan_climb (layered_stigmergy)", "layered_stigmergy", "planner.params", ("replan_climb",)),
     ("group: traffic (shortest_path)", "shortest_path", "planner.params", ("swap_boxes", "round_parked")),
 )  # fmt: skip
@@ -167,11 +164,6 @@ ROUNDS: dict[str, Round] = {
         None,
         note="every switch on, after round 1's deletions, run the same way",
         seeds=6,
-    ),
-    "3": Round(
-        [ablation.switched_off(*row) for row in ROUND_3],
-        "docs/results/data/benchmarks/construction-v1-holdout.json",
-        note="every switch on",
     ),
     "3-six": Round(
         [ablation.switched_off(*row) for row in ROUND_3_SIX],
