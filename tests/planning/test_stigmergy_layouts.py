@@ -132,14 +132,6 @@ def test_two_four_high_walls_with_twelve_agents_start_placing_boxes():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="a known deadlock: on seed 0 (since the estimate rules were deleted, which changed the run's course) a "
-    "carrier lifting its box at the depot and a neighbour descending to the next box 19 cm away hold each other "
-    "from 110 s: the column rule lets neither step aside, the descending one never reaches its grasp point and "
-    "the run stalls at 18 of 20 boxes; seeds 1 and 2 are built (docs/results/switch-ablation.md)",
-)
 def test_two_four_high_walls_with_twelve_agents_are_built():
     sc = load_scenario("construction", DOUBLE_WALL)
     m = pybullet_swarm.run(sc, planner="stigmergy", avoidance="orca", seed=0).metrics
