@@ -320,8 +320,32 @@ def test_an_open_slot_is_served_from_above_and_marked_with_minus_one():
     cmd = a.plan(_obs(drop + [0.002, 0.0, 0.003]), med)  # the task let go of it
     med.step(0.1)
     assert med.sample(Layer.TASK.value, drop) == -1.0
-    assert a.phase == Phase.CLIMB and cmd.vector[2] == pytest.approx(g.cruise_altitude)
+    assert a.phase == Phase.SETTLING and cmd.vector[2] == pytest.approx(g.cruise_altitude)
     assert np.allclose(med.strongest(Layer.TASK.value, -1), med.centre(med.index(drop)))  # where it let go
+
+
+def test_a_descent_pushed_off_its_column_climbs_straight_back_and_comes_over_the_slot_again():
+    med = _medium()
+    a = _agent()
+    g = a.geo
+    slot = SLOTS[4]  # second layer, on top of slot 0's box
+    a.carry, a.phase, a.slot = Carry(3, np.array([0.0, 0.0, -GH])), Phase.DESCEND_SLOT, Sighting(4, slot.copy())
+    a.watch.descent_start = 0.0
+    a.target = np.array([2.6, 0.2])
+    drop = slot + [0.0, 0.0, a.clearance] - a.offset
+    seen = dict(carrying=3, slots=[slot], slot_ids=[4])
+    cmd = a.plan(_obs(drop + [0.03, 0.0, 0.05], **seen), med)  # 3 cm off: the descent goes on
+    assert a.phase == Phase.DESCEND_SLOT and np.allclose(cmd.vector, drop)
+    low = drop + [0.08, 0.0, 0.04]  # pushed 8 cm behind the wall
+    cmd = a.plan(_obs(low, **seen), med)
+    assert a.phase == Phase.RECLIMB_SLOT
+    assert np.allclose(cmd.vector, [low[0], low[1], g.cruise_altitude])  # straight up, not back across the stack
+    cmd = a.plan(_obs([low[0], low[1], 0.35], **seen), med)
+    assert np.allclose(cmd.vector[:2], low[:2])  # still climbing where it is
+    cmd = a.plan(_obs([low[0], low[1], g.cruise_altitude], **seen), med)  # up: over the slot again, at altitude
+    assert np.allclose(cmd.vector, [drop[0], drop[1], g.cruise_altitude]) and a.phase == Phase.TO_SLOT
+    a.plan(_obs([drop[0], drop[1], g.cruise_altitude], **seen), med)
+    assert a.phase == Phase.DESCEND_SLOT  # over it: the descent starts again
 
 
 def test_a_slot_filled_meanwhile_is_given_up():
@@ -614,6 +638,39 @@ def _descending_onto(slot_id: int, **params) -> tuple[Stigmergy, np.ndarray]:
     a.watch.descent_start = 0.0
     a.target = np.array([2.6, 0.2])
     return a, SLOTS[slot_id] + [0.0, 0.0, a.clearance] - a.offset
+
+
+def test_without_drift_breakoff_a_descent_pushed_off_its_column_goes_on_towards_its_point():
+    for breakoff, phase in ((True, Phase.RECLIMB_SLOT), (False, Phase.DESCEND_SLOT)):
+        a, drop = _descending_onto(4, drift_breakoff=breakoff)
+        cmd = a.plan(_obs(drop + [0.08, 0.0, 0.04], carrying=3, slots=[SLOTS[4]], slot_ids=[4]), _medium())
+        assert a.phase == phase
+        assert np.allclose(cmd.vector, drop) == (not breakoff)
+
+
+def test_without_loose_box_check_an_agent_descends_onto_a_slot_with_a_loose_box_in_it():
+    loose = SLOTS[1] + [0.02, 0.01, 0.0]
+    for check, phase in ((True, Phase.SEEK_GOAL), (False, Phase.DESCEND_SLOT)):
+        a, drop = _descending_onto(1, loose_box_check=check)
+        a.plan(
+            _obs(drop + [0, 0, 0.05], carrying=3, boxes=[loose], box_ids=[5], slots=[SLOTS[1]], slot_ids=[1]), _medium()
+        )
+        assert a.phase == phase
+
+
+def test_without_retake_a_box_let_go_off_its_slot_is_left_where_it_lies():
+    off = SLOTS[1] + [0.013, 0.0, 0.0]  # came to rest 13 mm off its slot
+    seen = dict(boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1])
+    for retake, after_release, after_settle in (
+        (True, Phase.SETTLING, Phase.DESCEND_BOX),
+        (False, Phase.CLIMB, Phase.CLIMB),
+    ):
+        a, drop = _descending_onto(1, retake=retake)
+        assert a.plan(_obs(drop, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), _medium()).action == Action.RELEASE
+        a.plan(_obs(drop, t=0.1, **seen), _medium())
+        assert a.phase == after_release
+        a.plan(_obs(drop + [0, 0, 0.02], t=0.5, **seen), _medium())
+        assert a.phase == after_settle and (a.box.id == 3) == retake
 
 
 def test_without_descent_timeout_a_descent_that_cannot_end_goes_on():
