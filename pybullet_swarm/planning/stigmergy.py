@@ -56,9 +56,6 @@ extension with its own switch (bold; the table below).
   **drift_breakoff**: a descent pushed more than ``DRIFT_TOL`` off its column (by a neighbour's
   avoidance, say) is broken off; the agent climbs straight back and comes over the object again,
   rather than sweeping what hangs under it diagonally through a neighbouring stack.
-  **loose_box_check**: no agent descends with a box onto a slot with a loose box
-  in it. **retake**: a box that did not come to rest in its slot is still a free box: the agent that
-  let it go watches it for ``SETTLE_S``, takes it again and serves the slot once more.
   **descent_timeout_s**: a descent that does not end in a release by then is broken off.
 * **release_over_neighbours**: a box for a slot with others beside it on its level (boxes side by
   side) is let go ``OVER_NEIGHBOURS_CLEARANCE`` above their tops, where the task's guide still takes
@@ -107,8 +104,6 @@ switch                        default     thesis      source of the thesis's val
 ``view_window``               0.15 m      0.15 m      Table 3.2: 15 x 15 cm airframe, radius 7.5 cm
 ``layout_altitudes``          true        false       appendix A: one ``search_height``, points as drawn
 ``drift_breakoff``            true        false       not in the thesis
-``loose_box_check``           true        false       not in the thesis
-``retake``                    true        false       appendix A: a box let go counts as placed
 ``descent_timeout_s``         20 s        null        not in the thesis
 ``release_over_neighbours``   true        false       not in the thesis (its boxes passed through each other)
 ``clear_spent_goals``         true        false       appendix A: goal marks never change (fatigue 0)
@@ -194,22 +189,20 @@ class Phase(enum.IntEnum):
                                                                        (``_step_descend_box``)
     RECLIMB_BOX     straight back up after a broken-off descent        TO_BOX: at the flying altitude; SEEK_BOX
                                                                        (``_step_reclimb_box``)
-    GRASPING        GRASP asked                                        LIFT (+1 marked) or TO_SLOT (a box taken
-                                                                       back): held; DESCEND_BOX: not (``_sync``)
+    GRASPING        GRASP asked                                        LIFT (+1 marked): held; DESCEND_BOX: not
+                                                                       (``_sync``)
     LIFT            straight up with the box                           CHOOSE_GOAL: at the flying altitude
     CHOOSE_GOAL     thesis state 2: next search point for a slot       SEEK_GOAL
     SEEK_GOAL       thesis state 3: fly there, watch for open slots    TO_SLOT: an open, empty slot in view;
                                                                        CHOOSE_GOAL: point reached
     TO_SLOT         fly over the slot at the flying altitude           DESCEND_SLOT: over it, settled; SEEK_GOAL:
-                                                                       filled, claimed or a loose box in it
+                                                                       filled or claimed
     DESCEND_SLOT    straight down to the drop point                    RELEASING: settled there; RECLIMB_SLOT:
-                                                                       pushed off; SEEK_GOAL: filled, loose box
-                                                                       in it, or ``DESCENT_TIMEOUT_S`` passed
+                                                                       pushed off; SEEK_GOAL: filled, or
+                                                                       ``DESCENT_TIMEOUT_S`` passed
     RECLIMB_SLOT    straight back up after a broken-off descent        TO_SLOT; SEEK_GOAL
-    RELEASING       RELEASE asked                                      SETTLING (-1 marked): let go;
+    RELEASING       RELEASE asked                                      CLIMB (-1 marked): let go;
                                                                        DESCEND_SLOT: still held (``_sync``)
-    SETTLING        climb, give the box ``SETTLE_S`` to come to rest   DESCEND_BOX: it lies loose beside its slot
-                                                                       (take it back); CLIMB; CHOOSE_BOX: up
     CLIMB           straight up from the release                       CHOOSE_BOX: at the flying altitude
     ==============  =================================================  ==========================================
 
@@ -231,8 +224,7 @@ class Phase(enum.IntEnum):
     DESCEND_SLOT = 10
     RECLIMB_SLOT = 11
     RELEASING = 12
-    SETTLING = 13
-    CLIMB = 14
+    CLIMB = 13
 
 
 #: phases in which an agent travels (searching, heading for an object, or back up to its altitude)
@@ -283,8 +275,6 @@ GRASP_FRACTION = 0.6
 """An agent asks to grasp within this fraction of the attach threshold (margin for tracking error)."""
 CLEARANCE_SIGMAS = 3.0
 """Least release clearance, in standard deviations of the agent's own position estimate."""
-SETTLE_S = 0.3
-"""s: after a release, how long the box is given to come to rest before the agent judges where it lies."""
 DESCENT_TIMEOUT_S = 20.0
 """s: default of ``descent_timeout_s``."""
 THESIS_VIEW_M = 0.15
@@ -407,13 +397,6 @@ class StigmergyParams(Params):
     drift_breakoff: bool = Field(
         True, description="break off a descent pushed off its column and climb straight back [false]"
     )
-    loose_box_check: bool = Field(
-        True, description="never descend with a box onto a slot with a loose box in it [false]"
-    )
-    retake: bool = Field(
-        True,
-        description="take back a box let go that did not come to rest in its slot, and serve the slot again [false]",
-    )
     descent_timeout_s: float | None = Field(
         DESCENT_TIMEOUT_S,
         gt=0.0,
@@ -473,8 +456,6 @@ class StigmergyParams(Params):
             "view_window": THESIS_VIEW_M,
             "layout_altitudes": False,
             "drift_breakoff": False,
-            "loose_box_check": False,
-            "retake": False,
             "descent_timeout_s": None,
             "release_over_neighbours": False,
             "clear_spent_goals": False,
@@ -863,21 +844,6 @@ class Carry:
     offset: NDArray[np.float64]
 
 
-@dataclasses.dataclass(frozen=True)
-class LetGo:
-    """A box an agent let go over a slot (watched while ``SETTLING``, then maybe taken back).
-
-    Attributes:
-        box: the box's id.
-        slot: the slot it was let go over.
-        time_s: s, when it was let go.
-    """
-
-    box: int
-    slot: Sighting
-    time_s: float
-
-
 @dataclasses.dataclass
 class ReleaseWatch:
     """How long an agent descending onto a slot has been ready to let go.
@@ -909,8 +875,7 @@ class Stigmergy:
     Per-agent state besides the phase: the search (``strategy``, ``target``), the box and slot
     worked on (``box``, ``slot``: ``Sighting``), the box held (``carry``), the column the agent
     climbs straight up on (``column``), the point it latched to climb before a higher zone
-    (``climb_at``), the release dwell (``watch``), a box it let go (``let_go``) and one it is taking
-    back (``retake``).
+    (``climb_at``) and the release dwell (``watch``).
 
     Args:
         params: validated ``StigmergyParams`` (default: the defaults).
@@ -938,7 +903,6 @@ class Stigmergy:
             Phase.RECLIMB_SLOT: self._step_reclimb_slot,
             Phase.DESCEND_SLOT: self._step_descend_slot,
             Phase.RELEASING: self._step_descend_slot,
-            Phase.SETTLING: self._step_settling,
             Phase.CLIMB: self._step_climb,
         }
 
@@ -987,13 +951,11 @@ class Stigmergy:
         self.slot = Sighting()  # the slot being served
         self.carry: Carry | None = None  # the box held
         self.grasp_offset = np.zeros(3)  # m, box centre relative to the agent when it asked to GRASP
-        self.column = np.zeros(2)  # m, where the agent climbs straight up (LIFT, SETTLING, CLIMB, RECLIMB_*)
+        self.column = np.zeros(2)  # m, where the agent climbs straight up (LIFT, CLIMB, RECLIMB_*)
         self.climb_at: NDArray[np.float64] | None = None  # m, where it latched to climb before a higher zone
         self.watch = ReleaseWatch()
         self.holders: dict[int, float] = {}  # queue_patience_s: neighbour id -> since when it holds the square
         self.queue_at: NDArray[np.float64] | None = None  # (x, y, t): the column queued for, and when last
-        self.let_go: LetGo | None = None  # the box let go last, watched while SETTLING
-        self.retake: LetGo | None = None  # a box let go beside its slot, taken back to serve that slot again
 
     def activity(self) -> str:
         """What the agent is doing, in words: its phase, search point, and the box or slot it works on."""
@@ -1041,28 +1003,20 @@ class Stigmergy:
             self.phase = Phase.DESCEND_SLOT
 
     def _grasped(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> None:
-        """GRASPING -> LIFT (+1 in the agent's cell), or -> TO_SLOT with a box taken back from beside its slot."""
+        """GRASPING -> LIFT (+1 in the agent's cell)."""
         self.carry = Carry(int(obs.carrying), self.grasp_offset if self.phase is Phase.GRASPING else self.offset)
         self.column = obs.position[:2].copy()
         self.box = Sighting(-1, self.box.pos)
-        if self.retake is not None and self.retake.box == self.carry.box:
-            # the box taken back from beside its slot: serve that slot again (from above, as always)
-            self.slot = Sighting(self.retake.slot.id, self.retake.slot.pos.copy())
-            self.phase = Phase.TO_SLOT
-        else:
-            self._mark(medium, obs.position, self.params.box_pheromone, "boxes_found")
-            self.phase = Phase.LIFT
-        self.retake = None
-        self.let_go = None
+        self._mark(medium, obs.position, self.params.box_pheromone, "boxes_found")
+        self.phase = Phase.LIFT
 
     def _let_go(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> None:
-        """RELEASING -> SETTLING (-1 in the agent's cell); a box that slipped out of the grip -> CHOOSE_BOX."""
+        """RELEASING -> CLIMB (-1 in the agent's cell); a box that slipped out of the grip -> CHOOSE_BOX."""
         assert self.carry is not None
         if self.phase is Phase.RELEASING:
             self._mark(medium, obs.position, self.params.goal_pheromone, "goals_found")
             self.column = obs.position[:2].copy()
-            self.let_go = LetGo(self.carry.box, Sighting(self.slot.id, self.slot.pos.copy()), obs.time_s)
-            self.phase = Phase.SETTLING if self.params.retake else Phase.CLIMB
+            self.phase = Phase.CLIMB
         else:
             self.phase = Phase.CHOOSE_BOX
         self.carry = None
@@ -1162,10 +1116,7 @@ class Stigmergy:
     def _step_seek_goal(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """SEEK_GOAL -> TO_SLOT (an open, empty slot in view) | CHOOSE_GOAL (search point reached)."""
         p = obs.position
-        loose = [self._occupied(obs, q) for q in obs.seen.slots] if self.params.loose_box_check else []
-        s = self._pick(
-            obs, obs.seen.slot_ids, obs.seen.slots, self.offset, skip=np.array(loose, dtype=bool) if loose else None
-        )
+        s = self._pick(obs, obs.seen.slot_ids, obs.seen.slots, self.offset)
         if s >= 0:
             self.slot = Sighting(int(obs.seen.slot_ids[s]), obs.seen.slots[s].copy())
             self.phase = Phase.TO_SLOT
@@ -1223,20 +1174,15 @@ class Stigmergy:
         ids: NDArray[np.int64],
         where: NDArray[np.float64],
         shift: NDArray[np.float64],
-        *,
-        skip: NDArray[np.bool_] | None = None,
     ) -> int:
         """Index (into ``ids``) of the nearest visible object nobody else is working on, or -1.
-        ``shift`` (3,) m moves an object's centre to where the agent's column over it is; objects
-        marked in ``skip`` (k,) are left alone."""
+        ``shift`` (3,) m moves an object's centre to where the agent's column over it is."""
         if len(ids) == 0 or self._ignoring_objects(obs):
             return -1
         par = self.params
         cols = where[:, :2] - shift[:2]
         free = np.array([not (par.claims and self._claimed(obs, c)) for c in cols])
         free &= self._in_window(obs, where)
-        if skip is not None:
-            free &= ~skip
         if not free.any():
             return -1
         d = np.hypot(*(cols - obs.position[:2]).T)
@@ -1345,12 +1291,9 @@ class Stigmergy:
         return False
 
     def _slot_blocked(self, obs: ConstructionObservation, *, descending: bool) -> bool:
-        """-> SEEK_GOAL when a loose box lies in the slot (``loose_box_check``), or (``descending``) the
-        box could not be set down within ``descent_timeout_s``."""
+        """-> SEEK_GOAL when (``descending``) the box could not be set down within ``descent_timeout_s``."""
         timeout = self.params.descent_timeout_s
-        if (self.params.loose_box_check and self._occupied(obs, self.slot.pos)) or (
-            descending and timeout is not None and obs.time_s - self.watch.descent_start > timeout
-        ):
+        if descending and timeout is not None and obs.time_s - self.watch.descent_start > timeout:
             self.phase = Phase.SEEK_GOAL
             self.slot = Sighting(-1, self.slot.pos)
             self.watch.clear()
@@ -1364,7 +1307,7 @@ class Stigmergy:
         return self.slot.pos + [0.0, 0.0, c] - self.offset
 
     def _step_to_slot(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
-        """TO_SLOT -> DESCEND_SLOT (over it at the flying altitude) | SEEK_GOAL (lost, or a loose box in it)."""
+        """TO_SLOT -> DESCEND_SLOT (over it at the flying altitude) | SEEK_GOAL (lost)."""
         if self._slot_lost(obs, claims=True) or self._slot_blocked(obs, descending=False):
             return None
         return self._approach_slot(obs)
@@ -1453,32 +1396,6 @@ class Stigmergy:
         w.window = [(t, q) for t, q in w.window if t >= obs.time_s - self.dwell - 1e-9]
         mean = np.mean([q for _, q in w.window], axis=0)
         return bool(np.all(np.abs(mean - drop) <= tol))
-
-    def _occupied(self, obs: ConstructionObservation, slot: NDArray[np.float64]) -> bool:
-        """True when a loose box (seen, free) lies in the space of the slot centred at ``slot`` (3,) m."""
-        if len(obs.seen.box_ids) == 0:
-            return False
-        d = np.abs(obs.seen.boxes - slot)
-        return bool(
-            np.any(np.all(d[:, :2] < self.info.layout.box_size, axis=1) & (d[:, 2] < self.info.layout.box_size))
-        )
-
-    def _step_settling(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
-        """SETTLING -> DESCEND_BOX (the box lies loose beside its slot: take it back) | CLIMB | CHOOSE_BOX.
-
-        The agent climbs from where it let go; after ``SETTLE_S`` it looks whether the box came to rest.
-        """
-        assert self.let_go is not None
-        if obs.time_s - self.let_go.time_s >= SETTLE_S - 1e-9:
-            seen = np.flatnonzero(obs.seen.box_ids == self.let_go.box)
-            if seen.size and self.let_go.slot.id >= 0:  # the box lies loose beside its slot: take it back
-                self.box = Sighting(self.let_go.box, obs.seen.boxes[seen[0]].copy())
-                self.retake = self.let_go
-                self.phase = Phase.DESCEND_BOX  # straight down: the agent is over it
-                return None
-            self.let_go = None
-            self.phase = Phase.CLIMB
-        return self._rise(obs, Phase.CHOOSE_BOX)
 
     def _step_climb(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """CLIMB -> CHOOSE_BOX: straight up from the release to the flying altitude."""

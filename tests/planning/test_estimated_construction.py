@@ -118,35 +118,6 @@ def test_the_box_is_let_go_only_after_the_estimate_has_dwelt_on_the_drop_point()
     assert b.plan(_obs(drop, t=0.0, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), None).action == Action.RELEASE
 
 
-def test_a_box_that_came_to_rest_off_its_slot_is_taken_back_and_the_slot_served_again():
-    a, drop = _delivering()
-    cmd = a.plan(_obs(drop, t=0.0, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), None)
-    for k in range(1, 10):
-        if cmd.action == Action.RELEASE:
-            break
-        cmd = a.plan(_obs(drop, t=0.1 * k, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), None)
-    assert cmd.action == Action.RELEASE
-    t = 0.1 * k
-    off = SLOTS[1] + [0.013, 0.0, 0.0]  # 13 mm off: free, the slot still open
-    a.plan(_obs(drop, t=t + 0.1, boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1]), None)
-    assert a.phase == Phase.SETTLING
-    cmd = a.plan(_obs(drop + [0, 0, 0.02], t=t + 0.5, boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1]), None)
-    assert a.phase == Phase.DESCEND_BOX and a.box.id == 3
-    assert np.allclose(cmd.vector, off + [0, 0, GH])  # straight back down onto it
-    a.plan(_obs(off + [0, 0, GH], t=t + 1.5, boxes=[off], box_ids=[3], slots=[SLOTS[1]], slot_ids=[1]), None)
-    a.plan(_obs(off + [0, 0, GH], t=t + 1.6, carrying=3, slots=[SLOTS[1]], slot_ids=[1]), None)
-    assert a.phase == Phase.TO_SLOT and a.slot.id == 1
-
-
-def test_no_descent_with_a_box_onto_a_slot_with_a_loose_box_in_it():
-    a, drop = _delivering()
-    loose = SLOTS[1] + [0.02, 0.01, 0.0]
-    a.plan(
-        _obs(drop + [0, 0, 0.1], t=0.0, carrying=3, boxes=[loose], box_ids=[5], slots=[SLOTS[1]], slot_ids=[1]), None
-    )
-    assert a.phase not in (Phase.TO_SLOT, Phase.DESCEND_SLOT) and a.slot.id == -1
-
-
 def _view(t, positions, carrying, box_positions, box_state, slot_filled) -> WorldView:
     slot_filled = np.asarray(slot_filled)
     open_ = np.array([f < 0 for f in slot_filled])

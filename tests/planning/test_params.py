@@ -34,8 +34,6 @@ THESIS_STIGMERGY = {
     "view_window": 0.15,
     "layout_altitudes": False,
     "drift_breakoff": False,
-    "loose_box_check": False,
-    "retake": False,
     "descent_timeout_s": None,
     "release_over_neighbours": False,
     "clear_spent_goals": False,
@@ -111,8 +109,6 @@ def test_the_extensions_are_exactly_the_switches_the_preset_turns_off():
         "wide_view",
         "layout_altitudes",
         "drift_breakoff",
-        "loose_box_check",
-        "retake",
         "descent_timeout_s",
         "release_over_neighbours",
         "raise_drop_point",
@@ -155,10 +151,10 @@ def test_an_unknown_preset_or_a_preset_of_a_planner_without_presets_is_refused_a
 
 def test_the_resolved_scenario_names_the_preset_and_every_value():
     sc = pybullet_swarm.load_scenario(
-        "construction", {"planner.params.preset": "thesis", "planner.params.retake": True}, planner="layered_stigmergy"
+        "construction", {"planner.params.preset": "thesis", "planner.params.claims": True}, planner="layered_stigmergy"
     )
     params = sc.data["planner"]["params"]
-    assert params == {**preset_values(LayeredStigmergyParams, "thesis"), "retake": True}
+    assert params == {**preset_values(LayeredStigmergyParams, "thesis"), "claims": True}
     again = pybullet_swarm.load_scenario("construction", {"planner.params": params}, planner="layered_stigmergy")
     assert again.planner_params == sc.planner_params  # a fixed point: explicit values = preset's
 
