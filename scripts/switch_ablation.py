@@ -156,7 +156,7 @@ ROUNDS: dict[str, Round] = {
     "1": Round(CONFIGS, "docs/results/data/benchmarks/construction-v1-holdout-376f91a.json"),
     "2": Round(
         [ablation.switched_off(*row) for row in ROUND_2],
-        "docs/results/data/benchmarks/construction-v1-holdout.json",
+        "docs/results/data/benchmarks/construction-v1-holdout-4170d6c.json",
         note="every switch on, after round 1's deletions",
     ),
     "2-six": Round(
