@@ -1290,10 +1290,10 @@ class Stigmergy:
             return True
         return False
 
-    def _slot_blocked(self, obs: ConstructionObservation, *, descending: bool) -> bool:
-        """-> SEEK_GOAL when (``descending``) the box could not be set down within ``descent_timeout_s``."""
+    def _descent_timed_out(self, obs: ConstructionObservation) -> bool:
+        """-> SEEK_GOAL when the box could not be set down within ``descent_timeout_s``."""
         timeout = self.params.descent_timeout_s
-        if descending and timeout is not None and obs.time_s - self.watch.descent_start > timeout:
+        if timeout is not None and obs.time_s - self.watch.descent_start > timeout:
             self.phase = Phase.SEEK_GOAL
             self.slot = Sighting(-1, self.slot.pos)
             self.watch.clear()
@@ -1308,7 +1308,7 @@ class Stigmergy:
 
     def _step_to_slot(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """TO_SLOT -> DESCEND_SLOT (over it at the flying altitude) | SEEK_GOAL (lost)."""
-        if self._slot_lost(obs, claims=True) or self._slot_blocked(obs, descending=False):
+        if self._slot_lost(obs, claims=True):
             return None
         return self._approach_slot(obs)
 
@@ -1356,13 +1356,13 @@ class Stigmergy:
 
     def _step_reclimb_slot(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """RECLIMB_SLOT -> TO_SLOT (back at the flying altitude) | SEEK_GOAL."""
-        if self._slot_lost(obs, claims=True) or self._slot_blocked(obs, descending=False):
+        if self._slot_lost(obs, claims=True):
             return None
         return self._reclimb(obs, Phase.TO_SLOT) or self._approach_slot(obs)
 
     def _step_descend_slot(self, obs: ConstructionObservation, medium: PheromoneGrid | None) -> Command | None:
         """DESCEND_SLOT -> RELEASING (settled at the drop point) | RECLIMB_SLOT (pushed off) | SEEK_GOAL."""
-        if self._slot_lost(obs, claims=False) or self._slot_blocked(obs, descending=True):
+        if self._slot_lost(obs, claims=False) or self._descent_timed_out(obs):
             return None
         drop = self._drop_point()
         if self._drifted(obs.position, drop[:2]):
