@@ -3,7 +3,8 @@
 ``run_benchmark(suite, "holdout", out)`` plans the runs of a split (``experiment.suites``), runs
 those not recorded yet on the sweep machinery (``sweep.execute_runs``: a local process pool or
 Ray; rows appended to ``OUT/runs.csv`` as runs finish, so a killed benchmark resumes where it
-stopped), and writes, from the rows of the planned runs only:
+stopped), and writes, from the rows of every run the directory holds (this call's and those of earlier
+calls into it, such as one study per planner; the rows of nothing else in ``runs.csv``):
 
 * ``OUT/benchmark.json``: commit, suite name, version and file digest, split, and per
   configuration (planner + avoidance): runs, completed, crashed, stalled, timed out, failed to
@@ -267,10 +268,15 @@ def _manifest(plan: BenchmarkPlan, old: Mapping[str, Any] | None) -> dict[str, A
         "variant": plan.variant.record(),
         "created": (old or {}).get("created", now),
         "updated": now,
-        "runs": {
-            s.run_id: {"layout": layout_of(s), "planner": s.planner, "avoidance": s.avoidance, "seed": s.seed}
-            for s in plan.runs
-        },
+        # every run the directory holds: a study that narrows planners or seeds adds to what earlier calls planned
+        "runs": {**(old or {}).get("runs", {}), **_held(plan.runs)},
+    }
+
+
+def _held(runs: Iterable[RunSpec]) -> dict[str, dict[str, Any]]:
+    """Run id -> layout, planner, avoidance and seed: how the manifest lists a run."""
+    return {
+        s.run_id: {"layout": layout_of(s), "planner": s.planner, "avoidance": s.avoidance, "seed": s.seed} for s in runs
     }
 
 
@@ -325,7 +331,8 @@ def run_benchmark(
         )
     ran = Execution()
     with exclusive_directory(plan.out, "benchmark"):
-        write_json(manifest_path, _manifest(plan, old))
+        manifest = _manifest(plan, old)
+        write_json(manifest_path, manifest)
         table = RunsTable(plan.out / RUNS_CSV)
         if retry_failed and table.drop(
             [s.run_id for s in plan.runs if (table.get(s.run_id) or {}).get("exit_status") == "error"]
@@ -339,8 +346,9 @@ def run_benchmark(
                 file=sys.stderr,
             )
         execute_runs(todo, table, ran, executor=executor, workers=workers, address=address, worker=worker, quiet=quiet)
-        rows = [table.get(s.run_id) for s in plan.runs]
-        data = summarize(plan, [r for r in rows if r is not None], command=command)
+        held = manifest["runs"]
+        rows = [table.get(rid) for rid in held]
+        data = summarize(plan, [r for r in rows if r is not None], command=command, held=held)
         files = write_outputs(data, plan.out, figure=figure and not ran.interrupted)
     return BenchmarkResult(
         out=plan.out,
@@ -480,12 +488,31 @@ def git_commit(where: Path | None = None) -> str:
     return f"{head}+dirty" if dirty else head
 
 
-def summarize(plan: BenchmarkPlan, rows: Sequence[Row], *, command: str | None = None) -> dict[str, Any]:
-    """The benchmark JSON of the recorded rows of a plan's runs."""
+def summarize(
+    plan: BenchmarkPlan,
+    rows: Sequence[Row],
+    *,
+    command: str | None = None,
+    held: Mapping[str, Mapping[str, Any]] | None = None,
+) -> dict[str, Any]:
+    """The benchmark JSON of the recorded rows of the runs a directory holds.
+
+    Args:
+        plan: this call's plan (suite, split, overrides).
+        rows: the recorded rows of the held runs.
+        command: the command line recorded (default: this process's).
+        held: run id -> layout, planner, avoidance, seed of every run the directory holds, this call's and
+            earlier calls' (a study that ran one planner, then another, into one directory); default: the plan's.
+    """
+    held = _held(plan.runs) if held is None else held
     classes = contact_classes(rows)
     records = [run_record(r, classes) for r in rows]
-    configs = list(dict.fromkeys((s.planner, s.avoidance) for s in plan.runs))
+    order = {p: i for i, p in enumerate(plan.suite.split(plan.split.name).planners)}
+    configs = sorted(
+        dict.fromkeys((h["planner"], h["avoidance"]) for h in held.values()), key=lambda c: order.get(c[0], len(order))
+    )
     layouts = [lay.name for lay in plan.split.layouts]
+    seeds = sorted({int(h["seed"]) for h in held.values()})
     out_configs = []
     for planner, avoidance in configs:
         mine = [r for r in records if (r["planner"], r["avoidance"]) == (planner, avoidance)]
@@ -498,7 +525,7 @@ def summarize(plan: BenchmarkPlan, rows: Sequence[Row], *, command: str | None =
             {
                 "planner": planner,
                 "avoidance": avoidance,
-                "planned": sum(1 for s in plan.runs if (s.planner, s.avoidance) == (planner, avoidance)),
+                "planned": sum(1 for h in held.values() if (h["planner"], h["avoidance"]) == (planner, avoidance)),
                 **_counts(mine, classes),
                 "layouts": per_layout,
             }
@@ -510,20 +537,36 @@ def summarize(plan: BenchmarkPlan, rows: Sequence[Row], *, command: str | None =
         "suite_version": plan.suite.version,
         "suite_digest": plan.suite.digest,
         "split": plan.split.name,
-        "variant": plan.variant.record(),
+        "variant": _held_variant(plan, configs, seeds),
         "commit": git_commit(),
         "date": datetime.date.today().isoformat(),
         "command": command if command is not None else " ".join(["pybullet-swarm", *sys.argv[1:]]),
-        "planned_runs": len(plan.runs),
+        "planned_runs": len(held),
         "recorded_runs": len(records),
         # s, summed over the runs: what the runs cost (CPU) and took in their workers (wall, load included)
         "cpu_time_s": round(sum(r["cpu_time_s"] or 0.0 for r in records), 1),
         "wall_time_s": round(sum(r["wall_time_s"] or 0.0 for r in records), 1),
-        "seeds": list(plan.split.seeds),
+        "seeds": seeds,
         "layouts": layouts,
         "contact_classes": classes,
         "configurations": out_configs,
         "runs": records,
+    }
+
+
+def _held_variant(plan: BenchmarkPlan, configs: Sequence[tuple[str, str]], seeds: Sequence[int]) -> dict[str, Any]:
+    """The variant record of what a directory holds: its planners and seed count where they differ from the
+    split's (the union of the calls that ran into it), and the overrides (one set per directory)."""
+    full = plan.suite.split(plan.split.name)
+    planners = list(dict.fromkeys(p for p, _ in configs))
+    narrowed = planners != list(full.planners)
+    widened = list(seeds) != list(full.seeds)
+    if not narrowed and not widened and not plan.variant.overrides:
+        return {}
+    return {
+        "planners": planners if narrowed else [],
+        "seeds": len(seeds) if widened else None,
+        "set": dict(plan.variant.overrides),
     }
 
 

@@ -99,6 +99,27 @@ def test_a_directory_holds_one_set_of_overrides(tmp_path):
     assert data["variant"]["set"] == {"task.time_limit_s": 2.0}
 
 
+def test_studies_of_one_planner_each_add_up_in_one_directory(tmp_path):
+    suite, out = tiny_suite(tmp_path, planners=["shortest_path", "stigmergy"]), tmp_path / "bench"
+    for planner in ("stigmergy", "shortest_path"):
+        variant = benchmark.Variant(planners=(planner,))
+        res = benchmark.run_benchmark(
+            suite, "dev", out, workers=1, figure=False, worker=failing_worker, variant=variant
+        )
+    data = json.loads((out / benchmark.RESULT).read_text())
+    assert res.n_planned == 2 and data["planned_runs"] == data["recorded_runs"] == 4
+    assert [c["planner"] for c in data["configurations"]] == ["shortest_path", "stigmergy"]  # the suite's order
+    assert all(c["planned"] == c["error"] == 2 for c in data["configurations"])
+    assert data["variant"] == {} and data["seeds"] == [0, 1]  # the two calls together are the split
+    assert len(json.loads((out / benchmark.PLAN).read_text())["runs"]) == 4
+    wider = benchmark.Variant(planners=("stigmergy",), seeds=3)
+    data = benchmark.run_benchmark(
+        suite, "dev", out, workers=1, figure=False, worker=failing_worker, variant=wider
+    ).data
+    assert [c["planned"] for c in data["configurations"]] == [2, 3] and data["seeds"] == [0, 1, 2]
+    assert data["variant"] == {"planners": [], "seeds": 3, "set": {}}
+
+
 @pytest.mark.parametrize(
     ("argv", "words"),
     [
