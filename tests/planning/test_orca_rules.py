@@ -435,7 +435,7 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
             assert kw["floor"] is (off is not Rule.FLOOR_RULE)
             assert (kw["column"] > 0.0) is (off is not Rule.COLUMN_RULE)
             # the column rule's premise (column_reach) is tested against the static obstacles it knows
-            assert (kw["beside"] is None) is (off in (Rule.COLUMN_RULE, Rule.STATIC_OBSTACLES))
+            assert (kw["beside"] is None) is (off is Rule.COLUMN_RULE)
             assert kw["preferred"] is not None  # floor_preferred (on by default) hands the bounds the preferences
             assert kw["column_tick"] == layer.planner_dt  # column_tick (on by default): the planner's tick
             assert seen["reference"][0][2] is (off is not Rule.CLIPPED_REFERENCE)

@@ -33,7 +33,7 @@ stages of one planner tick, each a compiled function of ``kernel`` reading its o
    below ``floor_height`` avoidance never pushes an agent down; ``column_rule``, low on a vertical leg
    within ``column_radius`` of its target an agent is only slowed or lifted where a box, the structure
    or an obstacle lies within ``column_reach`` (``ground_beside``: or the ground).
-5. Obstacles (``kernel.obstacle_planes``, ``static_obstacles``): boxes, the structure and the arena's
+5. Obstacles (``kernel.obstacle_planes``, the paper's, no switch): boxes, the structure and the arena's
    walls and pillars, as data (``planning.base.Obstacles``), each a VO the agent avoids alone, with
    ``obstacle_horizon``; an obstacle the agent's shape at its own POSITION/HOLD target touches (the
    box it grasps, the slot it fills) is left out (``goal_reach``; ``rules.own_target``), a test of

@@ -1,7 +1,7 @@
 """One planner tick of ORCA for all agents: the paper's core composed with the switched-on rules, one compiled call.
 
 Per agent: the hard planes (velocity limits, narrowed by ``FLOOR_RULE`` and ``COLUMN_RULE``; then,
-with ``STATIC_OBSTACLES``, one plane per static obstacle within reach, of which the agent takes the
+one plane per static obstacle within reach (the paper's), of which the agent takes the
 whole u, as the paper's agents do with obstacles: never traded away by the fallback LP unless the
 agent already overlaps the obstacle), one ORCA plane per neighbour (``core``; shapes grown by
 ``LAG_MARGIN``, the shares moved by the wake rules),
@@ -32,7 +32,7 @@ from pybullet_swarm.planning.orca.vec import Vec, add, dot, row, scale, set_row
 FLAG_INFEASIBLE = 1  # the ORCA planes had no common velocity: least-violating velocity used (core)
 FLAG_BIASED = 2  # stalled: the sideways (or upward) bias was applied (DEADLOCK_RESOLUTION)
 FLAG_FREE = 4  # the commanded velocity satisfies every plane: nothing was changed (MINIMAL_INTERVENTION)
-FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach (STATIC_OBSTACLES)
+FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach
 
 HARD_PLANES = 6  # at most two velocity bounds per axis
 NO_BARE = (-1.0, -1.0, -1.0)  # box_u without MARGIN_OVERLAP
@@ -216,7 +216,7 @@ def obstacle_planes(
     W: NDArray[np.float64],
     k: int,
 ) -> tuple[int, int]:
-    """STATIC_OBSTACLES: append agent i's planes against the static obstacles (``oc``, ``oh``) after row k;
+    """Static obstacles (the paper's): append agent i's planes against the static obstacles (``oc``, ``oh``) after row k;
     returns (the end of the hard planes, the end of all).
 
     The paper's obstacles: the VO of the agent's shape and the obstacle's box (the agent's margin
@@ -349,7 +349,7 @@ def orca_batch(
     cs = core_rec[0]
     rs = rule_rec[0]
     n = pos.shape[0]
-    static = rs.static_obstacles and oc.shape[0] > 0
+    static = oc.shape[0] > 0
     m_max = nbr.shape[1] + HARD_PLANES + (oc.shape[0] if static else 0)
     N = np.empty((m_max, 3))
     P = np.empty((m_max, 3))
@@ -448,7 +448,7 @@ def orca_velocities(
             commanded); the others get the LP's velocity closest to ``preferred``.
         neighbours: (n, k) neighbour table from ``neighbour_table`` (computed when None).
         obstacles: (centres (K, 3) m, half extents (K, 3) m) of static axis-aligned boxes, avoided
-            with ``STATIC_OBSTACLES`` (none when None); an agent's target's own (``rules.own_target``:
+            as the paper avoids obstacles (none when None); an agent's target's own (``rules.own_target``:
             touched by the agent at its goal, ``goals`` and ``has_goal``) is left out for it.
         parts: (n, 12) airframe and load boxes of each agent (``shape_parts``), which tell the
             target's own obstacles (default: each agent's shape as one part).

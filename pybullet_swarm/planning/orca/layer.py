@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, Obstacles, TaskView
+from pybullet_swarm.planning.base import AvoidanceSetup, Command, CommandKind, TaskView
 from pybullet_swarm.planning.orca import rules
 from pybullet_swarm.planning.orca.kernel import (
     FLAG_BIASED,
@@ -27,8 +27,6 @@ from pybullet_swarm.planning.orca.params import OrcaParams, Shape
 from pybullet_swarm.planning.orca.rules import clear_paths, obstacles_beside, targets_touching, velocity_bounds
 from pybullet_swarm.types import Perception
 from pybullet_swarm.vehicle.downwash import DownwashParams
-
-NO_OBSTACLES = Obstacles()
 
 
 @functools.lru_cache(maxsize=32)
@@ -86,7 +84,7 @@ class OrcaLayer:
 
     Each planner tick, per agent: the nearest neighbours within the sensing radius (from the swarm's
     perception snapshot), shapes from sensed attitude and load, the static obstacles
-    (``static_obstacles``: the arena's from the set-up, the task's from its view), one LP; a
+    (the paper's: the arena's from the set-up, the task's from its view), one LP; a
     command is kept when it is safe as it is (``minimal_intervention``) or a precise final approach
     is clear (``passthrough``), else replaced by a VELOCITY command with the same ``action`` and ``yaw``.
 
@@ -163,12 +161,11 @@ class OrcaLayer:
         )
         centre, half = union_boxes(parts)
         radii = np.where(carrying, self.r_carry, self.r_agent)
-        known = self.arena_obstacles + task.obstacles  # avoided with static_obstacles; passthrough_turns reads them
-        obstacles = known if p.static_obstacles else NO_OBSTACLES
+        obstacles = self.arena_obstacles + task.obstacles  # the paper's static obstacles; passthrough_turns reads them
         oc = np.ascontiguousarray(obstacles.centres, dtype=float)
         oh = np.ascontiguousarray(obstacles.half_extents, dtype=float)
         beside = None
-        if p.column_rule and p.column_reach is not None and p.static_obstacles:
+        if p.column_rule and p.column_reach is not None:
             beside = obstacles_beside(pos, centre, half, oc, oh, p.column_reach, p.ground_beside)
         # bounds around what the command itself asks for (per axis it covers the preferred velocity)
         bounds = velocity_bounds(
@@ -213,8 +210,8 @@ class OrcaLayer:
                         goals,
                         parts,
                         near,
-                        np.ascontiguousarray(known.centres, dtype=float),
-                        np.ascontiguousarray(known.half_extents, dtype=float),
+                        oc,
+                        oh,
                         p.margin + p.goal_reach,
                         touching,
                     )

@@ -110,7 +110,7 @@ class OrcaParams(Params):
         ge=0.0,
         le=10.0,
         description="m, the column rule holds an agent only with a box, the structure or an obstacle this close to "
-        "its airframe or load horizontally and not wholly above it (null: wherever it is; needs static_obstacles)",
+        "its airframe or load horizontally and not wholly above it (null: wherever it is)",
     )
     column_tick: bool = Field(
         True,
@@ -140,7 +140,6 @@ class OrcaParams(Params):
         lt=1.0,
         description="progress below this fraction of the preferred speed counts as stalled (deadlock_resolution)",
     )
-    static_obstacles: bool = _switch(Rule.STATIC_OBSTACLES)
     obstacle_horizon: float = Field(
         1.0, gt=0.0, le=60.0, description="s, collisions with static obstacles predicted later than this are ignored"
     )

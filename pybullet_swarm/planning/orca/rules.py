@@ -31,7 +31,6 @@ class Rule(str, enum.Enum):
     MINIMAL_INTERVENTION = "minimal_intervention"
     PASSTHROUGH = "passthrough"
     DEADLOCK_RESOLUTION = "deadlock_resolution"
-    STATIC_OBSTACLES = "static_obstacles"
     WAKE_COLUMN = "wake_column"
     WAKE_SHARE_BY_APPROACH = "wake_share_by_approach"
     HEADWAY = "headway"
@@ -65,8 +64,6 @@ RULE_DOCS: dict[Rule, str] = {
     "stays clear of every neighbour's",
     Rule.DEADLOCK_RESOLUTION: "a stalled agent steps aside, to the side the one in its way leaves free, and waits "
     "for one sitting on its goal",
-    Rule.STATIC_OBSTACLES: "boxes, structure and arena obstacles are velocity obstacles avoided alone, but those "
-    "the agent's target touches",
     Rule.WAKE_COLUMN: "against other agents each agent's box reaches wake_depth further down: nobody flies in "
     "another's rotor wake (downwash)",
     Rule.WAKE_SHARE_BY_APPROACH: "a wake conflict is resolved by the agent moving into it, in proportion to "
@@ -277,7 +274,7 @@ def velocity_bounds(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """FLOOR_RULE and COLUMN_RULE: hard per-axis bounds (lower (n, 3), upper (n, 3)) m/s of each agent's velocity.
 
-    ORCA knows no ground (nor, without ``STATIC_OBSTACLES``, what stands on it). So (``floor``) it
+    ORCA knows no ground. So (``floor``) it
     may push an agent down only above ``floor_height``, by at most its height above it per horizon;
     below, never faster down than the agent intends to go itself. And (``column`` > 0) an agent low
     down on a vertical leg to or from its target (horizontally within ``column`` of it: descending
@@ -544,7 +541,7 @@ def clear_of_obstacles(
     margin: float,
     reach: float,
 ) -> bool:
-    """STATIC_OBSTACLES with PASSTHROUGH: True when agent i's box swept to its goal stays ``margin`` m clear of
+    """PASSTHROUGH, against the static obstacles: True when agent i's box swept to its goal stays ``margin`` m clear of
     every obstacle but its target's own (``own_target`` within ``reach`` m)."""
     goal_rel = add(row(goal, i), row(pos, i), -1.0)
     for o in range(oc.shape[0]):
@@ -581,7 +578,7 @@ def obstacle_shape(
     oh: NDArray[np.float64],
     o: int,
 ) -> tuple[Vec, Vec]:
-    """STATIC_OBSTACLES: (centre m of obstacle o relative to agent i's shape, half extents m of their Minkowski box).
+    """Static obstacles (the paper's): (centre m of obstacle o relative to agent i's shape, half extents m of their Minkowski box).
 
     An agent modelled as a sphere counts as the cube around it. No margin is added.
     """
@@ -607,7 +604,7 @@ def own_target(
     oh: NDArray[np.float64],
     reach: float,
 ) -> bool:
-    """STATIC_OBSTACLES: True when obstacle o is agent i's target's own: a part of the agent (airframe or
+    """Static obstacles (the paper's, with ``goal_reach``): True when obstacle o is agent i's target's own: a part of the agent (airframe or
     load, ``parts``) at its target comes within ``reach`` m of it, and none reaches into it deeper
     than ``GOAL_OVERLAP``.
 
@@ -642,7 +639,7 @@ def own_target(
 
 @njit
 def ray_entry(c: Vec, H: Vec, d: Vec, length: float) -> float:
-    """STATIC_OBSTACLES: distance m along unit ``d`` from the origin at which the ray enters the box
+    """Static obstacles (the paper's): distance m along unit ``d`` from the origin at which the ray enters the box
     [c - H, c + H] within ``length`` m (0 when it starts inside), or -1 when it misses."""
     lo, hi = 0.0, length
     for k in range(3):
@@ -677,7 +674,7 @@ def obstacle_in_way(
     margin: float,
     reach: float,
 ) -> tuple[bool, Vec]:
-    """STATIC_OBSTACLES with DEADLOCK_RESOLUTION: the way past the nearest obstacle that holds up stalled agent i.
+    """DEADLOCK_RESOLUTION, against the static obstacles: the way past the nearest obstacle that holds up stalled agent i.
 
     The obstacle is the nearest one (shapes grown by ``margin`` m, the target's own left out, see
     ``own_target``) that the agent's shape would enter within ``length`` m along its unit
