@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Ablation of on/off switches on the benchmark's holdout split: the construction planners' and ORCA's remaining ones.
 
-    python scripts/switch_ablation.py [--round 1|2|2-six|3-six|estimated] [--out runs/switch-ablation-ROUND] [--workers 2]
+    python scripts/switch_ablation.py [--round 1|2|2-six|3-six|4-six|estimated] [--out runs/switch-ablation-ROUND] [--workers 2]
         [--only NAME ...] [--baseline BENCHMARK.json] [--table docs/results/data/switch_ablation.json]
 
 Each configuration is the split's runs of one planner with one switch (or a named group) off
@@ -133,6 +133,14 @@ ROUND_3_SIX: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
 )  # fmt: skip
 
 
+#: round 4 at 6 seeds per layout (126 runs on 180e3c7, paired with round 3's baseline of b008ec3, whose
+#: shortest_path and ORCA code is the same): the floor rules, undecided on stigmergy, on shortest_path
+ROUND_4_SIX: tuple[tuple[str, str, str, tuple[str, ...]], ...] = (
+    ("group: floor rules (shortest_path)", "shortest_path", "avoidance_params",
+     ("floor_rule", "floor_preferred", "ground_beside")),
+)  # fmt: skip
+
+
 @dataclasses.dataclass(frozen=True)
 class Round:
     """One round of the ablation: its configurations and what they are paired with.
@@ -169,6 +177,12 @@ ROUNDS: dict[str, Round] = {
         [ablation.switched_off(*row) for row in ROUND_3_SIX],
         None,
         note="every switch on, run the same way",
+        seeds=6,
+    ),
+    "4-six": Round(
+        [ablation.switched_off(*row) for row in ROUND_4_SIX],
+        None,
+        note="every switch on, run the same way (round 3's baseline)",
         seeds=6,
     ),
     "estimated": Round(
@@ -210,6 +224,8 @@ def main() -> int:
     )
     under = "".join(f" --set {k}={v}" for k, v in rnd.common)
     runs = f"the split's {rnd.seeds or 2} seeds on its 21 generated layouts"
+    orca = sorted({c.planner for c in configs if any(k.startswith("avoidance_params.") for k, _ in c.overrides)})
+    orca_rows = f" ORCA rows: {', '.join(orca)} + orca." if orca else ""
     data = ablation.results_table(
         results,
         configs,
@@ -218,7 +234,7 @@ def main() -> int:
         command=f"python scripts/switch_ablation.py --round {args.round}",
         notes=[
             f"Baseline: {where}, {rnd.note}; each configuration: {runs}, with orca"
-            f"{under and ', ' + under.strip()}, paired on the runs both have. ORCA rows: stigmergy + orca.",
+            f"{under and ', ' + under.strip()}, paired on the runs both have.{orca_rows}",
         ],
     )
     ablation.report(data, args.table)
