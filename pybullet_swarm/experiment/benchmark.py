@@ -725,8 +725,8 @@ def compare(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
             notes.append(f"{name} is another suite version or split: only runs with the same layout names pair")
     return {
         "kind": "pybullet_swarm.benchmark_compare",
-        "a": {k: a.get(k) for k in ("suite", "suite_version", "split", "commit", "date")},
-        "b": {k: b.get(k) for k in ("suite", "suite_version", "split", "commit", "date")},
+        "a": {k: a.get(k) for k in ("suite", "suite_version", "split", "commit", "date", "variant")},
+        "b": {k: b.get(k) for k in ("suite", "suite_version", "split", "commit", "date", "variant")},
         "paired_runs": len(common),
         "unpaired_a": len(ra) - len(common),
         "unpaired_b": len(rb) - len(common),
@@ -735,10 +735,16 @@ def compare(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
+def _side(d: Mapping[str, Any]) -> str:
+    """One side of a comparison: its commit and the overrides its runs were made with."""
+    overrides = ((d.get("variant") or {}).get("set") or {}).items()
+    return ", ".join([str(d["commit"]), *(f"{k}={v}" for k, v in overrides)])
+
+
 def compare_table(result: Mapping[str, Any]) -> str:
     """The paired differences as a Markdown table (``*``: the interval excludes zero)."""
     lines = [
-        f"B ({result['b']['commit']}) - A ({result['a']['commit']}), {result['paired_runs']} paired runs "
+        f"B ({_side(result['b'])}) - A ({_side(result['a'])}), {result['paired_runs']} paired runs "
         f"({result['unpaired_a']} of A and {result['unpaired_b']} of B unpaired).",
         "",
         "| configuration | pairs | metric | A | B | B - A | 95 % CI |",

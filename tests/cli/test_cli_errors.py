@@ -723,3 +723,22 @@ def test_check_refuses_a_bidi_override_in_the_name(capsys: pytest.CaptureFixture
     path.write_text(yaml.safe_dump(data, allow_unicode=True), encoding="utf-8")
     line = assert_one_line_error(*check_file(capsys, path), "spoof.yaml: name: ", "U+202E")
     assert "\u202e" not in line
+
+
+def test_a_reader_that_stops_early_gets_no_error(tmp_path):
+    """``pybullet-swarm benchmark ... --dry-run | head -1``: the command stops quietly when its reader closes the
+    pipe. Its 189 kB of lines do not fit the pipe's buffer (64 kB), so the reader always leaves first."""
+    args = ["benchmark", "construction", "--split", "holdout", "--dry-run", "--seeds", "100", "--quiet"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pybullet_swarm.cli.main", *args],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        bufsize=0,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.read(10)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 0, err
+    assert "error" not in err, err

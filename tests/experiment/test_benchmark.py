@@ -272,6 +272,7 @@ def test_compare_of_two_equivalent_benchmarks_includes_zero():
 def test_compare_cli_pairs_two_files(tmp_path, capsys):
     a = _bench([_run("L", i, "completed", 100.0) for i in range(10)], "aaa")
     b = _bench([_run("L", i, "completed", 90.0) for i in range(12)], "bbb")
+    b["variant"] = {"planners": ["stigmergy"], "seeds": 12, "set": {"sim.reference_leash": 0.03}}
     (tmp_path / "a.json").write_text(json.dumps(a))
     (tmp_path / "b.json").write_text(json.dumps(b))
     out = tmp_path / "cmp.json"
@@ -279,6 +280,7 @@ def test_compare_cli_pairs_two_files(tmp_path, capsys):
     assert main(argv) == 0
     text = capsys.readouterr().out
     assert "10 paired runs (0 of A and 2 of B unpaired)" in text and "| median_time_s | 100 | 90 | -10 |" in text
+    assert text.startswith("B (bbb, sim.reference_leash=0.03) - A (aaa), ")  # a study's overrides are named
     assert json.loads(out.read_text())["configurations"][0]["metrics"]["median_time_s"]["diff"] == -10.0
     (tmp_path / "bad.json").write_text(json.dumps({"suite": "s"}))
     assert main(["benchmark", "compare", str(tmp_path / "a.json"), str(tmp_path / "bad.json")]) == 2
