@@ -63,7 +63,8 @@ class SimSection(_Strict):
     crash_speed: float = Field(2.0, gt=0.0, le=100.0)  # m/s, ground impact counted as a crash
     # m, velocity commands: the position reference is kept within this of the agent's position per axis (None:
     # it integrates the command whatever the agent does; held back by a wake or a contact, an agent then
-    # flew twice the commanded speed to catch up, into what the avoidance layer had planned round)
+    # flew twice the commanded speed to catch up, into what the avoidance layer had planned round). Off by
+    # default: at 0.03 on the construction holdout, agent-agent contacts doubled (docs/results/construction.md)
     reference_leash: float | None = Field(None, gt=0.0, le=10.0)
 
 
