@@ -558,16 +558,12 @@ def _held_variant(plan: BenchmarkPlan, configs: Sequence[tuple[str, str]], seeds
     """The variant record of what a directory holds: its planners and seed count where they differ from the
     split's (the union of the calls that ran into it), and the overrides (one set per directory)."""
     full = plan.suite.split(plan.split.name)
-    planners = list(dict.fromkeys(p for p, _ in configs))
-    narrowed = planners != list(full.planners)
-    widened = list(seeds) != list(full.seeds)
-    if not narrowed and not widened and not plan.variant.overrides:
-        return {}
-    return {
-        "planners": planners if narrowed else [],
-        "seeds": len(seeds) if widened else None,
-        "set": dict(plan.variant.overrides),
-    }
+    planners = tuple(dict.fromkeys(p for p, _ in configs))
+    return Variant(
+        planners=planners if planners != full.planners else (),
+        seeds=len(seeds) if list(seeds) != list(full.seeds) else None,
+        overrides=plan.variant.overrides,
+    ).record()
 
 
 # ------------------------------------------------------------------ reading
