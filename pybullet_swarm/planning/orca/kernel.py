@@ -32,7 +32,7 @@ from pybullet_swarm.planning.orca.vec import Vec, add, dot, row, scale, set_row
 FLAG_INFEASIBLE = 1  # the ORCA planes had no common velocity: least-violating velocity used (core)
 FLAG_BIASED = 2  # stalled: the sideways (or upward) bias was applied (DEADLOCK_RESOLUTION)
 FLAG_FREE = 4  # the commanded velocity satisfies every plane: nothing was changed (MINIMAL_INTERVENTION)
-FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach
+FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach (the ground does not count)
 
 HARD_PLANES = 6  # at most two velocity bounds per axis
 GROUND_HALF = 1.0e3  # m, half extents of the slab whose top face is the ground (z = 0)
