@@ -35,6 +35,7 @@ FLAG_FREE = 4  # the commanded velocity satisfies every plane: nothing was chang
 FLAG_OBSTACLE = 16  # kept clear of at least one static obstacle within reach
 
 HARD_PLANES = 6  # at most two velocity bounds per axis
+GROUND_HALF = 1.0e3  # m, half extents of the slab whose top face is the ground (z = 0)
 NO_BARE = (-1.0, -1.0, -1.0)  # box_u without MARGIN_OVERLAP
 
 
@@ -215,9 +216,11 @@ def obstacle_planes(
     P: NDArray[np.float64],
     W: NDArray[np.float64],
     k: int,
-) -> tuple[int, int]:
+    n_box: int,
+) -> tuple[int, int, bool]:
     """Static obstacles (the paper's): append agent i's planes against the static obstacles (``oc``, ``oh``) after row k;
-    returns (the end of the hard planes, the end of all).
+    returns (the end of the hard planes, the end of all, whether one of the first ``n_box`` (the boxes; the rest:
+    the ground) gave a plane).
 
     The paper's obstacles: the VO of the agent's shape and the obstacle's box (the agent's margin
     only: an obstacle's place is known; shapes grown by ``LAG_MARGIN`` with the agent's own speed)
@@ -233,6 +236,7 @@ def obstacle_planes(
     on, lag = rs.lag_margin, rs.lag_margin_s
     reach = cs.max_speed / rs.inv_tau_obstacle  # m, the farthest any velocity of the LP goes within the horizon
     n_hard = k
+    near_box = False
     for overlapping in (False, True):
         for o in range(oc.shape[0]):
             c, H0 = rules.obstacle_shape(i, pos, radius, centre, half, boxes, oc, oh, o)
@@ -251,9 +255,10 @@ def obstacle_planes(
             set_row(P, k, add(vi, u, 1.0))
             W[k] = rules.gap_weight(core.box_gap(c, H0)[0], rs.gap_floor)
             k += 1
+            near_box = near_box or o < n_box
         if not overlapping:
             n_hard = k
-    return n_hard, k
+    return n_hard, k, near_box
 
 
 @njit
@@ -340,12 +345,13 @@ def orca_batch(
     oc: NDArray[np.float64],
     oh: NDArray[np.float64],
     parts: NDArray[np.float64],
+    n_box: int,
     core_rec: NDArray[np.void],
     rule_rec: NDArray[np.void],
     out: NDArray[np.float64],
     flags: NDArray[np.int64],
 ) -> None:
-    """Safe velocities of all agents (see ``orca_velocities``)."""
+    """Safe velocities of all agents (see ``orca_velocities``; the obstacles after the first ``n_box``: the ground)."""
     cs = core_rec[0]
     rs = rule_rec[0]
     n = pos.shape[0]
@@ -359,15 +365,18 @@ def orca_batch(
     weighted = rs.gap_weighted_fallback
     max_speed, stuck = cs.max_speed, rs.stuck_fraction
     stall_on = rs.deadlock_resolution and rs.right_bias > 0.0
+    box_c, box_h = oc[:n_box], oh[:n_box]  # what a stalled agent may find in its way: the ground never is
     for i in range(n):
         n_bounds = core.bound_planes(lo, hi, i, N, P)
         n_hard = n_static = n_bounds
+        near_box = False
         if static:
-            n_hard, n_static = obstacle_planes(
-                i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, parts, cs, rs, N, P, W, n_bounds
-            )
+            n_hard, n_static, near_box = obstacle_planes(
+                i, pos, vel, radius, centre, half, boxes, oc, oh, goal, has_goal, parts, cs, rs, N, P, W, n_bounds,
+                n_box,
+            )  # fmt: skip
         m = agent_planes(i, pos, vel, radius, centre, half, boxes, nbr, cs, rs, N, P, W, n_static, lo, hi)
-        up = FLAG_OBSTACLE if n_static > n_bounds else 0
+        up = FLAG_OBSTACLE if near_box else 0
         vc = row(v_cmd, i)
         if rs.minimal_intervention and dot(vc, vc) <= max_speed * max_speed and not core.violates(N, P, m, vc):
             set_row(out, i, vc)  # nothing to avoid: the planner's command stands
@@ -379,8 +388,8 @@ def orca_batch(
         sp = math.sqrt(dot(pr, pr))
         if stall_on and sp > rules.MIN_PREFERRED_SPEED and dot(res, pr) < stuck * sp * sp:
             res, f = resolve_stall(
-                i, pos, radius, centre, half, boxes, nbr, goal, has_goal, oc, oh, parts, pr, sp,
-                n_static > n_bounds, cs, rs, N, P, SN, SP, W, m, n_hard, weighted, res, f,
+                i, pos, radius, centre, half, boxes, nbr, goal, has_goal, box_c, box_h, parts, pr, sp,
+                near_box, cs, rs, N, P, SN, SP, W, m, n_hard, weighted, res, f,
             )  # fmt: skip
         set_row(out, i, res)
         flags[i] = f | up
@@ -424,6 +433,7 @@ def orca_velocities(
     neighbours: NDArray[np.int64] | None = None,
     obstacles: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     parts: NDArray[np.float64] | None = None,
+    ground: bool = False,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Collision-avoiding velocities of all agents from sensed state (one compiled call).
 
@@ -452,6 +462,11 @@ def orca_velocities(
             touched by the agent at its goal, ``goals`` and ``has_goal``) is left out for it.
         parts: (n, 12) airframe and load boxes of each agent (``shape_parts``), which tell the
             target's own obstacles (default: each agent's shape as one part).
+        ground: the ground (z = 0) is one more static obstacle, avoided the same way (a slab under the
+            whole arena, ``GROUND_HALF``): an agent is neither pushed into it nor flies into it within the
+            obstacle horizon, unless it is its target's own (a load placed on the ground). It is never
+            what holds up a stalled agent (``DEADLOCK_RESOLUTION`` looks at the boxes only) and sets no
+            ``FLAG_OBSTACLE``.
 
     Returns:
         (velocities (n, 3) m/s, flags (n,) of ``FLAG_INFEASIBLE | FLAG_BIASED | FLAG_FREE |
@@ -485,6 +500,10 @@ def orca_velocities(
         oc = oh = np.zeros((0, 3))
     else:
         oc, oh = (np.ascontiguousarray(b, dtype=float).reshape(-1, 3) for b in obstacles)
+    n_box = len(oc)
+    if ground:
+        oc = np.vstack([oc, [[0.0, 0.0, -GROUND_HALF]]])
+        oh = np.vstack([oh, np.full((1, 3), GROUND_HALF)])
     if parts is None:
         parts = np.zeros((n, 12))
         parts[:, :3] = centre
@@ -509,6 +528,7 @@ def orca_velocities(
         oc,
         oh,
         np.ascontiguousarray(parts, dtype=float).reshape(n, 12),
+        n_box,
         core_rec,
         rule_rec,
         out,

@@ -166,20 +166,17 @@ class OrcaLayer:
         oh = np.ascontiguousarray(obstacles.half_extents, dtype=float)
         beside = None
         if p.column_rule and p.column_reach is not None:
-            beside = obstacles_beside(pos, centre, half, oc, oh, p.column_reach, p.ground_beside)
+            beside = obstacles_beside(pos, centre, half, oc, oh, p.column_reach)
         # bounds around what the command itself asks for (per axis it covers the preferred velocity)
         bounds = velocity_bounds(
             pos,
             v_cmd,
             self.v_max,
             floor_height=p.floor_height,
-            time_horizon=p.time_horizon,
             goals=goals,
             has_goal=has_goal,
             column=p.column_radius if p.column_rule else 0.0,
-            floor=p.floor_rule,
             beside=beside,
-            preferred=pref if p.floor_preferred else None,
             column_tick=self.planner_dt if p.column_tick else None,
         )
         safe, flags = orca_velocities(
@@ -198,6 +195,7 @@ class OrcaLayer:
             neighbours=nbr,
             obstacles=(oc, oh),
             parts=parts,
+            ground=True,
         )
         passthrough = np.zeros(n, dtype=np.bool_)
         if p.passthrough:

@@ -3,7 +3,7 @@
 Every extension rule of ``rules.py`` has one bool field of its name (``lag_margin: false``), on by
 default, with its one-line description; the parameters a rule uses follow its switch and act
 only while it is on. ``preset: paper`` switches every rule off (the paper's ORCA); a rule given
-explicitly beside the preset keeps its value (``{preset: paper, floor_rule: true}``).
+explicitly beside the preset keeps its value (``{preset: paper, column_rule: true}``).
 """
 
 from __future__ import annotations
@@ -89,14 +89,7 @@ class OrcaParams(Params):
         "of a pair's relative position error",
     )
     clipped_reference: bool = _switch(Rule.CLIPPED_REFERENCE)
-    floor_rule: bool = _switch(Rule.FLOOR_RULE)
-    floor_height: float = Field(0.5, ge=0.0, le=100.0, description="m, below this avoidance never pushes an agent down")
-    floor_preferred: bool = Field(
-        True,
-        description="with floor_rule, below floor_height an agent is never pushed down faster than its preferred "
-        "velocity either (its target over arrive_time: slowing onto its own box), not only its shaped command "
-        "[false: the shaped command alone, up to the velocity limit a few centimetres above the target]",
-    )
+    floor_height: float = Field(0.5, ge=0.0, le=100.0, description="m, the column rule holds agents below this")
     column_rule: bool = _switch(Rule.COLUMN_RULE)
     column_radius: float = Field(
         0.03,
@@ -110,7 +103,8 @@ class OrcaParams(Params):
         ge=0.0,
         le=10.0,
         description="m, the column rule holds an agent only with a box, the structure or an obstacle this close to "
-        "its airframe or load horizontally and not wholly above it (null: wherever it is)",
+        "its airframe or load horizontally and not wholly above it, or the ground this close under it "
+        "(null: wherever it is)",
     )
     column_tick: bool = Field(
         True,
@@ -175,7 +169,6 @@ class OrcaParams(Params):
     margin_overlap: bool = _switch(Rule.MARGIN_OVERLAP)
     passthrough_turns: bool = _switch(Rule.PASSTHROUGH_TURNS)
     pinned_share: bool = _switch(Rule.PINNED_SHARE)
-    ground_beside: bool = _switch(Rule.GROUND_BESIDE)
     gap_weighted_fallback: bool = _switch(Rule.GAP_WEIGHTED_FALLBACK)
     gap_floor: float = Field(
         0.01,

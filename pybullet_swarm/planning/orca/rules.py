@@ -26,7 +26,6 @@ class Rule(str, enum.Enum):
     LAG_MARGIN = "lag_margin"
     UNCERTAINTY_MARGIN = "uncertainty_margin"
     CLIPPED_REFERENCE = "clipped_reference"
-    FLOOR_RULE = "floor_rule"
     COLUMN_RULE = "column_rule"
     MINIMAL_INTERVENTION = "minimal_intervention"
     PASSTHROUGH = "passthrough"
@@ -38,7 +37,6 @@ class Rule(str, enum.Enum):
     MARGIN_OVERLAP = "margin_overlap"
     PASSTHROUGH_TURNS = "passthrough_turns"
     PINNED_SHARE = "pinned_share"
-    GROUND_BESIDE = "ground_beside"
     GAP_WEIGHTED_FALLBACK = "gap_weighted_fallback"
 
     @property
@@ -54,8 +52,6 @@ RULE_DOCS: dict[Rule, str] = {
     "pair's relative position error",
     Rule.CLIPPED_REFERENCE: "ORCA linearises about the sensed velocity clipped to the velocity limits: overshoots "
     "are not motion to answer",
-    Rule.FLOOR_RULE: "below floor_height avoidance never pushes an agent down, above it by at most its height over "
-    "it per horizon",
     Rule.COLUMN_RULE: "below floor_height an agent within column_radius of its target (horizontally) is only "
     "slowed or lifted, never moved sideways",
     Rule.MINIMAL_INTERVENTION: "an agent whose own command violates none of its half-spaces keeps the command "
@@ -78,8 +74,6 @@ RULE_DOCS: dict[Rule, str] = {
     "neighbour can reach by turning",
     Rule.PINNED_SHARE: "against a neighbour that its bounds pin on the axis the pair's way out mostly runs along, "
     "an agent takes the whole way out",
-    Rule.GROUND_BESIDE: "the column rule also holds an agent whose airframe or load is within column_reach of the "
-    "ground",
     Rule.GAP_WEIGHTED_FALLBACK: "with no common velocity, a plane's violation counts 1 / its pair's gap a lag later "
     "times: the nearest is closed on last",
 }
@@ -88,7 +82,6 @@ RULE_DOCS: dict[Rule, str] = {
 REQUIRES: dict[Rule, Rule] = {
     Rule.HEADWAY: Rule.LAG_MARGIN,
     Rule.PASSTHROUGH_TURNS: Rule.PASSTHROUGH,
-    Rule.GROUND_BESIDE: Rule.COLUMN_RULE,
     Rule.WAKE_SHARE_BY_APPROACH: Rule.WAKE_COLUMN,
     Rule.WAKE_SHARE_ON_COURSE: Rule.WAKE_COLUMN,
 }
@@ -263,39 +256,30 @@ def velocity_bounds(
     v_max: NDArray[np.float64] | None,
     *,
     floor_height: float,
-    time_horizon: float,
     goals: NDArray[np.float64] | None = None,
     has_goal: NDArray[np.bool_] | None = None,
     column: float = 0.0,
-    floor: bool = True,
     beside: NDArray[np.bool_] | None = None,
-    preferred: NDArray[np.float64] | None = None,
     column_tick: float | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """FLOOR_RULE and COLUMN_RULE: hard per-axis bounds (lower (n, 3), upper (n, 3)) m/s of each agent's velocity.
+    """COLUMN_RULE: hard per-axis bounds (lower (n, 3), upper (n, 3)) m/s of each agent's velocity.
 
-    ORCA knows no ground. So (``floor``) it
-    may push an agent down only above ``floor_height``, by at most its height above it per horizon;
-    below, never faster down than the agent intends to go itself. And (``column`` > 0) an agent low
-    down on a vertical leg to or from its target (horizontally within ``column`` of it: descending
-    to grasp or place, climbing away) is over a box or the structure, where a sideways dodge tilts
-    the airframe into it: avoidance may only slow it down or lift it, not move it sideways. The
-    velocity limits bound everything. ``beside`` (n,) limits the column rule to the agents it marks
-    (``obstacles_beside``: a box or the structure within reach); None: every agent on a leg.
+    The velocity limits bound everything. And (``column`` > 0) an agent low down (below ``floor_height``)
+    on a vertical leg to or from its target (horizontally within ``column`` of it: descending to grasp or
+    place, climbing away) is over a box, the structure or the ground, where a sideways dodge tilts the
+    airframe into it: avoidance may only slow it down or lift it, not move it sideways. ``beside`` (n,)
+    limits the column rule to the agents it marks (``obstacles_beside``: a box, the structure or the
+    ground within reach); None: every agent on a leg. The ground itself is a static obstacle
+    (``kernel.orca_velocities``, ``ground``), not a bound.
 
     Args:
         positions: (n, 3) m, sensed.
         intended: (n, 3) m/s, the velocity each agent's command asks for (``commanded_velocities``).
         v_max: (3,) m/s per-axis limit, or None.
-        floor_height: m.
-        time_horizon: s.
+        floor_height: m, the column rule holds agents below it.
         goals: (n, 3) m, position targets; ``has_goal`` (n,) says which hold one.
         column: m, horizontal radius of a vertical leg (0: no column rule).
-        floor: the floor rule on.
         beside: (n,) bool, the agents the column rule may hold, or None (all).
-        preferred: (n, 3) m/s, the preferred velocities; given, below ``floor_height`` an agent is not pushed
-            down faster than the slower of it and ``intended`` (a POSITION target a few centimetres below is
-            approached slowly, while the shaped command may still ask for the velocity limit).
         column_tick: s, given, the column rule lets through no more sideways speed than reaches the target's
             column in this time: the layer's velocity is held for a planner tick, while the shaped command's
             speed over a few millimetres (``sqrt(2 a_max |e|)``) is meant for one shaper tick.
@@ -303,10 +287,6 @@ def velocity_bounds(
     n = len(positions)
     vm = np.full(3, np.inf) if v_max is None else np.broadcast_to(np.asarray(v_max, dtype=float), (3,)).copy()
     lo, hi = np.tile(-vm, (n, 1)), np.tile(vm, (n, 1))
-    if floor:
-        sink = np.maximum(positions[:, 2] - floor_height, 0.0) / time_horizon
-        down = intended[:, 2] if preferred is None else np.maximum(intended[:, 2], preferred[:, 2])
-        lo[:, 2] = np.maximum(lo[:, 2], np.minimum(down, -sink))
     if goals is not None and has_goal is not None and column > 0.0:
         e = goals - positions
         leg = has_goal & (np.hypot(e[:, 0], e[:, 1]) <= column) & (positions[:, 2] < floor_height)
@@ -328,20 +308,18 @@ def obstacles_beside(
     obstacle_centres: NDArray[np.float64],
     obstacle_halves: NDArray[np.float64],
     reach: float,
-    ground: bool = False,
 ) -> NDArray[np.bool_]:
-    """(n,) bool: agents with a static obstacle within ``reach`` m of their shape horizontally, not wholly above it.
+    """(n,) bool: agents with a static obstacle within ``reach`` m of their shape horizontally, not wholly above it,
+    or with the ground within ``reach`` m under it.
 
     The column rule's premise: a sideways dodge tilts the airframe (or swings its load) into a box or the
-    structure beside or under it. Each agent's shape is its union box (``centres`` offsets (n, 3) m from
-    ``positions``, ``halves`` (n, 3) m); obstacles are axis-aligned boxes (m, 3) / (m, 3) m. With ``ground``
-    (``GROUND_BESIDE``) an agent whose shape reaches within ``reach`` of the ground (z = 0) counts too: a
-    carrier whose box still rests on the ground must not be stepped sideways.
+    structure beside or under it, or drags a load still resting on the ground. Each agent's shape is its
+    union box (``centres`` offsets (n, 3) m from ``positions``, ``halves`` (n, 3) m); obstacles are
+    axis-aligned boxes (m, 3) / (m, 3) m; the ground is z = 0.
     """
-    n = len(positions)
     c = positions + centres
-    low = (c[:, 2] - halves[:, 2] < reach) if ground else np.zeros(n, dtype=np.bool_)
-    if len(obstacle_centres) == 0 or n == 0:
+    low = c[:, 2] - halves[:, 2] < reach
+    if len(obstacle_centres) == 0 or len(positions) == 0:
         return np.asarray(low)
     d = np.abs(c[:, None, :2] - obstacle_centres[None, :, :2])
     near = np.all(d < halves[:, None, :2] + obstacle_halves[None, :, :2] + reach, axis=2)
