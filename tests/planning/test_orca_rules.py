@@ -13,6 +13,7 @@ from pybullet_swarm.planning.base import Action, Command, CommandKind
 from pybullet_swarm.planning.orca import (
     FLAG_BIASED,
     FLAG_FREE,
+    FLAG_OBSTACLE,
     RULE_DOCS,
     OrcaLayer,
     OrcaParams,
@@ -321,22 +322,65 @@ def test_deadlock_resolution_biases_stalled_agents_and_only_when_on():
 
 
 # ----------------------------------------------------------------------------- rules in the layer
-def test_floor_and_column_rules_narrow_the_bounds_only_when_on():
+def test_column_rule_narrows_the_bounds_only_low_on_a_leg_and_when_on():
     pos = np.array([[0.0, 0.0, 0.3], [1.0, 0.0, 0.9]])  # 0 low, on a vertical leg; 1 high
     intended = np.array([[0.0, 0.0, -0.1], [0.1, 0.0, 0.0]])
     goals = pos + [[0.0, 0.0, -0.1], [0.1, 0.0, 0.0]]
     has_goal = np.ones(2, dtype=bool)
-    common = dict(floor_height=0.5, time_horizon=2.0, goals=goals, has_goal=has_goal)
+    common = dict(floor_height=0.5, goals=goals, has_goal=has_goal)
     lo, hi = velocity_bounds(pos, intended, VM, column=0.03, **common)
-    assert lo[0, 2] == pytest.approx(-0.1) and lo[1, 2] == pytest.approx(-0.15)  # 0.4 m over the floor / 2 s
     assert np.all(lo[0, :2] == 0.0) and np.all(hi[0, :2] == 0.0)  # 0 may not move sideways
-    lo, hi = velocity_bounds(pos, intended, VM, column=0.0, floor=False, **common)
+    np.testing.assert_array_equal(lo[:, 2], [-VM[2]] * 2)  # nothing vertical: the ground is an obstacle
+    np.testing.assert_array_equal(lo[1], -VM)
+    lo, hi = velocity_bounds(pos, intended, VM, column=0.0, **common)
     assert np.array_equal(lo, np.tile(-VM, (2, 1))) and np.array_equal(hi, np.tile(VM, (2, 1)))
-    # floor_preferred: 3 cm over its target, the preferred approach (-0.06 m/s) bounds the descent, not the
-    # shaped command (-0.1 m/s); above floor_height the preferred velocity changes nothing
-    pref = np.array([[0.0, 0.0, -0.06], [0.1, 0.0, -0.15]])
-    lo, _ = velocity_bounds(pos, intended, VM, column=0.0, preferred=pref, **common)
-    assert lo[0, 2] == pytest.approx(-0.06) and lo[1, 2] == pytest.approx(-0.15)
+
+
+def _over_ground(z: float, vz: float, *, goal_z: float | None = None, ground: bool = True):
+    """One box-shaped agent (HALF) at height z m, velocity and preference vz m/s straight down."""
+    pos = np.array([[0.0, 0.0, z]])
+    vel = np.array([[0.0, 0.0, vz]])
+    goal = pos + [0.0, 0.0, -1.0] if goal_z is None else np.array([[0.0, 0.0, goal_z]])
+    return orca_velocities(
+        pos,
+        vel,
+        vel,
+        params=OrcaParams(),
+        sensing_radius=2.0,
+        v_max=VM,
+        boxes=(np.zeros((1, 3)), HALF[None, :]),
+        goals=goal,
+        has_goal=np.ones(1, dtype=bool),
+        ground=ground,
+    )
+
+
+def test_the_ground_is_a_static_obstacle_avoided_over_the_obstacle_horizon():
+    """An agent whose airframe's bottom is 10 cm over the ground, sinking at the 0.15 m/s limit and asking to go
+    on: the ground's VO (the paper's static obstacle: the agent takes the whole u) lets it sink only as fast
+    as it closes the gap within the obstacle horizon, the gap less the margin and the lag growth (0.4 s x
+    its 0.15 m/s): (0.1 - 0.015 - 0.06) m / 1 s. Without the ground it sinks as asked; from 1.5 m up the
+    ground is out of reach and changes nothing. The ground sets no obstacle flag."""
+    p = OrcaParams()
+    z = 0.1 + HALF[2]
+    v, flags = _over_ground(z, -0.15)
+    limit = (0.1 - p.margin - p.lag_margin_s * 0.15) / p.obstacle_horizon
+    assert v[0, 2] == pytest.approx(-limit)
+    assert not flags[0] & FLAG_OBSTACLE
+    v, _ = _over_ground(z, -0.15, ground=False)
+    assert v[0, 2] == pytest.approx(-0.15)
+    v, _ = _over_ground(1.5, -0.15)
+    assert v[0, 2] == pytest.approx(-0.15)
+
+
+def test_a_target_on_the_ground_is_the_targets_own_and_a_sunk_agent_recovers_upwards():
+    """Placing on the ground (the airframe's bottom at its target rests on it): the ground is the target's own,
+    left out, and the agent descends as asked. An agent already 1 cm into the ground (a load pressed into
+    it) is moved up, however it wishes to sink."""
+    v, _ = _over_ground(0.05 + HALF[2], -0.15, goal_z=HALF[2])
+    assert v[0, 2] == pytest.approx(-0.15)
+    v, _ = _over_ground(HALF[2] - 0.01, -0.15)
+    assert v[0, 2] > 0.0
 
 
 def test_column_tick_lets_through_only_what_reaches_the_column_in_a_planner_tick():
@@ -349,7 +393,7 @@ def test_column_tick_lets_through_only_what_reaches_the_column_in_a_planner_tick
         np.array([int(CommandKind.POSITION)]), goals, pos, v_max=VM, a_max=np.ones(3), dt=1.0 / 48
     )
     assert intended[0, 0] == pytest.approx(np.sqrt(2 * 0.002), rel=1e-6)
-    common = dict(floor_height=0.5, time_horizon=2.0, goals=goals, has_goal=np.ones(1, dtype=bool), column=0.03)
+    common = dict(floor_height=0.5, goals=goals, has_goal=np.ones(1, dtype=bool), column=0.03)
     lo, hi = velocity_bounds(pos, intended, VM, **common)
     assert hi[0, 0] == pytest.approx(intended[0, 0]) and lo[0, 0] == 0.0
     lo, hi = velocity_bounds(pos, intended, VM, column_tick=0.1, **common)
@@ -374,7 +418,7 @@ def test_the_column_rule_holds_only_beside_an_obstacle():
     assert beside.tolist() == [True, True, False, False]
     assert not obstacles_beside(pos, centres, halves, np.zeros((0, 3)), np.zeros((0, 3)), 0.05).any()
     intended = np.tile([0.0, 0.0, 0.15], (4, 1))  # all climbing straight up from their targets
-    common = dict(floor_height=0.5, time_horizon=2.0, goals=pos + [0.0, 0.0, 0.2], has_goal=np.ones(4, dtype=bool))
+    common = dict(floor_height=0.5, goals=pos + [0.0, 0.0, 0.2], has_goal=np.ones(4, dtype=bool))
     lo, hi = velocity_bounds(pos, intended, VM, column=0.03, beside=beside, **common)
     held = np.all(lo[:, :2] == 0.0, axis=1) & np.all(hi[:, :2] == 0.0, axis=1)
     assert held.tolist() == [True, True, False, False]
@@ -432,11 +476,9 @@ def test_the_layer_reads_its_switches(monkeypatch: pytest.MonkeyPatch):
             )
             out = layer.filter(cmds, sim.perceive(), sim.task.view(sim.time))
             kw = seen["velocity_bounds"][1]
-            assert kw["floor"] is (off is not Rule.FLOOR_RULE)
             assert (kw["column"] > 0.0) is (off is not Rule.COLUMN_RULE)
             # the column rule's premise (column_reach) is tested against the static obstacles it knows
             assert (kw["beside"] is None) is (off is Rule.COLUMN_RULE)
-            assert kw["preferred"] is not None  # floor_preferred (on by default) hands the bounds the preferences
             assert kw["column_tick"] == layer.planner_dt  # column_tick (on by default): the planner's tick
             assert seen["reference"][0][2] is (off is not Rule.CLIPPED_REFERENCE)
             assert ("clear_paths" in seen) is (off is not Rule.PASSTHROUGH)  # agent 0 is 1 cm from its target
@@ -581,21 +623,19 @@ def test_pinned_share_gives_the_whole_way_out_to_the_agent_free_to_take_it(on: b
     np.testing.assert_allclose(outs["free"], base_free)  # free to move, both keep their halves
 
 
-@pytest.mark.parametrize("on", [True, False])
-def test_ground_beside_holds_a_carrier_whose_box_still_rests_on_the_ground(on: bool):
+def test_the_column_rule_counts_the_ground_under_a_carrier_whose_box_still_rests_on_it():
     """A carrier at its grasp height (its box, 10 cm under the airframe's centre, on the ground) with no box,
-    structure or obstacle beside it, and one 30 cm up: with ``ground_beside`` the first counts as beside
-    something, so the column rule holds it on its climb; the second never does."""
+    structure or obstacle beside it, and one 30 cm up: the first counts as beside something (the ground), so
+    the column rule holds it on its climb; the second does not."""
     pos = np.array([[1.0, 1.0, 0.121], [2.0, 1.0, 0.3]])
     box = np.array([0.05, 0.05, 0.05])
     centres = np.array([[0.0, 0.0, -0.045], [0.0, 0.0, -0.045]])  # union of airframe and hanging box
     halves = np.array([[0.075, 0.075, 0.075], [0.075, 0.075, 0.075]])
     far = np.array([[3.0, 3.0, 0.05]])
-    beside = obstacles_beside(pos, centres, halves, far, box[None, :], 0.05, on)
-    assert beside.tolist() == [on, False]
-    assert obstacles_beside(pos, centres, halves, np.zeros((0, 3)), np.zeros((0, 3)), 0.05, on).tolist() == [on, False]
-    params = OrcaParams(ground_beside=on)
-    assert params.ground_beside is on and (Rule.GROUND_BESIDE in params.rules) is on
+    assert obstacles_beside(pos, centres, halves, far, box[None, :], 0.05).tolist() == [True, False]
+    assert obstacles_beside(pos, centres, halves, np.zeros((0, 3)), np.zeros((0, 3)), 0.05).tolist() == [True, False]
+    near = np.array([[2.1, 1.0, 0.05]])  # a box beside the second, under its airframe's height
+    assert obstacles_beside(pos, centres, halves, near, box[None, :], 0.05).tolist() == [True, True]
 
 
 def test_gap_weighted_fallback_closes_on_the_nearest_neighbour_last():

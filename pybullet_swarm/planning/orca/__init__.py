@@ -29,15 +29,17 @@ stages of one planner tick, each a compiled function of ``kernel`` reading its o
    resolved by the agent moving into the conflict (``wake_share_by_approach``), on a collision course
    only (``wake_share_on_course``); ``pinned_share`` gives the whole way out to the agent free to
    move against a neighbour its bounds pin.
-4. Bounds (``rules.velocity_bounds``, six hard half-spaces first, never traded away): ``floor_rule``,
-   below ``floor_height`` avoidance never pushes an agent down; ``column_rule``, low on a vertical leg
-   within ``column_radius`` of its target an agent is only slowed or lifted where a box, the structure
-   or an obstacle lies within ``column_reach`` (``ground_beside``: or the ground).
+4. Bounds (``rules.velocity_bounds``, six hard half-spaces first, never traded away): ``column_rule``,
+   below ``floor_height`` on a vertical leg within ``column_radius`` of its target an agent is only
+   slowed or lifted where a box, the structure or an obstacle lies within ``column_reach`` beside it,
+   or the ground under it.
 5. Obstacles (``kernel.obstacle_planes``, the paper's, no switch): boxes, the structure and the arena's
    walls and pillars, as data (``planning.base.Obstacles``), each a VO the agent avoids alone, with
    ``obstacle_horizon``; an obstacle the agent's shape at its own POSITION/HOLD target touches (the
    box it grasps, the slot it fills) is left out (``goal_reach``; ``rules.own_target``), a test of
-   command and shapes only, so it serves any task.
+   command and shapes only, so it serves any task. The ground (z = 0) is one more such obstacle:
+   nothing pushes an agent into it, nor does it fly into it within the horizon, unless its target
+   rests on it.
 6. LP and fallback (``core.solve``): ``gap_weighted_fallback`` weighs each plane's violation by 1 /
    its pair's gap a lag later; ``margin_overlap`` recovers overlapping boxes along the axes on which
    the bare shapes are still apart.

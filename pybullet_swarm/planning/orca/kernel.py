@@ -1,7 +1,7 @@
 """One planner tick of ORCA for all agents: the paper's core composed with the switched-on rules, one compiled call.
 
-Per agent: the hard planes (velocity limits, narrowed by ``FLOOR_RULE`` and ``COLUMN_RULE``; then,
-one plane per static obstacle within reach (the paper's), of which the agent takes the
+Per agent: the hard planes (velocity limits, narrowed by ``COLUMN_RULE``; then,
+one plane per static obstacle within reach (the paper's; the ground is one), of which the agent takes the
 whole u, as the paper's agents do with obstacles: never traded away by the fallback LP unless the
 agent already overlaps the obstacle), one ORCA plane per neighbour (``core``; shapes grown by
 ``LAG_MARGIN``, the shares moved by the wake rules),
