@@ -86,8 +86,10 @@ class ConstructionTask(pydantic.BaseModel):
     settle_speed: float = Field(0.01, gt=0.0, le=10.0)  # m/s, "still" below this
     search_height: float = Field(0.45, gt=0.0, le=100.0)  # m, cruise altitude of the planners
     grip_force: float = Field(2.0, gt=0.0, le=1000.0)  # N, a harder pull on a held box makes it slip
-    # the grip squares a held box to the airframe (nearest quarter turn), as a square jaw would: a
-    # box knocked askew is placed straight again (false: held as it was grasped)
+    # the grip squares a held box to the airframe (nearest quarter turn) and centres it under it, as a
+    # self-centring square jaw would: a box knocked askew is placed straight again, and one grasped off
+    # its grasp point hangs on the airframe's axis, where its pull (weight and wake drag) twists nothing
+    # (false: held as it was grasped)
     square_grip: bool = True
     view_radius: float | None = Field(None, gt=0.0, le=100.0)  # m (default: 2 x agent radius)
     # distance in which the view radius is measured: "chebyshev" (the largest per-axis difference, a

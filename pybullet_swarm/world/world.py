@@ -573,9 +573,10 @@ class World:
         """Hold ``child`` rigidly to ``parent`` at their current relative pose; returns a handle.
 
         ``max_force`` (N) is the grip: a harder pull (a collision) makes the held body slip. With
-        ``square`` the child (a cube) is held at the quarter-turn orientation nearest to its own
-        relative to the parent, its faces parallel to the parent's axes, as a square jaw grips it:
-        the grip turns it there.
+        ``square`` the child (a cube) is held as a self-centring square jaw grips it: at the
+        quarter-turn orientation nearest to its own relative to the parent, its faces parallel to the
+        parent's axes, and centred on the parent's vertical (body z) axis at the depth it was gripped;
+        the grip turns and slides it there.
         """
         cid = self._cid
         self.wake(child)
@@ -585,6 +586,7 @@ class World:
         rel_p, rel_o = pb.multiplyTransforms(ip, io, cp, co)
         if square:
             rel_o = _nearest_quarter_turn(rel_o)
+            rel_p = (0.0, 0.0, rel_p[2])
         c = pb.createConstraint(
             parent,
             -1,

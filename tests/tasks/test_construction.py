@@ -201,6 +201,49 @@ def test_grip_squares_a_box_knocked_askew(make_sim, square):
         assert np.degrees(box_yaw[0]) == pytest.approx(14.0, abs=1.0)
 
 
+def _lift_off_centre(make_sim, square):
+    """Agent 0 grasps box 4 1.5 cm off its grasp point and lifts it to 0.45 m; returns the box's
+    distance from the airframe's vertical axis (m) and the most the airframe tilted (deg)."""
+    from pybullet_swarm.control.rotations import quat_to_matrix
+
+    sc = load_scenario("construction_single", {"agents.start_jitter": 0.0, "task.square_grip": square})
+    sim = make_sim(sc)
+    c = sim.task
+    body = sim.world.agent_bodies[0]
+    box = 4
+    grasp = c.grasp_points()[box]
+    off = grasp + np.array([0.0, 0.015, 0.0])
+    _hover_to(sim, [off[0], off[1], 0.45], 12)
+    _hover_to(sim, off, 6)
+    assert c.grasp(0, body, sim.state.positions[0], sim.time) == box
+    sim.controller.set_payload(0, c.spec.box_mass + sim.own_wake_load(c.spec.box_mass))
+    sim.step(int(0.5 * sim.physics_hz))  # the grip slides the box under the airframe
+    sim.set_targets(np.array([[off[0], off[1], 0.45]]))
+    tilt = 0.0  # deg, the most the airframe tilts while it lifts the box
+    for _ in range(40):
+        sim.step(int(0.05 * sim.physics_hz))
+        tilt = max(tilt, float(np.degrees(np.arccos(quat_to_matrix(sim.state.quaternions[0])[2, 2]))))
+    c.read()
+    rot = quat_to_matrix(sim.state.quaternions[0])
+    rel = rot.T @ (c.positions[box] - sim.state.positions[0])  # the box's centre in the airframe's frame
+    return float(np.hypot(rel[0], rel[1])), tilt
+
+
+def test_grip_centres_a_box_grasped_off_centre(make_sim):
+    """Grasped 1.5 cm off its grasp point (inside the 2 cm threshold), a box is held on the
+    airframe's vertical axis by the square grip (a self-centring jaw), and where it was without it.
+    Off the axis the load (0.67 N at hover: its weight, 0.1 N, and its carrier's wake on it) twists the
+    airframe until the attitude loop's integral answers: measured, up to 20 deg of tilt while
+    lifting, against 1 deg centred."""
+    off_c, tilt_c = _lift_off_centre(make_sim, True)
+    off_o, tilt_o = _lift_off_centre(make_sim, False)
+    print(f"centred: {100 * off_c:.2f} cm, {tilt_c:.2f} deg; as grasped: {100 * off_o:.2f} cm, {tilt_o:.2f} deg")
+    assert off_c < 0.002
+    assert off_o == pytest.approx(0.015, abs=0.003)
+    assert tilt_c < 3.0
+    assert tilt_o > 5.0 * tilt_c
+
+
 def _carry(sim, box, point, seconds=2.0):
     """Agent 0 grasps ``box`` and holds it with its centre at ``point`` (teleported there, then flown)."""
     c = sim.task
