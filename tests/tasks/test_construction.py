@@ -17,17 +17,22 @@ def _hover_to(sim, target, seconds):
     sim.step(int(seconds * sim.physics_hz))
 
 
+def _fly_down_and_grasp(sim, box, point):
+    """Agent 0 flies over ``point`` at 0.45 m, down to it, grasps ``box`` and takes on its load."""
+    c = sim.task
+    _hover_to(sim, [point[0], point[1], 0.45], 12)
+    _hover_to(sim, point, 6)
+    assert c.grasp(0, sim.world.agent_bodies[0], sim.state.positions[0], sim.time) == box
+    sim.controller.set_payload(0, c.spec.box_mass + sim.own_wake_load(c.spec.box_mass))
+
+
 def test_carried_box_follows_and_released_box_settles_in_its_slot(make_sim):
     sim = make_sim(load_scenario("construction_single", {"agents.start_jitter": 0.0}))
     c = sim.task
-    body = sim.world.agent_bodies[0]
     box = 4
     grasp = c.grasp_points()[box]
-    _hover_to(sim, [grasp[0], grasp[1], 0.45], 12)
-    _hover_to(sim, grasp, 6)
+    _fly_down_and_grasp(sim, box, grasp)
     assert np.linalg.norm(sim.state.positions[0] - grasp) < c.spec.attach_threshold
-    assert c.grasp(0, body, sim.state.positions[0], sim.time) == box
-    sim.controller.set_payload(0, c.spec.box_mass + sim.own_wake_load(c.spec.box_mass))
     assert c.state[box] == CARRIED
     _hover_to(sim, [grasp[0], grasp[1], 0.45], 5)
     c.read()
@@ -39,7 +44,7 @@ def test_carried_box_follows_and_released_box_settles_in_its_slot(make_sim):
     _hover_to(sim, above, 20)
     drop = slot + [0.0, 0.0, 0.004] - lifted
     _hover_to(sim, drop, 6)
-    assert c.release(0, body, sim.time) == box
+    assert c.release(0, sim.world.agent_bodies[0], sim.time) == box
     sim.controller.set_payload(0, 0.0)
     _hover_to(sim, above, 3)
     c.update(sim.time)
@@ -180,16 +185,12 @@ def test_grip_squares_a_box_knocked_askew(make_sim, square):
     sc = load_scenario("construction_single", {"agents.start_jitter": 0.0, "task.square_grip": square})
     sim = make_sim(sc)
     c = sim.task
-    body = sim.world.agent_bodies[0]
     box = 4
     yaw = np.radians(14.0)  # beyond the 10 deg place tolerance
     sim.world.reset_body(c.bodies[box], c.positions[box], [0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
     c.read()
     grasp = c.grasp_points()[box]
-    _hover_to(sim, [grasp[0], grasp[1], 0.45], 12)
-    _hover_to(sim, grasp, 6)
-    assert c.grasp(0, body, sim.state.positions[0], sim.time) == box
-    sim.controller.set_payload(0, c.spec.box_mass + sim.own_wake_load(c.spec.box_mass))
+    _fly_down_and_grasp(sim, box, grasp)
     _hover_to(sim, [grasp[0], grasp[1], 0.45], 4)
     c.read()
     _, box_yaw = _box_tilt_and_yaw_error(c.quaternions[box : box + 1])
@@ -209,14 +210,9 @@ def _lift_off_centre(make_sim, square):
     sc = load_scenario("construction_single", {"agents.start_jitter": 0.0, "task.square_grip": square})
     sim = make_sim(sc)
     c = sim.task
-    body = sim.world.agent_bodies[0]
     box = 4
-    grasp = c.grasp_points()[box]
-    off = grasp + np.array([0.0, 0.015, 0.0])
-    _hover_to(sim, [off[0], off[1], 0.45], 12)
-    _hover_to(sim, off, 6)
-    assert c.grasp(0, body, sim.state.positions[0], sim.time) == box
-    sim.controller.set_payload(0, c.spec.box_mass + sim.own_wake_load(c.spec.box_mass))
+    off = c.grasp_points()[box] + np.array([0.0, 0.015, 0.0])
+    _fly_down_and_grasp(sim, box, off)
     sim.step(int(0.5 * sim.physics_hz))  # the grip slides the box under the airframe
     sim.set_targets(np.array([[off[0], off[1], 0.45]]))
     tilt = 0.0  # deg, the most the airframe tilts while it lifts the box
